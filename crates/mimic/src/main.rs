@@ -1,0 +1,46 @@
+//! `mimic`: replay tracked faces onto target heads. One file per subcommand under `cmd/`.
+
+mod cmd;
+
+use clap::{Parser, Subcommand};
+use std::process::ExitCode;
+
+/// Performance-capture retargeting: drive a target head mesh with a tracked face.
+#[derive(Parser, Debug)]
+#[command(name = "mimic", version, about, long_about = None)]
+struct Cli {
+    /// Log filter (tracing syntax), e.g. `info` or `mimic=debug`; RUST_LOG works too.
+    #[arg(long, global = true, default_value = "warn")]
+    log: String,
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Validate a recording, layout or rig and print a summary.
+    Info(cmd::info::Args),
+    /// Convert another tracker's file into a v1 recording.
+    #[command(subcommand)]
+    Import(cmd::import::ImportCommand),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let filter = std::env::var("RUST_LOG").unwrap_or_else(|_| cli.log.clone());
+    tracing_subscriber::fmt()
+        .with_env_filter(tracing_subscriber::EnvFilter::new(filter))
+        .with_writer(std::io::stderr)
+        .init();
+    let result = match cli.command {
+        Command::Info(a) => cmd::info::run(a),
+        Command::Import(c) => cmd::import::run(c),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}

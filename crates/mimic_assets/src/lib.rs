@@ -1,0 +1,1 @@
+//! Files for mimic: OBJ meshes, layouts and rigs.

@@ -1,0 +1,187 @@
+//! Landmark layouts: what each tracked point is, and which points make the MPEG-4 controls.
+
+use crate::{Fdp, LandmarkFrame, Region};
+use glam::Vec3;
+use serde::{Deserialize, Serialize};
+
+/// A tracker's landmark layout and its mapping to the MPEG-4 control points.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct Layout {
+    /// Short name, e.g. `kinect121`.
+    pub name: String,
+    /// What the layout is and where it comes from.
+    #[serde(default)]
+    pub description: String,
+    /// Number of points in a frame of this layout.
+    pub point_count: usize,
+    /// The control points, each an FDP made from one point or the mean of several.
+    pub controls: Vec<LayoutControl>,
+    /// Points that barely move with expression, used to remove rigid head motion.
+    pub stable: Vec<usize>,
+    /// Points whose meaning no documentation gives.
+    #[serde(default)]
+    pub undocumented: Vec<usize>,
+    /// Optional names of the points, by index.
+    #[serde(default)]
+    pub point_names: Vec<String>,
+}
+
+/// One MPEG-4 control point of a layout.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct LayoutControl {
+    /// The feature point, e.g. `8.3`.
+    pub fdp: Fdp,
+    /// Layout point indices whose mean is the control's position.
+    pub points: Vec<usize>,
+    /// Region whose solve this control drives.
+    pub region: Region,
+    /// Why these points were chosen.
+    #[serde(default)]
+    pub note: String,
+}
+
+/// A layout that does not hold together.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LayoutError {
+    /// A control maps to a point the layout does not have.
+    #[error("control {fdp} maps to point {point}, but layout `{layout}` has {point_count} points")]
+    ControlPointOutOfRange {
+        /// Layout name.
+        layout: String,
+        /// Offending control.
+        fdp: Fdp,
+        /// Offending point index.
+        point: usize,
+        /// Points in the layout.
+        point_count: usize,
+    },
+    /// A control maps to no point at all.
+    #[error("control {fdp} of layout `{layout}` names no points")]
+    ControlWithoutPoints {
+        /// Layout name.
+        layout: String,
+        /// Offending control.
+        fdp: Fdp,
+    },
+    /// Two controls name the same FDP.
+    #[error("control {fdp} appears twice in layout `{layout}`")]
+    DuplicateControl {
+        /// Layout name.
+        layout: String,
+        /// Duplicated control.
+        fdp: Fdp,
+    },
+    /// A stable point is out of range.
+    #[error("stable point {point} is out of range: layout `{layout}` has {point_count} points")]
+    StablePointOutOfRange {
+        /// Layout name.
+        layout: String,
+        /// Offending point.
+        point: usize,
+        /// Points in the layout.
+        point_count: usize,
+    },
+    /// Fewer than three stable points: head motion cannot be removed.
+    #[error("layout `{layout}` has {count} stable points; removing head motion needs at least 3")]
+    TooFewStablePoints {
+        /// Layout name.
+        layout: String,
+        /// Stable points given.
+        count: usize,
+    },
+}
+
+impl Layout {
+    /// Checks every index against `point_count`, and that controls are unique and non-empty.
+    pub fn validate(&self) -> Result<(), LayoutError> {
+        let mut seen = std::collections::HashSet::new();
+        for c in &self.controls {
+            if !seen.insert(c.fdp) {
+                return Err(LayoutError::DuplicateControl { layout: self.name.clone(), fdp: c.fdp });
+            }
+            if c.points.is_empty() {
+                return Err(LayoutError::ControlWithoutPoints { layout: self.name.clone(), fdp: c.fdp });
+            }
+            if let Some(&p) = c.points.iter().find(|&&p| p >= self.point_count) {
+                return Err(LayoutError::ControlPointOutOfRange {
+                    layout: self.name.clone(),
+                    fdp: c.fdp,
+                    point: p,
+                    point_count: self.point_count,
+                });
+            }
+        }
+        if let Some(&p) = self.stable.iter().find(|&&p| p >= self.point_count) {
+            return Err(LayoutError::StablePointOutOfRange {
+                layout: self.name.clone(),
+                point: p,
+                point_count: self.point_count,
+            });
+        }
+        if self.stable.len() < 3 {
+            return Err(LayoutError::TooFewStablePoints {
+                layout: self.name.clone(),
+                count: self.stable.len(),
+            });
+        }
+        Ok(())
+    }
+
+    /// Index of the control with this FDP.
+    pub fn control_index(&self, fdp: Fdp) -> Option<usize> {
+        self.controls.iter().position(|c| c.fdp == fdp)
+    }
+
+    /// Position of control `c` in `frame`: the mean of its valid points, `None` if none is valid.
+    pub fn control_position(&self, c: usize, frame: &LandmarkFrame) -> Option<Vec3> {
+        let control = self.controls.get(c)?;
+        let (sum, count) = control
+            .points
+            .iter()
+            .filter(|&&p| frame.is_valid(p))
+            .fold((Vec3::ZERO, 0u32), |(s, n), &p| (s + frame.points[p], n + 1));
+        (count > 0).then(|| sum / count as f32)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn layout() -> Layout {
+        Layout {
+            name: "t".into(),
+            description: String::new(),
+            point_count: 4,
+            controls: vec![LayoutControl {
+                fdp: "8.3".parse().unwrap(),
+                points: vec![1, 2],
+                region: Region::Bottom,
+                note: String::new(),
+            }],
+            stable: vec![0, 1, 3],
+            undocumented: vec![],
+            point_names: vec![],
+        }
+    }
+
+    #[test]
+    fn control_is_mean_of_valid_points() {
+        let l = layout();
+        l.validate().unwrap();
+        let mut f = LandmarkFrame::new(0, vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z]);
+        assert_eq!(l.control_position(0, &f), Some(Vec3::new(0.5, 0.5, 0.0)));
+        f.valid[2] = false;
+        assert_eq!(l.control_position(0, &f), Some(Vec3::X));
+        f.points[1] = Vec3::NAN;
+        assert_eq!(l.control_position(0, &f), None);
+    }
+
+    #[test]
+    fn out_of_range_control_names_the_control() {
+        let mut l = layout();
+        l.controls[0].points.push(7);
+        let e = l.validate().unwrap_err();
+        assert!(e.to_string().contains("control 8.3 maps to point 7"), "{e}");
+    }
+}

@@ -1,0 +1,24 @@
+//! Value types shared by every mimic crate.
+//!
+//! Entry types: [`LandmarkFrame`], [`Layout`], [`Mesh`], [`Rig`], [`HeadPose`], [`Fdp`], [`Region`].
+//! This crate does no I/O and depends on nothing but glam, serde and thiserror; loading these
+//! values from files is `mimic_assets`' job, producing frames is `mimic_capture`'s.
+
+pub mod fdp;
+pub mod frame;
+pub mod layout;
+pub mod mesh;
+pub mod pose;
+pub mod region;
+pub mod rig;
+
+pub use fdp::{Fdp, FdpError};
+pub use frame::LandmarkFrame;
+pub use layout::{Layout, LayoutControl, LayoutError};
+pub use mesh::{Mesh, MeshError};
+pub use pose::HeadPose;
+pub use region::{Region, RegionBands};
+pub use rig::{Rig, RigControl, RigError, SolverKind, SolverSettings, LaplacianWeights, RbfKernel};
+
+/// Nominal number of MPEG-4 control points mimic drives a face with.
+pub const NOMINAL_CONTROL_COUNT: usize = 38;

@@ -1,0 +1,61 @@
+//! Rigid head pose.
+
+use glam::{Mat4, Quat, Vec3};
+use serde::{Deserialize, Serialize};
+
+/// Rigid head motion of a frame relative to the neutral: `x_frame = scale * rotation * x_neutral + translation`.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct HeadPose {
+    /// Rotation from the neutral head to this frame's head.
+    pub rotation: Quat,
+    /// Translation, in the source's units.
+    pub translation: Vec3,
+    /// Uniform scale (1 for a rigid fit).
+    pub scale: f32,
+}
+
+impl Default for HeadPose {
+    fn default() -> Self {
+        Self::IDENTITY
+    }
+}
+
+impl HeadPose {
+    /// No motion.
+    pub const IDENTITY: HeadPose =
+        HeadPose { rotation: Quat::IDENTITY, translation: Vec3::ZERO, scale: 1.0 };
+
+    /// Maps a neutral-space point into this frame.
+    pub fn apply(&self, p: Vec3) -> Vec3 {
+        self.rotation * (p * self.scale) + self.translation
+    }
+
+    /// Maps a point of this frame back into neutral space.
+    pub fn inverse_apply(&self, p: Vec3) -> Vec3 {
+        (self.rotation.inverse() * (p - self.translation)) / self.scale
+    }
+
+    /// The pose as a 4x4 matrix.
+    pub fn to_mat4(&self) -> Mat4 {
+        Mat4::from_scale_rotation_translation(Vec3::splat(self.scale), self.rotation, self.translation)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn inverse_undoes_apply() {
+        let pose = HeadPose {
+            rotation: Quat::from_euler(glam::EulerRot::XYZ, 0.2, -0.4, 0.1),
+            translation: Vec3::new(1.0, -2.0, 3.0),
+            scale: 1.5,
+        };
+        let p = Vec3::new(0.3, 0.7, -1.1);
+        let q = pose.inverse_apply(pose.apply(p));
+        // f32 round trip: a few ulps of |p| and |t|.
+        assert!((q - p).length() < 1e-5, "{q} vs {p}");
+        assert!((pose.to_mat4().transform_point3(p) - pose.apply(p)).length() < 1e-5);
+    }
+}

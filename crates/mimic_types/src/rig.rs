@@ -1,0 +1,183 @@
+//! Target rigs: a mesh, its control vertices, regions, frozen vertices and solver settings.
+
+use crate::{Fdp, Mesh, Region, RegionBands};
+use serde::{Deserialize, Serialize};
+
+/// A target head ready to be deformed.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Rig {
+    /// Short name, e.g. `ict-face`.
+    pub name: String,
+    /// Length unit of the mesh, e.g. `cm`.
+    pub units: String,
+    /// Rest mesh.
+    pub mesh: Mesh,
+    /// Control vertices, one per driven FDP.
+    pub controls: Vec<RigControl>,
+    /// How vertices are split into regions.
+    pub regions: RegionBands,
+    /// Per-vertex flag: true for vertices that never move (back of the head, teeth, ...).
+    pub frozen: Vec<bool>,
+    /// Default solver settings.
+    pub solver: SolverSettings,
+}
+
+/// One control point of a rig.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct RigControl {
+    /// The feature point.
+    pub fdp: Fdp,
+    /// Mesh vertex that carries it.
+    pub vertex: u32,
+    /// Region whose solve it drives.
+    pub region: Region,
+}
+
+/// A rig that does not hold together.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RigError {
+    /// A control vertex index is outside the mesh.
+    #[error("control {fdp} uses vertex {vertex}, but the mesh has {vertex_count} vertices")]
+    ControlVertexOutOfRange {
+        /// Offending control.
+        fdp: Fdp,
+        /// Offending vertex.
+        vertex: u32,
+        /// Vertices in the mesh.
+        vertex_count: usize,
+    },
+    /// Two controls share an FDP.
+    #[error("control {0} appears twice")]
+    DuplicateControl(Fdp),
+    /// A control vertex is frozen, so it could never follow its control.
+    #[error("control {fdp} uses vertex {vertex}, which is frozen")]
+    FrozenControl {
+        /// Offending control.
+        fdp: Fdp,
+        /// Offending vertex.
+        vertex: u32,
+    },
+    /// The frozen mask does not match the mesh.
+    #[error("frozen mask has {got} entries for {vertex_count} vertices")]
+    FrozenMaskLength {
+        /// Entries given.
+        got: usize,
+        /// Vertices in the mesh.
+        vertex_count: usize,
+    },
+    /// The mesh itself is broken.
+    #[error(transparent)]
+    Mesh(#[from] crate::MeshError),
+}
+
+impl Rig {
+    /// Checks controls, mask and mesh.
+    pub fn validate(&self) -> Result<(), RigError> {
+        self.mesh.validate()?;
+        let n = self.mesh.vertex_count();
+        if self.frozen.len() != n {
+            return Err(RigError::FrozenMaskLength { got: self.frozen.len(), vertex_count: n });
+        }
+        let mut seen = std::collections::HashSet::new();
+        for c in &self.controls {
+            if !seen.insert(c.fdp) {
+                return Err(RigError::DuplicateControl(c.fdp));
+            }
+            if c.vertex as usize >= n {
+                return Err(RigError::ControlVertexOutOfRange {
+                    fdp: c.fdp,
+                    vertex: c.vertex,
+                    vertex_count: n,
+                });
+            }
+            if self.frozen[c.vertex as usize] {
+                return Err(RigError::FrozenControl { fdp: c.fdp, vertex: c.vertex });
+            }
+        }
+        Ok(())
+    }
+
+    /// Rest positions of the control vertices, in control order.
+    pub fn control_positions(&self) -> Vec<glam::Vec3> {
+        self.controls.iter().map(|c| self.mesh.positions[c.vertex as usize]).collect()
+    }
+}
+
+/// Which deformation solver builds the basis.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "lowercase")]
+pub enum SolverKind {
+    /// Radial basis functions.
+    #[default]
+    Rbf,
+    /// Laplacian surface editing with soft control constraints.
+    Laplacian,
+}
+
+/// Radial kernel of the RBF solver; `r` is a distance in rig units.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum RbfKernel {
+    /// `exp(-r / radius)`, the source method's kernel (radius 64 there, in millimetres).
+    Exponential {
+        /// Decay length in rig units.
+        radius: f64,
+    },
+    /// `exp(-(r / radius)^2)`.
+    Gaussian {
+        /// Width in rig units.
+        radius: f64,
+    },
+    /// `r^2 log r` (needs the affine term to be well posed).
+    ThinPlate,
+}
+
+impl Default for RbfKernel {
+    fn default() -> Self {
+        RbfKernel::Exponential { radius: 64.0 }
+    }
+}
+
+/// Edge weights of the Laplacian solver.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum LaplacianWeights {
+    /// Every neighbour weighs the same.
+    Uniform,
+    /// Mean-value (convex) weights `(tan(a/2) + tan(b/2)) / |vi - vj|`.
+    #[default]
+    MeanValue,
+    /// Cotangent weights.
+    Cotangent,
+}
+
+/// Solver settings a rig ships with; the command line may override them.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SolverSettings {
+    /// Which solver.
+    pub kind: SolverKind,
+    /// RBF kernel.
+    pub kernel: RbfKernel,
+    /// Whether the RBF adds an affine term.
+    pub affine: bool,
+    /// Laplacian edge weights.
+    pub weights: LaplacianWeights,
+    /// Weight of the soft control constraints of the Laplacian solve.
+    pub constraint_weight: f64,
+    /// Solve top / middle / bottom separately and blend them.
+    pub regions: bool,
+}
+
+impl Default for SolverSettings {
+    fn default() -> Self {
+        Self {
+            kind: SolverKind::Rbf,
+            kernel: RbfKernel::default(),
+            affine: false,
+            weights: LaplacianWeights::MeanValue,
+            constraint_weight: 10.0,
+            regions: true,
+        }
+    }
+}
