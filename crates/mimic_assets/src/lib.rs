@@ -1,1 +1,16 @@
-//! Files for mimic: OBJ meshes, layouts and rigs.
+//! Files for mimic: OBJ meshes (through tobj), landmark layouts and target rigs from `configs/`.
+//!
+//! Entry points: [`load_obj`], [`write_obj`], [`load_layout`], [`load_rig`], [`ConfigDirs`].
+//! Every error is an [`AssetError`] that names the file and, where the problem sits on a line,
+//! that line. This crate knows nothing of recordings (that is `mimic_capture`) or solvers.
+
+mod error;
+mod layout;
+mod obj;
+mod rig;
+mod span;
+
+pub use error::AssetError;
+pub use layout::{ConfigDirs, load_layout};
+pub use obj::{load_obj, write_obj};
+pub use rig::{RigFile, load_rig};

@@ -169,8 +169,14 @@ mod tests {
     fn rejects_bad_names() {
         assert!(matches!("8".parse::<Fdp>(), Err(FdpError::Syntax(_))));
         assert!(matches!("8.x".parse::<Fdp>(), Err(FdpError::Syntax(_))));
-        assert!(matches!("8.11".parse::<Fdp>(), Err(FdpError::OutOfRange(..))));
-        assert!(matches!("4.0".parse::<Fdp>(), Err(FdpError::OutOfRange(..))));
+        assert!(matches!(
+            "8.11".parse::<Fdp>(),
+            Err(FdpError::OutOfRange(..))
+        ));
+        assert!(matches!(
+            "4.0".parse::<Fdp>(),
+            Err(FdpError::OutOfRange(..))
+        ));
         assert!(matches!("1.1".parse::<Fdp>(), Err(FdpError::Group(..))));
         assert!(matches!("12.1".parse::<Fdp>(), Err(FdpError::Group(..))));
     }

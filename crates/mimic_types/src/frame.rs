@@ -20,7 +20,12 @@ impl LandmarkFrame {
     /// A tracked frame whose points are all valid.
     pub fn new(timestamp_us: i64, points: Vec<Vec3>) -> Self {
         let valid = vec![true; points.len()];
-        Self { timestamp_us, points, valid, tracked: true }
+        Self {
+            timestamp_us,
+            points,
+            valid,
+            tracked: true,
+        }
     }
 
     /// Number of points.

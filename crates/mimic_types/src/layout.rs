@@ -97,10 +97,16 @@ impl Layout {
         let mut seen = std::collections::HashSet::new();
         for c in &self.controls {
             if !seen.insert(c.fdp) {
-                return Err(LayoutError::DuplicateControl { layout: self.name.clone(), fdp: c.fdp });
+                return Err(LayoutError::DuplicateControl {
+                    layout: self.name.clone(),
+                    fdp: c.fdp,
+                });
             }
             if c.points.is_empty() {
-                return Err(LayoutError::ControlWithoutPoints { layout: self.name.clone(), fdp: c.fdp });
+                return Err(LayoutError::ControlWithoutPoints {
+                    layout: self.name.clone(),
+                    fdp: c.fdp,
+                });
             }
             if let Some(&p) = c.points.iter().find(|&&p| p >= self.point_count) {
                 return Err(LayoutError::ControlPointOutOfRange {
@@ -139,7 +145,9 @@ impl Layout {
             .points
             .iter()
             .filter(|&&p| frame.is_valid(p))
-            .fold((Vec3::ZERO, 0u32), |(s, n), &p| (s + frame.points[p], n + 1));
+            .fold((Vec3::ZERO, 0u32), |(s, n), &p| {
+                (s + frame.points[p], n + 1)
+            });
         (count > 0).then(|| sum / count as f32)
     }
 }

@@ -54,7 +54,11 @@ impl Mesh {
         for (t, tri) in self.triangles.iter().enumerate() {
             for &v in tri {
                 if v as usize >= n {
-                    return Err(MeshError::IndexOutOfRange { triangle: t, vertex: v, vertex_count: n });
+                    return Err(MeshError::IndexOutOfRange {
+                        triangle: t,
+                        vertex: v,
+                        vertex_count: n,
+                    });
                 }
             }
         }
@@ -64,7 +68,11 @@ impl Mesh {
     /// Axis-aligned bounding box `(min, max)`; `None` for an empty mesh.
     pub fn bounds(&self) -> Option<(Vec3, Vec3)> {
         let first = *self.positions.first()?;
-        Some(self.positions.iter().fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))))
+        Some(
+            self.positions
+                .iter()
+                .fold((first, first), |(lo, hi), p| (lo.min(*p), hi.max(*p))),
+        )
     }
 
     /// Undirected edges `(a, b)` with `a < b`, each once, sorted.
@@ -107,7 +115,11 @@ mod tests {
         m.triangles.push([0, 1, 9]);
         assert_eq!(
             m.validate(),
-            Err(MeshError::IndexOutOfRange { triangle: 2, vertex: 9, vertex_count: 4 })
+            Err(MeshError::IndexOutOfRange {
+                triangle: 2,
+                vertex: 9,
+                vertex_count: 4
+            })
         );
         let mut m = quad();
         m.positions[2].x = f32::NAN;

@@ -22,8 +22,11 @@ impl Default for HeadPose {
 
 impl HeadPose {
     /// No motion.
-    pub const IDENTITY: HeadPose =
-        HeadPose { rotation: Quat::IDENTITY, translation: Vec3::ZERO, scale: 1.0 };
+    pub const IDENTITY: HeadPose = HeadPose {
+        rotation: Quat::IDENTITY,
+        translation: Vec3::ZERO,
+        scale: 1.0,
+    };
 
     /// Maps a neutral-space point into this frame.
     pub fn apply(&self, p: Vec3) -> Vec3 {
@@ -37,7 +40,11 @@ impl HeadPose {
 
     /// The pose as a 4x4 matrix.
     pub fn to_mat4(&self) -> Mat4 {
-        Mat4::from_scale_rotation_translation(Vec3::splat(self.scale), self.rotation, self.translation)
+        Mat4::from_scale_rotation_translation(
+            Vec3::splat(self.scale),
+            self.rotation,
+            self.translation,
+        )
     }
 }
 

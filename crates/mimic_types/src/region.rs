@@ -98,7 +98,11 @@ mod tests {
 
     #[test]
     fn weights_partition_unity_and_ramp() {
-        let b = RegionBands { top_from: 2.0, bottom_below: -2.0, band: 1.0 };
+        let b = RegionBands {
+            top_from: 2.0,
+            bottom_below: -2.0,
+            band: 1.0,
+        };
         for i in -100..100 {
             let y = i as f32 * 0.05;
             let w = b.weights(y);
@@ -116,7 +120,11 @@ mod tests {
 
     #[test]
     fn hard_borders_with_zero_band() {
-        let b = RegionBands { top_from: 1.0, bottom_below: 0.0, band: 0.0 };
+        let b = RegionBands {
+            top_from: 1.0,
+            bottom_below: 0.0,
+            band: 0.0,
+        };
         assert_eq!(b.weights(1.0), [1.0, 0.0, 0.0]);
         assert_eq!(b.weights(0.5), [0.0, 1.0, 0.0]);
         assert_eq!(b.weights(-0.1), [0.0, 0.0, 1.0]);

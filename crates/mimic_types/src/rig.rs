@@ -76,7 +76,10 @@ impl Rig {
         self.mesh.validate()?;
         let n = self.mesh.vertex_count();
         if self.frozen.len() != n {
-            return Err(RigError::FrozenMaskLength { got: self.frozen.len(), vertex_count: n });
+            return Err(RigError::FrozenMaskLength {
+                got: self.frozen.len(),
+                vertex_count: n,
+            });
         }
         let mut seen = std::collections::HashSet::new();
         for c in &self.controls {
@@ -91,7 +94,10 @@ impl Rig {
                 });
             }
             if self.frozen[c.vertex as usize] {
-                return Err(RigError::FrozenControl { fdp: c.fdp, vertex: c.vertex });
+                return Err(RigError::FrozenControl {
+                    fdp: c.fdp,
+                    vertex: c.vertex,
+                });
             }
         }
         Ok(())
@@ -99,7 +105,10 @@ impl Rig {
 
     /// Rest positions of the control vertices, in control order.
     pub fn control_positions(&self) -> Vec<glam::Vec3> {
-        self.controls.iter().map(|c| self.mesh.positions[c.vertex as usize]).collect()
+        self.controls
+            .iter()
+            .map(|c| self.mesh.positions[c.vertex as usize])
+            .collect()
     }
 }
 

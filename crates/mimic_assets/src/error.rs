@@ -1,0 +1,82 @@
+//! The one error type of this crate: what went wrong, in which file, on which line.
+
+use std::path::PathBuf;
+
+/// A file that could not be read or does not hold together.
+#[derive(Debug, thiserror::Error)]
+pub enum AssetError {
+    /// The file could not be opened or read.
+    #[error("{}: {source}", path.display())]
+    Io {
+        /// The file.
+        path: PathBuf,
+        /// What the OS said.
+        source: std::io::Error,
+    },
+    /// A TOML file that does not parse or lacks a field.
+    #[error("{}:{line}: {message}", path.display())]
+    Toml {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the problem.
+        line: usize,
+        /// What was wrong.
+        message: String,
+    },
+    /// An OBJ file with a bad line.
+    #[error("{}:{line}: {message}", path.display())]
+    Obj {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the problem (0 when tobj reports no line).
+        line: usize,
+        /// What was wrong.
+        message: String,
+    },
+    /// A layout whose controls or stable points do not fit its points.
+    #[error("{}:{line}: {source}", path.display())]
+    Layout {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the offending entry.
+        line: usize,
+        /// What was wrong.
+        source: mimic_types::LayoutError,
+    },
+    /// A rig whose controls or mask do not fit its mesh.
+    #[error("{}:{line}: {source}", path.display())]
+    Rig {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the offending entry.
+        line: usize,
+        /// What was wrong.
+        source: mimic_types::RigError,
+    },
+    /// A rig's mesh could not be loaded.
+    #[error("{}: mesh: {source}", path.display())]
+    RigMesh {
+        /// The rig file.
+        path: PathBuf,
+        /// The mesh's own error.
+        source: Box<AssetError>,
+    },
+    /// A named layout was not found in any config directory.
+    #[error("no layout named `{name}` (looked for {})", tried.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "))]
+    LayoutNotFound {
+        /// Layout name.
+        name: String,
+        /// Paths looked at.
+        tried: Vec<PathBuf>,
+    },
+}
+
+impl AssetError {
+    /// Wraps an I/O error with its path.
+    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+        AssetError::Io {
+            path: path.to_path_buf(),
+            source,
+        }
+    }
+}

@@ -1,0 +1,197 @@
+//! Landmark layouts from `configs/layouts/<name>.toml`, and where config files are found.
+
+use crate::AssetError;
+use crate::span::{line_of, toml_error};
+use mimic_types::{Layout, LayoutControl, LayoutError};
+use serde::Deserialize;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+/// The on-disk form of a layout: [`Layout`] with source positions kept for error messages.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LayoutFile {
+    name: String,
+    #[serde(default)]
+    description: String,
+    point_count: usize,
+    controls: Vec<Spanned<LayoutControl>>,
+    stable: Spanned<Vec<usize>>,
+    #[serde(default)]
+    undocumented: Vec<usize>,
+    #[serde(default)]
+    point_names: Vec<String>,
+}
+
+/// Loads and validates a layout file; errors name the file and the offending line.
+pub fn load_layout(path: &Path) -> Result<Layout, AssetError> {
+    let text = std::fs::read_to_string(path).map_err(|e| AssetError::io(path, e))?;
+    parse_layout(path, &text)
+}
+
+pub(crate) fn parse_layout(path: &Path, text: &str) -> Result<Layout, AssetError> {
+    let file: LayoutFile = toml::from_str(text).map_err(|e| toml_error(path, text, e))?;
+    let control_line = |fdp, nth: usize| {
+        file.controls
+            .iter()
+            .filter(|c| c.get_ref().fdp == fdp)
+            .nth(nth)
+            .map(|c| line_of(text, c.span().start))
+            .unwrap_or(1)
+    };
+    let stable_line = line_of(text, file.stable.span().start);
+    let layout = Layout {
+        name: file.name.clone(),
+        description: file.description.clone(),
+        point_count: file.point_count,
+        controls: file.controls.iter().map(|c| c.get_ref().clone()).collect(),
+        stable: file.stable.get_ref().clone(),
+        undocumented: file.undocumented.clone(),
+        point_names: file.point_names.clone(),
+    };
+    if let Err(source) = layout.validate() {
+        let line = match &source {
+            LayoutError::ControlPointOutOfRange { fdp, .. }
+            | LayoutError::ControlWithoutPoints { fdp, .. } => control_line(*fdp, 0),
+            LayoutError::DuplicateControl { fdp, .. } => control_line(*fdp, 1),
+            LayoutError::StablePointOutOfRange { .. } | LayoutError::TooFewStablePoints { .. } => {
+                stable_line
+            }
+        };
+        return Err(AssetError::Layout {
+            path: path.to_path_buf(),
+            line,
+            source,
+        });
+    }
+    Ok(layout)
+}
+
+/// Where mimic finds its config files (`layouts/`, `rigs/`, meshes).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct ConfigDirs {
+    /// The `configs/` directory.
+    pub root: PathBuf,
+}
+
+impl ConfigDirs {
+    /// Uses `explicit` if given, else `$MIMIC_CONFIGS`, else `./configs`, else `configs/` beside an
+    /// ancestor of the running executable (so `target/debug/mimic` finds the repo's configs).
+    pub fn locate(explicit: Option<&Path>) -> ConfigDirs {
+        if let Some(p) = explicit {
+            return ConfigDirs {
+                root: p.to_path_buf(),
+            };
+        }
+        if let Some(p) = std::env::var_os("MIMIC_CONFIGS") {
+            return ConfigDirs {
+                root: PathBuf::from(p),
+            };
+        }
+        let local = PathBuf::from("configs");
+        if local.is_dir() {
+            return ConfigDirs { root: local };
+        }
+        if let Ok(exe) = std::env::current_exe() {
+            for dir in exe.ancestors().skip(1) {
+                let c = dir.join("configs");
+                if c.join("layouts").is_dir() {
+                    return ConfigDirs { root: c };
+                }
+            }
+        }
+        ConfigDirs { root: local }
+    }
+
+    /// Path of the layout file for `name`.
+    pub fn layout_path(&self, name: &str) -> PathBuf {
+        self.root.join("layouts").join(format!("{name}.toml"))
+    }
+
+    /// Loads the layout called `name` (as recordings name it).
+    pub fn load_layout_named(&self, name: &str) -> Result<Layout, AssetError> {
+        let path = self.layout_path(name);
+        if !path.is_file() {
+            return Err(AssetError::LayoutNotFound {
+                name: name.to_string(),
+                tried: vec![path],
+            });
+        }
+        load_layout(&path)
+    }
+
+    /// Path of the rig file for `name`, or `name` itself when it is a path to a file.
+    pub fn rig_path(&self, name: &str) -> PathBuf {
+        let as_path = PathBuf::from(name);
+        if as_path.is_file() {
+            return as_path;
+        }
+        self.root.join("rigs").join(format!("{name}.toml"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = r#"
+name = "tiny"
+point_count = 4
+stable = [0, 1, 3]
+
+[[controls]]
+fdp = "8.3"
+points = [1, 2]
+region = "bottom"
+
+[[controls]]
+fdp = "4.1"
+points = [0]
+region = "top"
+"#;
+
+    #[test]
+    fn parses_a_layout() {
+        let l = parse_layout(Path::new("tiny.toml"), GOOD).unwrap();
+        assert_eq!(l.controls.len(), 2);
+        assert_eq!(l.controls[0].points, vec![1, 2]);
+        assert_eq!(l.controls[1].fdp.to_string(), "4.1");
+    }
+
+    #[test]
+    fn out_of_range_control_names_file_line_and_control() {
+        let bad = GOOD.replace("points = [0]", "points = [9]");
+        let e = parse_layout(Path::new("tiny.toml"), &bad)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "tiny.toml:11: control 4.1 maps to point 9, but layout `tiny` has 4 points"
+        );
+    }
+
+    #[test]
+    fn bad_fdp_and_syntax_name_the_line() {
+        let bad = GOOD.replace("\"4.1\"", "\"4.9\"");
+        let e = parse_layout(Path::new("tiny.toml"), &bad)
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("tiny.toml:12:") && e.contains("4.9"), "{e}");
+        let e = parse_layout(Path::new("tiny.toml"), "name = \n")
+            .unwrap_err()
+            .to_string();
+        assert!(e.starts_with("tiny.toml:1:"), "{e}");
+    }
+
+    #[test]
+    fn duplicate_control_points_at_second_entry() {
+        let bad = GOOD.replace("\"4.1\"", "\"8.3\"");
+        let e = parse_layout(Path::new("tiny.toml"), &bad)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "tiny.toml:11: control 8.3 appears twice in layout `tiny`"
+        );
+    }
+}
