@@ -1,6 +1,10 @@
-//! `mimic info`: validate a file and summarise it.
+//! `mimic info`: validate a recording, layout or rig and summarise it.
 
-use std::path::PathBuf;
+use anyhow::Context;
+use mimic_assets::{ConfigDirs, load_layout, load_rig};
+use mimic_types::{Layout, Region, Rig};
+use serde_json::{Value, json};
+use std::path::{Path, PathBuf};
 
 /// Arguments of `mimic info`.
 #[derive(clap::Args, Debug)]
@@ -10,9 +14,110 @@ pub struct Args {
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Config directory holding `layouts/` (default: ./configs or $MIMIC_CONFIGS).
+    #[arg(long)]
+    pub configs: Option<PathBuf>,
+}
+
+/// What kind of file `path` is, judged by extension and, for TOML, by its keys.
+enum Kind {
+    Recording,
+    Layout,
+    Rig,
+}
+
+fn kind_of(path: &Path) -> anyhow::Result<Kind> {
+    match path.extension().and_then(|e| e.to_str()) {
+        Some("jsonl") | Some("json") => Ok(Kind::Recording),
+        Some("toml") => {
+            let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
+            let is_rig = text.lines().any(|l| l.trim_start().starts_with("mesh"));
+            Ok(if is_rig { Kind::Rig } else { Kind::Layout })
+        }
+        _ => anyhow::bail!(
+            "{}: unknown kind of file (expected .jsonl recording, or .toml layout or rig)",
+            path.display()
+        ),
+    }
 }
 
 /// Runs `mimic info`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    anyhow::bail!("{}: not yet supported", args.file.display())
+    let summary = match kind_of(&args.file)? {
+        Kind::Layout => layout_summary(&load_layout(&args.file)?),
+        Kind::Rig => rig_summary(&load_rig(&args.file)?),
+        Kind::Recording => {
+            let configs = ConfigDirs::locate(args.configs.as_deref());
+            crate::cmd::recording_info::summary(&args.file, &configs)?
+        }
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        print_plain(&summary, 0);
+    }
+    Ok(())
+}
+
+fn print_plain(v: &Value, indent: usize) {
+    let pad = "  ".repeat(indent);
+    if let Value::Object(map) = v {
+        for (k, val) in map {
+            match val {
+                Value::Object(_) => {
+                    println!("{pad}{k}:");
+                    print_plain(val, indent + 1);
+                }
+                Value::String(s) => println!("{pad}{k}: {s}"),
+                other => println!("{pad}{k}: {other}"),
+            }
+        }
+    }
+}
+
+fn layout_summary(l: &Layout) -> Value {
+    let by_region = |r: Region| l.controls.iter().filter(|c| c.region == r).count();
+    json!({
+        "kind": "layout",
+        "name": l.name,
+        "points": l.point_count,
+        "controls": l.controls.len(),
+        "controls_by_region": {
+            "top": by_region(Region::Top),
+            "middle": by_region(Region::Middle),
+            "bottom": by_region(Region::Bottom),
+        },
+        "stable_points": l.stable.len(),
+        "undocumented_points": l.undocumented.len(),
+        "fdps": l.controls.iter().map(|c| c.fdp.to_string()).collect::<Vec<_>>().join(" "),
+    })
+}
+
+fn rig_summary(r: &Rig) -> Value {
+    let movable = r.frozen.iter().filter(|f| !**f).count();
+    let mut region_vertices = [0usize; 3];
+    for (p, frozen) in r.mesh.positions.iter().zip(&r.frozen) {
+        if !frozen {
+            region_vertices[r.regions.region_at(p.y).index()] += 1;
+        }
+    }
+    let (lo, hi) = r.mesh.bounds().unwrap_or_default();
+    json!({
+        "kind": "rig",
+        "name": r.name,
+        "units": r.units,
+        "vertices": r.mesh.vertex_count(),
+        "triangles": r.mesh.triangles.len(),
+        "textured": !r.mesh.uvs.is_empty(),
+        "controls": r.controls.len(),
+        "frozen_vertices": r.mesh.vertex_count() - movable,
+        "movable_vertices_by_region": {
+            "top": region_vertices[0],
+            "middle": region_vertices[1],
+            "bottom": region_vertices[2],
+        },
+        "bounds_min": [lo.x, lo.y, lo.z],
+        "bounds_max": [hi.x, hi.y, hi.z],
+        "solver": serde_json::to_value(r.solver).unwrap_or(Value::Null),
+    })
 }

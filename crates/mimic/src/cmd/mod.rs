@@ -2,3 +2,4 @@
 
 pub mod import;
 pub mod info;
+pub mod recording_info;

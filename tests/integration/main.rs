@@ -1,0 +1,26 @@
+//! End-to-end tests of the `mimic` binary on the shipped configs and recordings.
+
+mod info;
+
+use std::path::PathBuf;
+use std::process::{Command, Output};
+
+/// Repository root.
+pub fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..").canonicalize().expect("repo root")
+}
+
+/// Runs the built `mimic` binary in the repo root.
+pub fn mimic(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_mimic"))
+        .args(args)
+        .current_dir(repo())
+        .env_remove("RUST_LOG")
+        .output()
+        .expect("run mimic")
+}
+
+/// Stdout and stderr of an output, as text.
+pub fn text(o: &Output) -> (String, String) {
+    (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
+}
