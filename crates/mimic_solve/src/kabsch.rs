@@ -1,0 +1,212 @@
+//! Least-squares similarity between point sets (Kabsch / Umeyama), via Horn's quaternion method.
+
+use glam::{DQuat, DVec3, Quat, Vec3};
+use mimic_types::HeadPose;
+
+/// Best `pose` with `dst ≈ pose.apply(src)` in the least-squares sense: proper rotation (det +1),
+/// translation, and (when `allow_scale`) a uniform scale (Umeyama); otherwise scale is 1.
+///
+/// Computed in f64 with Horn's quaternion method (largest eigenvector of a 4x4 symmetric matrix
+/// by Jacobi sweeps), which gives a proper rotation by construction and allocates nothing.
+/// `None` when the lengths differ, there are fewer than 3 points, a point is not finite, or the
+/// rotation is not determined (all source points coincide or lie on one line).
+pub fn fit_similarity(src: &[Vec3], dst: &[Vec3], allow_scale: bool) -> Option<HeadPose> {
+    if src.len() != dst.len() || src.len() < 3 {
+        return None;
+    }
+    if !src.iter().chain(dst).all(|p| p.is_finite()) {
+        return None;
+    }
+    let inv_n = 1.0 / src.len() as f64;
+    let mu_s = src.iter().fold(DVec3::ZERO, |a, p| a + p.as_dvec3()) * inv_n;
+    let mu_d = dst.iter().fold(DVec3::ZERO, |a, p| a + p.as_dvec3()) * inv_n;
+    // Cross-covariance S[a][b] = sum src'_a dst'_b, and the source's spread.
+    let mut s = [[0f64; 3]; 3];
+    let mut src_sq = 0.0;
+    for (p, q) in src.iter().zip(dst) {
+        let a = p.as_dvec3() - mu_s;
+        let b = q.as_dvec3() - mu_d;
+        src_sq += a.length_squared();
+        for (r, ar) in s.iter_mut().zip(a.to_array()) {
+            for (c, bc) in r.iter_mut().zip(b.to_array()) {
+                *c += ar * bc;
+            }
+        }
+    }
+    if src_sq <= 0.0 {
+        return None;
+    }
+    let [[sxx, sxy, sxz], [syx, syy, syz], [szx, szy, szz]] = s;
+    // Horn (1987): the unit quaternion (w, x, y, z) maximising sum dst' . R src' is the top
+    // eigenvector of N; the maximum is its eigenvalue.
+    let mut nm = [
+        [sxx + syy + szz, syz - szy, szx - sxz, sxy - syx],
+        [syz - szy, sxx - syy - szz, sxy + syx, szx + sxz],
+        [szx - sxz, sxy + syx, -sxx + syy - szz, syz + szy],
+        [sxy - syx, szx + sxz, syz + szy, -sxx - syy + szz],
+    ];
+    let (vals, vecs) = jacobi_eigen4(&mut nm);
+    let mut order = [0usize, 1, 2, 3];
+    order.sort_by(|&a, &b| vals[b].total_cmp(&vals[a]));
+    let (top, second) = (vals[order[0]], vals[order[1]]);
+    let scale_of_n = vals.iter().fold(0f64, |a, v| a.max(v.abs()));
+    // Collinear sources leave the rotation about their line free: the top eigenvalue is double.
+    if scale_of_n <= 0.0 || top - second <= 1e-9 * scale_of_n {
+        return None;
+    }
+    let k = order[0];
+    let q = DQuat::from_xyzw(vecs[1][k], vecs[2][k], vecs[3][k], vecs[0][k]).normalize();
+    let scale = if allow_scale { top / src_sq } else { 1.0 };
+    if !(scale.is_finite() && scale > 0.0) {
+        return None;
+    }
+    let translation = mu_d - q * (mu_s * scale);
+    Some(HeadPose {
+        rotation: Quat::from_xyzw(q.x as f32, q.y as f32, q.z as f32, q.w as f32).normalize(),
+        translation: translation.as_vec3(),
+        scale: scale as f32,
+    })
+}
+
+/// Eigen-decomposition of a symmetric 4x4 matrix by cyclic Jacobi rotations: returns the eigenvalues
+/// and the eigenvectors as columns (`vecs[row][k]` is component `row` of eigenvector `k`).
+fn jacobi_eigen4(a: &mut [[f64; 4]; 4]) -> ([f64; 4], [[f64; 4]; 4]) {
+    let mut v = [[0f64; 4]; 4];
+    for (i, r) in v.iter_mut().enumerate() {
+        r[i] = 1.0;
+    }
+    for _sweep in 0..50 {
+        let off: f64 = (0..4)
+            .flat_map(|p| (p + 1..4).map(move |q| (p, q)))
+            .map(|(p, q)| a[p][q] * a[p][q])
+            .sum();
+        let total: f64 = a.iter().flatten().map(|x| x * x).sum();
+        if off <= 1e-30 * total.max(f64::MIN_POSITIVE) {
+            break;
+        }
+        for p in 0..4 {
+            for q in p + 1..4 {
+                if a[p][q] == 0.0 {
+                    continue;
+                }
+                // Rotation that zeroes a[p][q] (Golub & Van Loan, sym.schur2).
+                let theta = (a[q][q] - a[p][p]) / (2.0 * a[p][q]);
+                let t = theta.signum() / (theta.abs() + (theta * theta + 1.0).sqrt());
+                let t = if theta == 0.0 { 1.0 } else { t };
+                let c = 1.0 / (t * t + 1.0).sqrt();
+                let s = t * c;
+                for k in 0..4 {
+                    let (akp, akq) = (a[k][p], a[k][q]);
+                    a[k][p] = c * akp - s * akq;
+                    a[k][q] = s * akp + c * akq;
+                }
+                for k in 0..4 {
+                    let (apk, aqk) = (a[p][k], a[q][k]);
+                    a[p][k] = c * apk - s * aqk;
+                    a[q][k] = s * apk + c * aqk;
+                }
+                for row in v.iter_mut() {
+                    let (vp, vq) = (row[p], row[q]);
+                    row[p] = c * vp - s * vq;
+                    row[q] = s * vp + c * vq;
+                }
+            }
+        }
+    }
+    ([a[0][0], a[1][1], a[2][2], a[3][3]], v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lcg(seed: &mut u64) -> f32 {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+    }
+
+    fn cloud(seed: &mut u64, n: usize) -> Vec<Vec3> {
+        (0..n)
+            .map(|_| Vec3::new(lcg(seed), lcg(seed), lcg(seed)) * 0.1)
+            .collect()
+    }
+
+    #[test]
+    fn recovers_known_similarity() {
+        let mut seed = 42;
+        for case in 0..20 {
+            let src = cloud(&mut seed, 12);
+            let axis = Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)).normalize();
+            // Include angles near pi, where naive SVD sign handling tends to fail.
+            let angle = if case == 0 {
+                std::f32::consts::PI - 1e-3
+            } else {
+                lcg(&mut seed) * 3.0
+            };
+            let truth = HeadPose {
+                rotation: Quat::from_axis_angle(axis, angle),
+                translation: Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)),
+                scale: 1.0 + 0.5 * lcg(&mut seed),
+            };
+            let dst: Vec<Vec3> = src.iter().map(|p| truth.apply(*p)).collect();
+            let fit = fit_similarity(&src, &dst, true).unwrap();
+            // Exact data: f32 input rounding dominates, ~1e-7 relative; allow 1e-4 (points ~0.1, t ~1).
+            assert!(
+                fit.rotation.angle_between(truth.rotation) < 1e-4,
+                "case {case}"
+            );
+            assert!(
+                (fit.translation - truth.translation).length() < 1e-4,
+                "case {case}"
+            );
+            assert!((fit.scale - truth.scale).abs() < 1e-4, "case {case}");
+            for (p, q) in src.iter().zip(&dst) {
+                assert!((fit.apply(*p) - *q).length() < 1e-4);
+            }
+        }
+    }
+
+    #[test]
+    fn rigid_fit_keeps_unit_scale_and_proper_rotation() {
+        let mut seed = 3;
+        let src = cloud(&mut seed, 8);
+        let truth = HeadPose {
+            rotation: Quat::from_euler(glam::EulerRot::XYZ, 0.3, -0.2, 0.9),
+            translation: Vec3::new(0.1, 0.2, -0.5),
+            scale: 1.0,
+        };
+        // A mirrored target: the best proper rotation must not become a reflection.
+        let dst: Vec<Vec3> = src
+            .iter()
+            .map(|p| truth.apply(*p * Vec3::new(-1.0, 1.0, 1.0)))
+            .collect();
+        let fit = fit_similarity(&src, &dst, false).unwrap();
+        assert_eq!(fit.scale, 1.0);
+        let m = glam::Mat3::from_quat(fit.rotation);
+        assert!((m.determinant() - 1.0).abs() < 1e-5);
+        let exact = fit_similarity(
+            &src,
+            &src.iter().map(|p| truth.apply(*p)).collect::<Vec<_>>(),
+            false,
+        )
+        .unwrap();
+        assert!(exact.rotation.angle_between(truth.rotation) < 1e-4);
+    }
+
+    #[test]
+    fn degenerate_inputs_give_none() {
+        let line: Vec<Vec3> = (0..5).map(|i| Vec3::X * i as f32).collect();
+        assert!(fit_similarity(&line, &line, true).is_none());
+        let same = vec![Vec3::ONE; 4];
+        assert!(fit_similarity(&same, &same, false).is_none());
+        assert!(fit_similarity(&line[..2], &line[..2], false).is_none());
+        let mut seed = 1;
+        let a = cloud(&mut seed, 4);
+        assert!(fit_similarity(&a, &a[..3], false).is_none());
+        let mut b = a.clone();
+        b[1].x = f32::NAN;
+        assert!(fit_similarity(&a, &b, false).is_none());
+    }
+}

@@ -1,0 +1,166 @@
+//! Radial-basis-function interpolation of control displacements, folded into basis columns.
+//!
+//! With kernel matrix `Phi_kl = phi(|c_k - c_l|)` and `E_ik = phi(|x_i - c_k|)`, the displacement
+//! field is `u = E Phi^-1 d`, so the columns are `E Phi^-1` (n x k). With the affine term the
+//! interpolant is `sum_k l_k phi(|x - c_k|) + a . (1, x)` under `P^T l = 0`, solved as the saddle
+//! system `[[Phi, P], [P^T, 0]]`. Either way every control displacement is reproduced exactly.
+
+use crate::SolveError;
+use faer::prelude::*;
+use faer::{Mat, Side};
+use glam::{DVec3, Vec3};
+use mimic_types::{Fdp, RbfKernel};
+
+/// Relative distance (to the control cloud's extent) under which two controls count as coincident.
+const COINCIDENT: f64 = 1e-9;
+
+/// Evaluates the kernel at distance `r` (rig units).
+pub fn kernel_value(kernel: RbfKernel, r: f64) -> f64 {
+    match kernel {
+        RbfKernel::Exponential { radius } => (-r / radius).exp(),
+        RbfKernel::Gaussian { radius } => {
+            let t = r / radius;
+            (-t * t).exp()
+        }
+        RbfKernel::ThinPlate => {
+            if r <= 0.0 {
+                0.0
+            } else {
+                r * r * r.ln()
+            }
+        }
+    }
+}
+
+/// Checks that the kernel is usable: positive finite radius, and thin-plate only with the affine term.
+pub fn check_kernel(kernel: RbfKernel, affine: bool) -> Result<(), SolveError> {
+    match kernel {
+        RbfKernel::Exponential { radius } | RbfKernel::Gaussian { radius } => {
+            if !(radius.is_finite() && radius > 0.0) {
+                return Err(SolveError::InvalidSetting(format!(
+                    "RBF kernel radius {radius} must be finite and > 0 (rig units)"
+                )));
+            }
+        }
+        RbfKernel::ThinPlate => {
+            if !affine {
+                return Err(SolveError::InvalidSetting(
+                    "the thin-plate kernel needs the affine term (solver.affine = true)".into(),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Basis columns of an RBF through `centres` (rest positions of the controls, named by `fdps` for
+/// errors): returns `n x k` values, row-major, for the `positions` (frozen rows are left zero).
+/// `system` names the solve in errors (e.g. `RBF of region top`).
+pub fn rbf_columns(
+    positions: &[Vec3],
+    frozen: &[bool],
+    centres: &[Vec3],
+    fdps: &[Fdp],
+    kernel: RbfKernel,
+    affine: bool,
+    system: &str,
+) -> Result<Vec<f64>, SolveError> {
+    check_kernel(kernel, affine)?;
+    let k = centres.len();
+    let n = positions.len();
+    if k == 0 {
+        return Ok(vec![0.0; n * k]);
+    }
+    let c: Vec<DVec3> = centres.iter().map(|p| p.as_dvec3()).collect();
+    let extent = c
+        .iter()
+        .fold(0f64, |a, p| a.max((*p - c[0]).length()))
+        .max(f64::MIN_POSITIVE);
+    for a in 0..k {
+        for b in a + 1..k {
+            let distance = (c[a] - c[b]).length();
+            if distance <= COINCIDENT * extent {
+                return Err(SolveError::CoincidentControls {
+                    first: fdps[a],
+                    second: fdps[b],
+                    distance,
+                });
+            }
+        }
+    }
+    let phi = |r: f64| kernel_value(kernel, r);
+    let extra = if affine { 4 } else { 0 };
+    let size = k + extra;
+    // Weights X (size x k): coefficient vector of the interpolant of each unit control displacement.
+    let x = if affine {
+        let m = Mat::<f64>::from_fn(size, size, |i, j| match (i < k, j < k) {
+            (true, true) => phi((c[i] - c[j]).length()),
+            (true, false) => affine_entry(c[i], j - k),
+            (false, true) => affine_entry(c[j], i - k),
+            (false, false) => 0.0,
+        });
+        let rhs = Mat::<f64>::from_fn(size, k, |i, j| if i == j { 1.0 } else { 0.0 });
+        let lu = m.partial_piv_lu();
+        let x = lu.solve(&rhs);
+        // Singular saddle systems (controls on a plane) show up as a large residual or NaN.
+        let residual = (&m * &x - &rhs).norm_max();
+        if !residual.is_finite() || residual > 1e-6 {
+            return Err(SolveError::Singular {
+                system: system.to_string(),
+                detail: format!(
+                    "affine RBF system residual {residual:e}; are the controls coplanar or fewer than 4?"
+                ),
+            });
+        }
+        x
+    } else {
+        let m = Mat::<f64>::from_fn(k, k, |i, j| phi((c[i] - c[j]).length()));
+        let llt = m.llt(Side::Lower).map_err(|e| SolveError::Singular {
+            system: system.to_string(),
+            detail: format!("{e:?}"),
+        })?;
+        let mut x = Mat::<f64>::identity(k, k);
+        llt.solve_in_place(x.as_mut());
+        x
+    };
+    // X transposed, so that each basis entry is one contiguous dot product.
+    let xt: Vec<f64> = (0..k)
+        .flat_map(|col| (0..size).map(move |l| (col, l)))
+        .map(|(col, l)| x[(l, col)])
+        .collect();
+    let mut cols = vec![0.0; n * k];
+    let mut e = vec![0.0; size];
+    for (i, (p, row)) in positions.iter().zip(cols.chunks_exact_mut(k)).enumerate() {
+        if frozen.get(i).copied().unwrap_or(false) {
+            continue;
+        }
+        let p = p.as_dvec3();
+        for (l, el) in e.iter_mut().enumerate() {
+            *el = if l < k {
+                phi((p - c[l]).length())
+            } else {
+                affine_entry(p, l - k)
+            };
+        }
+        for (out, xc) in row.iter_mut().zip(xt.chunks_exact(size)) {
+            *out = e.iter().zip(xc).map(|(a, b)| a * b).sum();
+        }
+    }
+    if cols.iter().any(|v| !v.is_finite()) {
+        return Err(SolveError::Singular {
+            system: system.to_string(),
+            detail: "non-finite basis".into(),
+        });
+    }
+    Ok(cols)
+}
+
+/// Entry `a` of the affine polynomial basis `(1, x, y, z)` at `p`.
+fn affine_entry(p: DVec3, a: usize) -> f64 {
+    match a {
+        0 => 1.0,
+        1 => p.x,
+        2 => p.y,
+        _ => p.z,
+    }
+}
