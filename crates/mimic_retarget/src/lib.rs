@@ -1,0 +1,22 @@
+//! mimic's per-frame pipeline, with no I/O.
+//!
+//! [`Retargeter::new`] ties a landmark [`Layout`](mimic_types::Layout) to a target
+//! [`Rig`](mimic_types::Rig) and a precomputed [`Basis`](mimic_solve::Basis), and allocates every
+//! buffer the pipeline needs. [`Retargeter::step`] then takes one [`LandmarkFrame`](mimic_types::LandmarkFrame)
+//! at a time: select the controls -> remove rigid head motion (Kabsch on the layout's stable points)
+//! -> displacement against the neutral -> scale to the target -> One Euro filter -> `u = B d`
+//! -> normals, writing into a caller-owned [`FrameOutput`] and allocating nothing.
+//! No tokio, no wgpu, no file formats: sources and sinks live in other crates.
+
+mod filter;
+mod pipeline;
+mod scale;
+mod settings;
+
+pub use filter::{OneEuro, OneEuroSettings};
+pub use pipeline::{FrameOutput, FrameStatus, RetargetError, Retargeter, Stage, StageTimes, Stats};
+pub use scale::SourceToTarget;
+pub use settings::{Neutral, RetargetSettings};
+
+#[cfg(test)]
+mod tests;

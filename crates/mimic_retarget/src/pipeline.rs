@@ -1,0 +1,547 @@
+//! The retargeter: setup once, then one allocation-free `step` per frame.
+
+use crate::{Neutral, OneEuro, RetargetSettings, SourceToTarget};
+use glam::{Quat, Vec3};
+use mimic_solve::{Basis, kabsch::fit_similarity, vertex_normals};
+use mimic_types::{Fdp, HeadPose, LandmarkFrame, Layout, Rig};
+use std::time::Instant;
+
+/// Why a retargeter cannot be set up.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum RetargetError {
+    /// The rig drives a control the layout does not define.
+    #[error("rig control {fdp} has no counterpart in layout `{layout}`")]
+    MissingControl {
+        /// Control of the rig.
+        fdp: Fdp,
+        /// Layout name.
+        layout: String,
+    },
+    /// The basis was built for another mesh or control set.
+    #[error(
+        "basis is {rows} x {cols}, but the rig has {vertices} vertices and {controls} controls"
+    )]
+    BasisShape {
+        /// Basis rows.
+        rows: usize,
+        /// Basis columns.
+        cols: usize,
+        /// Rig vertices.
+        vertices: usize,
+        /// Rig controls.
+        controls: usize,
+    },
+    /// A given neutral frame does not fit the layout or lacks controls.
+    #[error("neutral frame: {0}")]
+    BadNeutral(String),
+}
+
+/// Stages of a step, in order, for per-stage timing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Stage {
+    /// Control points from landmarks.
+    Select,
+    /// Rigid head motion removed.
+    Stabilise,
+    /// Displacement against the neutral, scaled to the target, filtered.
+    Displace,
+    /// `u = B d`.
+    Deform,
+    /// Vertex normals.
+    Normals,
+}
+
+impl Stage {
+    /// All stages in pipeline order.
+    pub const ALL: [Stage; 5] = [
+        Stage::Select,
+        Stage::Stabilise,
+        Stage::Displace,
+        Stage::Deform,
+        Stage::Normals,
+    ];
+
+    /// Lower-case name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Stage::Select => "select",
+            Stage::Stabilise => "stabilise",
+            Stage::Displace => "displace",
+            Stage::Deform => "deform",
+            Stage::Normals => "normals",
+        }
+    }
+}
+
+/// Nanoseconds spent in each [`Stage`] of the last step.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct StageTimes(pub [u32; 5]);
+
+impl StageTimes {
+    /// Nanoseconds of one stage.
+    pub fn get(&self, s: Stage) -> u32 {
+        self.0[s as usize]
+    }
+}
+
+/// What happened to a frame.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FrameStatus {
+    /// Used to build the neutral; the output is the rest mesh.
+    Calibrating,
+    /// Tracked and retargeted.
+    Tracked,
+    /// Tracking lost (or too few stable points): last pose held, expression easing to neutral.
+    Lost,
+    /// Unusable (wrong point count): the output was left unchanged.
+    Rejected,
+}
+
+/// Counters over a retargeter's life.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+pub struct Stats {
+    /// Frames given to `step`.
+    pub frames: u64,
+    /// Frames spent building the neutral.
+    pub calibrating: u64,
+    /// Frames retargeted.
+    pub tracked: u64,
+    /// Frames with lost tracking or too few stable points.
+    pub lost: u64,
+    /// Frames rejected for a wrong point count.
+    pub rejected: u64,
+    /// Controls filled (held) because none of their points was valid, summed over frames.
+    pub filled_controls: u64,
+}
+
+/// The result of one step; allocate it once with [`Retargeter::new_output`] and reuse it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameOutput {
+    /// Timestamp of the frame (microseconds).
+    pub timestamp_us: i64,
+    /// What happened.
+    pub status: FrameStatus,
+    /// Deformed vertex positions (rest + `B d`), target units.
+    pub positions: Vec<Vec3>,
+    /// Vertex normals of `positions` (empty when normals are off).
+    pub normals: Vec<Vec3>,
+    /// Control displacements `d` in target units: what a GPU morph needs per frame.
+    pub displacements: Vec<Vec3>,
+    /// Head pose of the performer: neutral -> this frame, in source space.
+    pub pose: HeadPose,
+    /// The head rotation expressed in target axes.
+    pub target_rotation: Quat,
+    /// Controls filled in this frame.
+    pub filled: u32,
+    /// Time spent per stage.
+    pub times: StageTimes,
+}
+
+/// Neutral being accumulated from the first frames.
+#[derive(Debug)]
+struct Accumulator {
+    wanted: usize,
+    frames: usize,
+    first: Vec<Vec3>,
+    first_valid: Vec<bool>,
+    sum: Vec<Vec3>,
+    count: Vec<u32>,
+}
+
+/// Ties a layout to a rig and turns landmark frames into deformed meshes.
+#[derive(Debug)]
+pub struct Retargeter {
+    layout: Layout,
+    settings: RetargetSettings,
+    basis: Basis,
+    rest: Vec<Vec3>,
+    triangles: Vec<[u32; 3]>,
+    target_controls: Vec<Vec3>,
+    /// Layout control index of each rig control.
+    source_control: Vec<usize>,
+    // Neutral, once known.
+    neutral_points: Vec<Vec3>,
+    neutral_valid: Vec<bool>,
+    neutral_controls: Vec<Vec3>,
+    to_target: Option<SourceToTarget>,
+    accumulator: Option<Accumulator>,
+    // Per-frame state.
+    filters: Vec<[OneEuro; 3]>,
+    last_e: Vec<Vec3>,
+    frame_delta: Vec<Vec3>,
+    last_d: Vec<Vec3>,
+    last_pose: HeadPose,
+    last_time_us: Option<i64>,
+    lost_since_us: Option<i64>,
+    // Scratch.
+    stable_src: Vec<Vec3>,
+    stable_dst: Vec<Vec3>,
+    controls_now: Vec<Option<Vec3>>,
+    stats: Stats,
+}
+
+impl Retargeter {
+    /// Sets up the pipeline for `layout` frames driving `rig` through `basis` (built for `rig`).
+    pub fn new(
+        rig: &Rig,
+        layout: &Layout,
+        basis: Basis,
+        settings: RetargetSettings,
+    ) -> Result<Self, RetargetError> {
+        let n = rig.mesh.vertex_count();
+        let m = rig.controls.len();
+        if basis.vertex_count() != n || basis.control_count() != m {
+            return Err(RetargetError::BasisShape {
+                rows: basis.vertex_count(),
+                cols: basis.control_count(),
+                vertices: n,
+                controls: m,
+            });
+        }
+        let source_control = rig
+            .controls
+            .iter()
+            .map(|c| {
+                layout
+                    .control_index(c.fdp)
+                    .ok_or(RetargetError::MissingControl {
+                        fdp: c.fdp,
+                        layout: layout.name.clone(),
+                    })
+            })
+            .collect::<Result<Vec<_>, _>>()?;
+        let p = layout.point_count;
+        let mut r = Retargeter {
+            layout: layout.clone(),
+            basis,
+            rest: rig.mesh.positions.clone(),
+            triangles: rig.mesh.triangles.clone(),
+            target_controls: rig.control_positions(),
+            source_control,
+            neutral_points: vec![Vec3::ZERO; p],
+            neutral_valid: vec![false; p],
+            neutral_controls: vec![Vec3::ZERO; m],
+            to_target: None,
+            accumulator: None,
+            filters: vec![[OneEuro::default(); 3]; m],
+            last_e: vec![Vec3::ZERO; m],
+            frame_delta: vec![Vec3::ZERO; m],
+            last_d: vec![Vec3::ZERO; m],
+            last_pose: HeadPose::IDENTITY,
+            last_time_us: None,
+            lost_since_us: None,
+            stable_src: Vec::with_capacity(layout.stable.len()),
+            stable_dst: Vec::with_capacity(layout.stable.len()),
+            controls_now: vec![None; m],
+            stats: Stats::default(),
+            settings: settings.clone(),
+        };
+        match settings.neutral {
+            Neutral::FirstFrames(k) => {
+                r.accumulator = Some(Accumulator {
+                    wanted: k.max(1),
+                    frames: 0,
+                    first: vec![Vec3::ZERO; p],
+                    first_valid: vec![false; p],
+                    sum: vec![Vec3::ZERO; p],
+                    count: vec![0; p],
+                })
+            }
+            Neutral::Frame(f) => {
+                if f.points.len() != p {
+                    return Err(RetargetError::BadNeutral(format!(
+                        "{} points, layout `{}` has {p}",
+                        f.points.len(),
+                        layout.name
+                    )));
+                }
+                for i in 0..p {
+                    r.neutral_valid[i] = f.is_valid(i);
+                    r.neutral_points[i] = if f.is_valid(i) {
+                        f.points[i]
+                    } else {
+                        Vec3::ZERO
+                    };
+                }
+                if !r.finish_neutral() {
+                    return Err(RetargetError::BadNeutral(
+                        "some control or too many stable points have no valid point".into(),
+                    ));
+                }
+            }
+        }
+        Ok(r)
+    }
+
+    /// An output buffer sized for this rig.
+    pub fn new_output(&self) -> FrameOutput {
+        let n = self.rest.len();
+        FrameOutput {
+            timestamp_us: 0,
+            status: FrameStatus::Calibrating,
+            positions: self.rest.clone(),
+            normals: if self.settings.normals {
+                vec![Vec3::ZERO; n]
+            } else {
+                Vec::new()
+            },
+            displacements: vec![Vec3::ZERO; self.target_controls.len()],
+            pose: HeadPose::IDENTITY,
+            target_rotation: Quat::IDENTITY,
+            filled: 0,
+            times: StageTimes::default(),
+        }
+    }
+
+    /// Counters so far.
+    pub fn stats(&self) -> Stats {
+        self.stats
+    }
+
+    /// The fitted source-to-target map, once the neutral is known.
+    pub fn source_to_target(&self) -> Option<&SourceToTarget> {
+        self.to_target.as_ref()
+    }
+
+    /// The basis in use.
+    pub fn basis(&self) -> &Basis {
+        &self.basis
+    }
+
+    /// Rest positions of the rig.
+    pub fn rest_positions(&self) -> &[Vec3] {
+        &self.rest
+    }
+
+    /// Triangles of the rig.
+    pub fn triangles(&self) -> &[[u32; 3]] {
+        &self.triangles
+    }
+
+    /// Frame-to-frame displacement of the last tracked frame, stabilised, in source space
+    /// (the source method's `stab(s_t) - stab(s_{t-1})`).
+    pub fn frame_delta(&self) -> &[Vec3] {
+        &self.frame_delta
+    }
+
+    /// Neutral-relative displacement of the last tracked frame, stabilised, in source space
+    /// (unfiltered, unscaled).
+    pub fn source_displacement(&self) -> &[Vec3] {
+        &self.last_e
+    }
+
+    /// Processes one frame into `out` (from [`Retargeter::new_output`]); allocates nothing.
+    pub fn step(&mut self, frame: &LandmarkFrame, out: &mut FrameOutput) -> FrameStatus {
+        self.stats.frames += 1;
+        out.timestamp_us = frame.timestamp_us;
+        out.filled = 0;
+        out.times = StageTimes::default();
+        if frame.points.len() != self.layout.point_count {
+            self.stats.rejected += 1;
+            out.status = FrameStatus::Rejected;
+            return out.status;
+        }
+        if !frame.tracked {
+            return self.lost(frame.timestamp_us, out);
+        }
+        if self.accumulator.is_some() {
+            return self.calibrate(frame, out);
+        }
+        let t0 = Instant::now();
+        for (j, slot) in self.controls_now.iter_mut().enumerate() {
+            *slot = self.layout.control_position(self.source_control[j], frame);
+        }
+        let t1 = Instant::now();
+        self.stable_src.clear();
+        self.stable_dst.clear();
+        for &i in &self.layout.stable {
+            if frame.is_valid(i) && self.neutral_valid[i] {
+                self.stable_src.push(self.neutral_points[i]);
+                self.stable_dst.push(frame.points[i]);
+            }
+        }
+        let Some(pose) = fit_similarity(&self.stable_src, &self.stable_dst, false) else {
+            return self.lost(frame.timestamp_us, out);
+        };
+        let t2 = Instant::now();
+        let Some(to_target) = self.to_target else {
+            return self.lost(frame.timestamp_us, out);
+        };
+        let dt = self
+            .last_time_us
+            .map(|t| (frame.timestamp_us - t) as f32 * 1e-6)
+            .unwrap_or(0.0);
+        let mut filled = 0u32;
+        for j in 0..self.controls_now.len() {
+            let e = match self.controls_now[j] {
+                Some(p) => pose.inverse_apply(p) - self.neutral_controls[j],
+                None => {
+                    filled += 1;
+                    self.last_e[j]
+                }
+            };
+            self.frame_delta[j] = e - self.last_e[j];
+            self.last_e[j] = e;
+            let mut d = to_target.apply(e);
+            if let Some(fs) = &self.settings.filter {
+                let f = &mut self.filters[j];
+                d = Vec3::new(
+                    f[0].filter(fs, d.x, dt),
+                    f[1].filter(fs, d.y, dt),
+                    f[2].filter(fs, d.z, dt),
+                );
+            }
+            out.displacements[j] = d;
+            self.last_d[j] = d;
+        }
+        let t3 = Instant::now();
+        self.stats.tracked += 1;
+        self.stats.filled_controls += u64::from(filled);
+        self.last_pose = pose;
+        self.last_time_us = Some(frame.timestamp_us);
+        self.lost_since_us = None;
+        out.filled = filled;
+        out.pose = pose;
+        out.target_rotation = to_target.rotation_in_target(pose.rotation);
+        out.status = FrameStatus::Tracked;
+        let (t4, t5) = self.deform(out);
+        out.times = StageTimes([
+            nanos(t0, t1),
+            nanos(t1, t2),
+            nanos(t2, t3),
+            nanos(t3, t4),
+            nanos(t4, t5),
+        ]);
+        out.status
+    }
+
+    /// `positions = rest + B d` and normals; returns the instants after each.
+    fn deform(&self, out: &mut FrameOutput) -> (Instant, Instant) {
+        self.basis.apply(&out.displacements, &mut out.positions);
+        for (p, r) in out.positions.iter_mut().zip(&self.rest) {
+            *p += *r;
+        }
+        let t4 = Instant::now();
+        if self.settings.normals {
+            vertex_normals(&out.positions, &self.triangles, &mut out.normals);
+        }
+        (t4, Instant::now())
+    }
+
+    fn lost(&mut self, t_us: i64, out: &mut FrameOutput) -> FrameStatus {
+        self.stats.lost += 1;
+        let since = *self.lost_since_us.get_or_insert(t_us);
+        let elapsed = (t_us - since) as f32 * 1e-6;
+        let ease = self.settings.lost_ease_secs.max(1e-6);
+        let k = 1.0 - ((elapsed - self.settings.lost_hold_secs) / ease).clamp(0.0, 1.0);
+        for (o, d) in out.displacements.iter_mut().zip(&self.last_d) {
+            *o = *d * k;
+        }
+        for f in &mut self.filters {
+            f.iter_mut().for_each(OneEuro::reset);
+        }
+        out.pose = self.last_pose;
+        out.status = FrameStatus::Lost;
+        self.deform(out);
+        out.status
+    }
+
+    fn calibrate(&mut self, frame: &LandmarkFrame, out: &mut FrameOutput) -> FrameStatus {
+        self.stats.calibrating += 1;
+        out.status = FrameStatus::Calibrating;
+        out.displacements.iter_mut().for_each(|d| *d = Vec3::ZERO);
+        let Some(acc) = self.accumulator.as_mut() else {
+            return out.status;
+        };
+        let p = frame.points.len();
+        // Align this frame to the first one by the stable points, then add it in.
+        let pose = if acc.frames == 0 {
+            for i in 0..p {
+                acc.first_valid[i] = frame.is_valid(i);
+                acc.first[i] = frame.points[i];
+            }
+            Some(HeadPose::IDENTITY)
+        } else {
+            self.stable_src.clear();
+            self.stable_dst.clear();
+            for &i in &self.layout.stable {
+                if frame.is_valid(i) && acc.first_valid[i] {
+                    self.stable_src.push(acc.first[i]);
+                    self.stable_dst.push(frame.points[i]);
+                }
+            }
+            fit_similarity(&self.stable_src, &self.stable_dst, false)
+        };
+        if let Some(pose) = pose {
+            for i in 0..p {
+                if frame.is_valid(i) {
+                    acc.sum[i] += pose.inverse_apply(frame.points[i]);
+                    acc.count[i] += 1;
+                }
+            }
+            acc.frames += 1;
+        }
+        if acc.frames >= acc.wanted {
+            for i in 0..p {
+                self.neutral_valid[i] = acc.count[i] > 0;
+                self.neutral_points[i] = if acc.count[i] > 0 {
+                    acc.sum[i] / acc.count[i] as f32
+                } else {
+                    Vec3::ZERO
+                };
+            }
+            if self.finish_neutral() {
+                self.accumulator = None;
+                self.last_time_us = Some(frame.timestamp_us);
+            } else if let Some(acc) = self.accumulator.as_mut() {
+                // Some control never had a valid point: keep accumulating.
+                acc.wanted += 1;
+            }
+        }
+        out.pose = HeadPose::IDENTITY;
+        self.deform(out);
+        out.status
+    }
+
+    /// Derives the neutral controls and the source-to-target map; false if the neutral is unusable.
+    fn finish_neutral(&mut self) -> bool {
+        let neutral = LandmarkFrame {
+            timestamp_us: 0,
+            points: self.neutral_points.clone(),
+            valid: self.neutral_valid.clone(),
+            tracked: true,
+        };
+        for (j, &c) in self.source_control.iter().enumerate() {
+            match self.layout.control_position(c, &neutral) {
+                Some(p) => self.neutral_controls[j] = p,
+                None => return false,
+            }
+        }
+        let stable_ok = self
+            .layout
+            .stable
+            .iter()
+            .filter(|&&i| self.neutral_valid[i])
+            .count()
+            >= 3;
+        self.to_target = SourceToTarget::fit(
+            &self.neutral_controls,
+            &self.target_controls,
+            self.settings.allow_mirror,
+            self.settings.per_axis_scale,
+        );
+        if let Some(s) = &self.to_target {
+            tracing::info!(
+                scale = s.scale,
+                mirrored = s.mirrored,
+                rms_residual = s.rms_residual,
+                "neutral fixed; source-to-target map fitted"
+            );
+        }
+        stable_ok && self.to_target.is_some()
+    }
+}
+
+fn nanos(a: Instant, b: Instant) -> u32 {
+    u32::try_from(b.duration_since(a).as_nanos()).unwrap_or(u32::MAX)
+}

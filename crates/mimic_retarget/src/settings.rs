@@ -1,0 +1,46 @@
+//! Settings of the per-frame pipeline.
+
+use crate::OneEuroSettings;
+use mimic_types::LandmarkFrame;
+
+/// Where the neutral (expressionless) face comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Neutral {
+    /// Average of the first `n` usable frames, each aligned to the first by its stable points.
+    FirstFrames(usize),
+    /// A given frame of the same layout (a marked neutral or a calibration file).
+    Frame(LandmarkFrame),
+}
+
+/// Knobs of [`Retargeter`](crate::Retargeter).
+#[derive(Clone, Debug, PartialEq)]
+pub struct RetargetSettings {
+    /// Source of the neutral face.
+    pub neutral: Neutral,
+    /// Jitter filter on the control displacements; `None` turns it off.
+    pub filter: Option<OneEuroSettings>,
+    /// Also match the face's extent per axis (width, height, depth), not only a uniform scale.
+    pub per_axis_scale: bool,
+    /// Accept a mirrored source (e.g. a mirrored camera image) when it fits the target better.
+    pub allow_mirror: bool,
+    /// After tracking is lost, hold the last expression this long (seconds) ...
+    pub lost_hold_secs: f32,
+    /// ... then ease to neutral over this long (seconds).
+    pub lost_ease_secs: f32,
+    /// Compute vertex normals of the deformed mesh.
+    pub normals: bool,
+}
+
+impl Default for RetargetSettings {
+    fn default() -> Self {
+        Self {
+            neutral: Neutral::FirstFrames(5),
+            filter: Some(OneEuroSettings::default()),
+            per_axis_scale: false,
+            allow_mirror: true,
+            lost_hold_secs: 0.25,
+            lost_ease_secs: 0.5,
+            normals: true,
+        }
+    }
+}

@@ -1,0 +1,342 @@
+//! Pipeline tests on a synthetic face: a bumpy grid rig and a 12-point layout read off it.
+
+use crate::*;
+use glam::{Quat, Vec3};
+use mimic_types::{
+    LandmarkFrame, Layout, LayoutControl, Mesh, Region, RegionBands, Rig, RigControl,
+    SolverSettings,
+};
+
+const GRID: usize = 15;
+
+/// A 15 x 15 grid (cm) with a bump, 6 controls on it, and a layout whose points sit at
+/// `SRC_SCALE` times the rig's positions (a metre-scale performer of the same face).
+fn rig_and_layout() -> (Rig, Layout) {
+    let mut positions = Vec::new();
+    for y in 0..GRID {
+        for x in 0..GRID {
+            let (fx, fy) = (x as f32 - 7.0, y as f32 - 7.0);
+            positions.push(Vec3::new(fx, fy, 3.0 * (-(fx * fx + fy * fy) / 30.0).exp()));
+        }
+    }
+    let mut triangles = Vec::new();
+    for y in 0..GRID - 1 {
+        for x in 0..GRID - 1 {
+            let i = (y * GRID + x) as u32;
+            let g = GRID as u32;
+            triangles.push([i, i + 1, i + g + 1]);
+            triangles.push([i, i + g + 1, i + g]);
+        }
+    }
+    let v = |x: usize, y: usize| (y * GRID + x) as u32;
+    let controls = [
+        ("4.1", v(4, 11), Region::Top),
+        ("4.2", v(10, 11), Region::Top),
+        ("9.3", v(7, 7), Region::Middle),
+        ("8.3", v(10, 3), Region::Bottom),
+        ("8.4", v(4, 3), Region::Bottom),
+        ("2.1", v(7, 1), Region::Bottom),
+    ];
+    let rig = Rig {
+        name: "grid".into(),
+        units: "cm".into(),
+        mesh: Mesh {
+            positions: positions.clone(),
+            triangles,
+            ..Default::default()
+        },
+        controls: controls
+            .iter()
+            .map(|(f, vtx, r)| RigControl {
+                fdp: f.parse().unwrap(),
+                vertex: *vtx,
+                region: *r,
+            })
+            .collect(),
+        regions: RegionBands {
+            top_from: 2.0,
+            bottom_below: -2.0,
+            band: 2.0,
+        },
+        frozen: vec![false; GRID * GRID],
+        solver: SolverSettings::default(),
+    };
+    // Layout points: the 6 controls, then 6 stable points (corners and sides of the grid).
+    let stable_vertices = [v(0, 14), v(14, 14), v(0, 7), v(14, 7), v(0, 0), v(14, 0)];
+    let point_vertices: Vec<u32> = controls
+        .iter()
+        .map(|c| c.1)
+        .chain(stable_vertices)
+        .collect();
+    let layout = Layout {
+        name: "grid12".into(),
+        description: String::new(),
+        point_count: point_vertices.len(),
+        controls: controls
+            .iter()
+            .enumerate()
+            .map(|(k, (f, _, r))| LayoutControl {
+                fdp: f.parse().unwrap(),
+                points: vec![k],
+                region: *r,
+                note: String::new(),
+            })
+            .collect(),
+        stable: (6..12).collect(),
+        undocumented: vec![],
+        point_names: point_vertices
+            .iter()
+            .map(|v| format!("vertex {v}"))
+            .collect(),
+    };
+    (rig, layout)
+}
+
+const SRC_SCALE: f32 = 0.01;
+
+fn neutral_points(rig: &Rig, layout: &Layout) -> Vec<Vec3> {
+    let stable = [(0, 14), (14, 14), (0, 7), (14, 7), (0, 0), (14, 0)];
+    rig.controls
+        .iter()
+        .map(|c| rig.mesh.positions[c.vertex as usize])
+        .chain(
+            stable
+                .iter()
+                .map(|&(x, y)| rig.mesh.positions[y * GRID + x]),
+        )
+        .take(layout.point_count)
+        .map(|p| p * SRC_SCALE)
+        .collect()
+}
+
+fn frame(t_us: i64, points: Vec<Vec3>) -> LandmarkFrame {
+    LandmarkFrame::new(t_us, points)
+}
+
+fn setup(settings: RetargetSettings) -> (Retargeter, Vec<Vec3>) {
+    let (rig, layout) = rig_and_layout();
+    let basis = mimic_solve::build_basis(&rig, &rig.solver).unwrap();
+    let neutral = neutral_points(&rig, &layout);
+    (
+        Retargeter::new(&rig, &layout, basis, settings).unwrap(),
+        neutral,
+    )
+}
+
+fn plain() -> RetargetSettings {
+    RetargetSettings {
+        neutral: Neutral::FirstFrames(1),
+        filter: None,
+        ..Default::default()
+    }
+}
+
+#[test]
+fn rigid_head_motion_gives_no_expression() {
+    let (mut r, neutral) = setup(plain());
+    let mut out = r.new_output();
+    assert_eq!(
+        r.step(&frame(0, neutral.clone()), &mut out),
+        FrameStatus::Calibrating
+    );
+    for k in 1..30 {
+        let rot = Quat::from_euler(
+            glam::EulerRot::YXZ,
+            0.03 * k as f32,
+            -0.01 * k as f32,
+            0.005 * k as f32,
+        );
+        let t = Vec3::new(0.01, -0.02, 0.5) * k as f32 * 0.1;
+        let moved: Vec<Vec3> = neutral.iter().map(|p| rot * *p + t).collect();
+        assert_eq!(
+            r.step(&frame(k * 33_000, moved), &mut out),
+            FrameStatus::Tracked
+        );
+        // f32 pose fit on metre-scale points: residual ~1e-6 m, times the scale of 100 -> < 1e-3 cm.
+        for d in &out.displacements {
+            assert!(d.length() < 1e-3, "frame {k}: {d}");
+        }
+        let q = out.pose.rotation;
+        assert!(q.angle_between(rot) < 1e-3, "pose rotation off");
+    }
+    assert_eq!(r.stats().tracked, 29);
+}
+
+#[test]
+fn expression_maps_through_the_similarity() {
+    let (mut r, neutral) = setup(plain());
+    let mut out = r.new_output();
+    r.step(&frame(0, neutral.clone()), &mut out);
+    let s = *r.source_to_target().unwrap();
+    // Same face, scaled by 100: scale 100, identity rotation, no mirror.
+    assert!((s.scale - 100.0).abs() < 0.01 && !s.mirrored, "{s:?}");
+    let rot = Quat::from_rotation_y(0.3);
+    let mut moved: Vec<Vec3> = neutral.iter().map(|p| rot * *p).collect();
+    let e = Vec3::new(0.0, -0.004, 0.001); // the chin drops 4 mm
+    moved[5] += rot * e;
+    r.step(&frame(33_000, moved), &mut out);
+    // Chin control moves by 100 * e in target cm; the others stay (tolerance: 1e-3 cm as above).
+    assert!(
+        (out.displacements[5] - e * 100.0).length() < 1e-3,
+        "{}",
+        out.displacements[5]
+    );
+    for j in 0..5 {
+        assert!(out.displacements[j].length() < 1e-3);
+    }
+    // The RBF reproduces control displacements exactly: the chin vertex moved by d.
+    let chin = 7 + GRID;
+    let moved_by = out.positions[chin] - r.rest_positions()[chin];
+    assert!((moved_by - out.displacements[5]).length() < 1e-3);
+    assert!(out.positions.iter().all(|p| p.is_finite()));
+    assert!(out.normals.iter().all(|n| (n.length() - 1.0).abs() < 1e-4));
+}
+
+#[test]
+fn frame_deltas_sum_to_the_neutral_relative_displacement() {
+    let (mut r, neutral) = setup(plain());
+    let mut out = r.new_output();
+    r.step(&frame(0, neutral.clone()), &mut out);
+    let mut sum = vec![Vec3::ZERO; 6];
+    let mut seed = 7u32;
+    let mut rnd = move || {
+        seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);
+        (seed >> 8) as f32 / (1u32 << 24) as f32 - 0.5
+    };
+    for k in 1..100 {
+        let rot = Quat::from_rotation_z(0.01 * rnd());
+        let mut pts: Vec<Vec3> = neutral.iter().map(|p| rot * *p).collect();
+        for p in pts.iter_mut().take(6) {
+            *p += Vec3::new(rnd(), rnd(), rnd()) * 0.004;
+        }
+        r.step(&frame(k * 33_000, pts), &mut out);
+        for (s, d) in sum.iter_mut().zip(r.frame_delta()) {
+            *s += *d;
+        }
+    }
+    // Running sum of 99 f32 deltas of size ~4e-3 m: drift bounded by 99 * 4e-3 * 2^-23 * few ~ 1e-7.
+    for (s, e) in sum.iter().zip(r.source_displacement()) {
+        assert!((*s - *e).length() < 1e-5, "{s} vs {e}");
+    }
+}
+
+#[test]
+fn lost_tracking_holds_then_eases_to_neutral() {
+    let settings = RetargetSettings {
+        lost_hold_secs: 0.1,
+        lost_ease_secs: 0.2,
+        ..plain()
+    };
+    let (mut r, neutral) = setup(settings);
+    let mut out = r.new_output();
+    r.step(&frame(0, neutral.clone()), &mut out);
+    let mut smile = neutral.clone();
+    smile[3] += Vec3::new(0.005, 0.002, 0.0);
+    r.step(&frame(100_000, smile), &mut out);
+    let held = out.displacements[3];
+    assert!(held.length() > 0.4);
+    let lost = |t| LandmarkFrame {
+        tracked: false,
+        ..frame(t, neutral.clone())
+    };
+    // Lost at t = 0.2 s: hold for 0.1 s, then linear ease over 0.2 s.
+    for (t_us, k) in [
+        (200_000, 1.0),
+        (300_000, 1.0),
+        (400_000, 0.5),
+        (500_000, 0.0),
+        (900_000, 0.0),
+    ] {
+        assert_eq!(r.step(&lost(t_us), &mut out), FrameStatus::Lost);
+        assert!(
+            (out.displacements[3] - held * k).length() < 1e-5,
+            "t {t_us}: {}",
+            out.displacements[3]
+        );
+    }
+    assert_eq!(r.stats().lost, 5);
+}
+
+#[test]
+fn missing_controls_are_held_and_bad_frames_rejected() {
+    let (mut r, neutral) = setup(plain());
+    let mut out = r.new_output();
+    r.step(&frame(0, neutral.clone()), &mut out);
+    let mut open = neutral.clone();
+    open[5] += Vec3::new(0.0, -0.01, 0.0);
+    r.step(&frame(33_000, open.clone()), &mut out);
+    let before = out.displacements[5];
+    let mut f = frame(66_000, open);
+    f.valid[5] = false;
+    r.step(&f, &mut out);
+    assert_eq!(out.filled, 1);
+    assert_eq!(out.displacements[5], before);
+    let positions = out.positions.clone();
+    let short = frame(99_000, neutral[..11].to_vec());
+    assert_eq!(r.step(&short, &mut out), FrameStatus::Rejected);
+    assert_eq!(
+        out.positions, positions,
+        "a rejected frame leaves the output alone"
+    );
+    let s = r.stats();
+    assert_eq!(
+        (
+            s.frames,
+            s.calibrating,
+            s.tracked,
+            s.rejected,
+            s.filled_controls
+        ),
+        (4, 1, 2, 1, 1)
+    );
+}
+
+#[test]
+fn neutral_is_averaged_over_first_frames_despite_head_motion() {
+    let settings = RetargetSettings {
+        neutral: Neutral::FirstFrames(3),
+        filter: None,
+        ..Default::default()
+    };
+    let (mut r, neutral) = setup(settings);
+    let mut out = r.new_output();
+    for k in 0..3 {
+        let rot = Quat::from_rotation_y(0.1 * k as f32);
+        let pts: Vec<Vec3> = neutral.iter().map(|p| rot * *p).collect();
+        assert_eq!(
+            r.step(&frame(k * 33_000, pts), &mut out),
+            FrameStatus::Calibrating
+        );
+    }
+    r.step(&frame(100_000, neutral.clone()), &mut out);
+    assert_eq!(out.status, FrameStatus::Tracked);
+    for d in &out.displacements {
+        assert!(d.length() < 1e-3);
+    }
+}
+
+#[test]
+fn step_output_is_allocation_stable() {
+    // The output buffers keep their allocations across steps (no reallocation per frame).
+    let (mut r, neutral) = setup(RetargetSettings {
+        neutral: Neutral::FirstFrames(1),
+        ..Default::default()
+    });
+    let mut out = r.new_output();
+    let ptrs = (
+        out.positions.as_ptr(),
+        out.normals.as_ptr(),
+        out.displacements.as_ptr(),
+    );
+    for k in 0..10 {
+        r.step(&frame(k * 33_000, neutral.clone()), &mut out);
+    }
+    assert_eq!(
+        ptrs,
+        (
+            out.positions.as_ptr(),
+            out.normals.as_ptr(),
+            out.displacements.as_ptr()
+        )
+    );
+}
