@@ -9,6 +9,7 @@
 //! No tokio, no wgpu, no file formats: sources and sinks live in other crates.
 
 mod filter;
+mod patch;
 mod pipeline;
 mod scale;
 mod settings;

@@ -1,5 +1,6 @@
 //! The retargeter: setup once, then one allocation-free `step` per frame.
 
+use crate::patch::MovingPatch;
 use crate::{Neutral, OneEuro, RetargetSettings, SourceToTarget};
 use glam::{Quat, Vec3};
 use mimic_solve::{Basis, kabsch::fit_similarity, vertex_normals};
@@ -154,6 +155,7 @@ pub struct Retargeter {
     layout: Layout,
     settings: RetargetSettings,
     basis: Basis,
+    patch: MovingPatch,
     rest: Vec<Vec3>,
     triangles: Vec<[u32; 3]>,
     target_controls: Vec<Vec3>,
@@ -213,6 +215,7 @@ impl Retargeter {
         let p = layout.point_count;
         let mut r = Retargeter {
             layout: layout.clone(),
+            patch: MovingPatch::new(&basis, &rig.mesh.triangles),
             basis,
             rest: rig.mesh.positions.clone(),
             triangles: rig.mesh.triangles.clone(),
@@ -415,17 +418,20 @@ impl Retargeter {
         out.status
     }
 
-    /// `positions = rest + B d` and normals; returns the instants after each.
-    fn deform(&self, out: &mut FrameOutput) -> (Instant, Instant) {
-        self.basis.apply(&out.displacements, &mut out.positions);
-        for (p, r) in out.positions.iter_mut().zip(&self.rest) {
-            *p += *r;
-        }
+    /// `positions = rest + B d` and normals, over the moving part only; returns the instants after each.
+    fn deform(&mut self, out: &mut FrameOutput) -> (Instant, Instant) {
+        self.patch
+            .deform(&out.displacements, &self.rest, &mut out.positions);
         let t4 = Instant::now();
         if self.settings.normals {
-            vertex_normals(&out.positions, &self.triangles, &mut out.normals);
+            self.patch.normals(&out.positions, &mut out.normals);
         }
         (t4, Instant::now())
+    }
+
+    /// Number of vertices that can move (non-zero rows of `B`).
+    pub fn moving_vertex_count(&self) -> usize {
+        self.patch.moving_count()
     }
 
     fn lost(&mut self, t_us: i64, out: &mut FrameOutput) -> FrameStatus {
