@@ -1,0 +1,330 @@
+//! Streaming reader of v1 recordings: one line at a time, bad frames rejected and counted.
+
+use super::RecordedFrame;
+use super::error::{FrameError, FrameProblem, RecordingError};
+use super::header::RecordingHeader;
+use glam::Vec3;
+use mimic_types::LandmarkFrame;
+use serde::{Deserialize, Serialize};
+use std::fs::File;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+
+/// Rejected frames, by reason.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct RejectCounts {
+    /// Lines that are not a valid frame object.
+    pub bad_json: usize,
+    /// A cut-off last line.
+    pub truncated: usize,
+    /// Tracked frames with the wrong number of points.
+    pub point_count: usize,
+    /// Points with a null or out-of-range coordinate not listed invalid.
+    pub bad_coordinate: usize,
+    /// `invalid` lists naming points the frame lacks.
+    pub bad_invalid_index: usize,
+    /// Timestamps not after the previous accepted frame's.
+    pub time_not_increasing: usize,
+    /// Lines that could not be read.
+    pub io: usize,
+}
+
+impl RejectCounts {
+    /// All rejected frames.
+    pub fn total(&self) -> usize {
+        self.bad_json
+            + self.truncated
+            + self.point_count
+            + self.bad_coordinate
+            + self.bad_invalid_index
+            + self.time_not_increasing
+            + self.io
+    }
+
+    fn count(&mut self, p: &FrameProblem) {
+        let slot = match p {
+            FrameProblem::Json { .. } => &mut self.bad_json,
+            FrameProblem::Truncated { .. } => &mut self.truncated,
+            FrameProblem::PointCount { .. } => &mut self.point_count,
+            FrameProblem::BadCoordinate { .. } => &mut self.bad_coordinate,
+            FrameProblem::InvalidIndexOutOfRange { .. } => &mut self.bad_invalid_index,
+            FrameProblem::TimeNotIncreasing { .. } => &mut self.time_not_increasing,
+            FrameProblem::Io { .. } => &mut self.io,
+        };
+        *slot += 1;
+    }
+}
+
+/// Running counts of what a reader has seen so far.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct ReadStats {
+    /// Frames accepted (lost-tracking frames included).
+    pub accepted: usize,
+    /// Accepted frames with `tracked: false`.
+    pub lost_tracking: usize,
+    /// Invalid points summed over accepted frames.
+    pub invalid_points: usize,
+    /// Rejected frames by reason.
+    pub rejected: RejectCounts,
+}
+
+/// One frame line as written in the file.
+#[derive(Deserialize)]
+struct FrameRecord {
+    t_us: i64,
+    #[serde(default)]
+    points: Vec<Option<[Option<f64>; 3]>>,
+    #[serde(default)]
+    invalid: Vec<usize>,
+    #[serde(default = "default_tracked")]
+    tracked: bool,
+    #[serde(default)]
+    label: Option<i64>,
+}
+
+fn default_tracked() -> bool {
+    true
+}
+
+/// Reads a v1 recording line by line from any `BufRead`.
+///
+/// The expected point count is, in order: the caller's, the header's `point_count`, or the
+/// point count of the first accepted tracked frame. Iterating yields each accepted frame or
+/// the error of each rejected line; reading goes on after a rejection.
+pub struct RecordingReader<R> {
+    input: R,
+    path: PathBuf,
+    header: RecordingHeader,
+    expected_points: Option<usize>,
+    line: u64,
+    last_t_us: Option<i64>,
+    stats: ReadStats,
+    buf: Vec<u8>,
+    done: bool,
+}
+
+impl RecordingReader<BufReader<File>> {
+    /// Opens a recording file and reads its header.
+    pub fn open(path: &Path, expected_points: Option<usize>) -> Result<Self, RecordingError> {
+        let file = File::open(path).map_err(|source| RecordingError::Open {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::new(BufReader::new(file), path, expected_points)
+    }
+}
+
+impl<R: BufRead> RecordingReader<R> {
+    /// Reads the header from `input`; `path` only names the source in messages.
+    pub fn new(
+        mut input: R,
+        path: impl Into<PathBuf>,
+        expected_points: Option<usize>,
+    ) -> Result<Self, RecordingError> {
+        let path = path.into();
+        let header_error = |reason: String| RecordingError::Header {
+            path: path.clone(),
+            reason,
+        };
+        let mut buf = Vec::new();
+        let n = input
+            .read_until(b'\n', &mut buf)
+            .map_err(|e| header_error(format!("cannot read the header: {e}")))?;
+        if n == 0 {
+            return Err(header_error("empty file: no header line".to_string()));
+        }
+        let header: RecordingHeader = serde_json::from_slice(trim_line_end(&buf))
+            .map_err(|e| header_error(format!("header is not a valid recording header ({e})")))?;
+        header.check().map_err(header_error)?;
+        if let (Some(caller), Some(file)) = (expected_points, header.point_count)
+            && caller != file
+        {
+            return Err(header_error(format!(
+                "header says {file} points per frame but layout {} is expected to have {caller}",
+                header.layout
+            )));
+        }
+        let expected_points = expected_points.or(header.point_count);
+        Ok(Self {
+            input,
+            path,
+            header,
+            expected_points,
+            line: 1,
+            last_t_us: None,
+            stats: ReadStats::default(),
+            buf,
+            done: false,
+        })
+    }
+
+    /// The recording's header.
+    pub fn header(&self) -> &RecordingHeader {
+        &self.header
+    }
+
+    /// The path named in messages.
+    pub fn path(&self) -> &Path {
+        &self.path
+    }
+
+    /// Points per tracked frame, once known.
+    pub fn expected_points(&self) -> Option<usize> {
+        self.expected_points
+    }
+
+    /// Counts so far.
+    pub fn stats(&self) -> &ReadStats {
+        &self.stats
+    }
+
+    /// 1-based number of the last line read (1 is the header).
+    pub fn line(&self) -> u64 {
+        self.line
+    }
+
+    /// The next accepted frame or rejected line; `None` at the end of the file.
+    pub fn next_frame(&mut self) -> Option<Result<RecordedFrame, FrameError>> {
+        loop {
+            if self.done {
+                return None;
+            }
+            self.buf.clear();
+            let read = self.input.read_until(b'\n', &mut self.buf);
+            let n = match read {
+                Ok(n) => n,
+                Err(e) => {
+                    self.done = true;
+                    self.line += 1;
+                    return Some(Err(self.reject(FrameProblem::Io {
+                        detail: e.to_string(),
+                    })));
+                }
+            };
+            if n == 0 {
+                self.done = true;
+                return None;
+            }
+            self.line += 1;
+            let complete = self.buf.ends_with(b"\n");
+            let text = trim_line_end(&self.buf);
+            if text.iter().all(u8::is_ascii_whitespace) {
+                continue;
+            }
+            let parsed = serde_json::from_slice::<FrameRecord>(text);
+            let result = match parsed {
+                Ok(rec) => self.check(rec),
+                Err(e) => Err(json_problem(&e, complete)),
+            };
+            return Some(match result {
+                Ok(f) => {
+                    self.stats.accepted += 1;
+                    if !f.frame.tracked {
+                        self.stats.lost_tracking += 1;
+                    }
+                    self.stats.invalid_points += f.frame.valid.iter().filter(|v| !**v).count();
+                    self.last_t_us = Some(f.frame.timestamp_us);
+                    Ok(f)
+                }
+                Err(p) => Err(self.reject(p)),
+            });
+        }
+    }
+
+    fn reject(&mut self, problem: FrameProblem) -> FrameError {
+        self.stats.rejected.count(&problem);
+        FrameError {
+            path: self.path.clone(),
+            line: self.line,
+            problem,
+        }
+    }
+
+    fn check(&mut self, rec: FrameRecord) -> Result<RecordedFrame, FrameProblem> {
+        let count = rec.points.len();
+        if rec.tracked || count > 0 {
+            match self.expected_points {
+                Some(expected) if expected != count => {
+                    return Err(FrameProblem::PointCount {
+                        found: count,
+                        expected,
+                        layout: self.header.layout.clone(),
+                    });
+                }
+                _ => {}
+            }
+        }
+        let mut valid = vec![true; count];
+        for &i in &rec.invalid {
+            match valid.get_mut(i) {
+                Some(v) => *v = false,
+                None => return Err(FrameProblem::InvalidIndexOutOfRange { index: i, count }),
+            }
+        }
+        let mut points = Vec::with_capacity(count);
+        for (i, (p, ok)) in rec.points.iter().zip(&valid).enumerate() {
+            if !ok {
+                points.push(Vec3::NAN);
+                continue;
+            }
+            let coords = p.and_then(|[x, y, z]| Some([x?, y?, z?]));
+            let v = coords.map(|[x, y, z]| Vec3::new(x as f32, y as f32, z as f32));
+            match v {
+                Some(v) if v.is_finite() => points.push(v),
+                _ => return Err(FrameProblem::BadCoordinate { point: i }),
+            }
+        }
+        if let Some(previous_us) = self.last_t_us
+            && rec.t_us <= previous_us
+        {
+            return Err(FrameProblem::TimeNotIncreasing {
+                t_us: rec.t_us,
+                previous_us,
+            });
+        }
+        if rec.tracked && count > 0 && self.expected_points.is_none() {
+            self.expected_points = Some(count);
+        }
+        let frame = LandmarkFrame {
+            timestamp_us: rec.t_us,
+            points,
+            valid,
+            tracked: rec.tracked,
+        };
+        Ok(RecordedFrame {
+            frame,
+            label: rec.label,
+        })
+    }
+}
+
+impl<R: BufRead> Iterator for RecordingReader<R> {
+    type Item = Result<RecordedFrame, FrameError>;
+    fn next(&mut self) -> Option<Self::Item> {
+        self.next_frame()
+    }
+}
+
+/// The line without its trailing `\n` or `\r\n`.
+fn trim_line_end(buf: &[u8]) -> &[u8] {
+    let buf = buf.strip_suffix(b"\n").unwrap_or(buf);
+    buf.strip_suffix(b"\r").unwrap_or(buf)
+}
+
+/// A parse error as a problem; a last line without newline that fails to parse is truncated.
+fn json_problem(e: &serde_json::Error, complete: bool) -> FrameProblem {
+    let full = e.to_string();
+    // serde_json appends " at line L column C"; the line is always 1 here, so keep the message only.
+    let detail = match full.rfind(" at line ") {
+        Some(i) => full[..i].to_string(),
+        None => full,
+    };
+    if complete {
+        FrameProblem::Json {
+            column: e.column(),
+            detail,
+        }
+    } else {
+        FrameProblem::Truncated { detail }
+    }
+}

@@ -1,0 +1,5 @@
+//! Integration tests of mimic_capture: recording format, importers on real data, replay.
+
+mod format;
+mod real_data;
+mod replay;
