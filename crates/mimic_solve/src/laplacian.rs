@@ -17,6 +17,9 @@
 //!   Laplacian energy does not see translations): it is held at zero displacement, as if frozen,
 //!   with a `tracing::warn`.
 
+// Index loops mirror the matrix formulas (rows i, columns j) and touch several arrays at once.
+#![allow(clippy::needless_range_loop)]
+
 use crate::SolveError;
 use faer::Side;
 use faer::prelude::*;
@@ -82,8 +85,9 @@ pub fn laplacian_rows(
         let degenerate = idx[0] == idx[1]
             || idx[1] == idx[2]
             || idx[0] == idx[2]
-            || !(area2 > DEGENERATE_AREA * longest)
-            || !area2.is_finite();
+            || area2 <= DEGENERATE_AREA * longest
+            || !area2.is_finite()
+            || !longest.is_finite();
         for corner in 0..3 {
             let (i, j, k) = (idx[corner], idx[(corner + 1) % 3], idx[(corner + 2) % 3]);
             if i != j {
@@ -296,5 +300,232 @@ fn union(parent: &mut [usize], a: usize, b: usize) {
     let (ra, rb) = (find(parent, a), find(parent, b));
     if ra != rb {
         parent[ra] = rb;
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_meshes::{control_lattice, grid, lcg, tri_lattice};
+
+    /// Dense reference: builds L densely from the rows, then A and the right-hand side, and solves
+    /// with a dense LU (faer), with the same frozen set.
+    fn dense_reference(
+        rows: &LaplacianRows,
+        frozen: &[bool],
+        controls: &[usize],
+        w: f64,
+    ) -> Vec<f64> {
+        let n = frozen.len();
+        let k = controls.len();
+        let mut l = Mat::<f64>::zeros(n, n);
+        for i in 0..n {
+            l[(i, i)] = rows.diagonal(i);
+            for (j, v) in rows.row(i) {
+                l[(i, j)] += v;
+            }
+        }
+        let free: Vec<usize> = (0..n).filter(|&i| !frozen[i]).collect();
+        let lf = Mat::<f64>::from_fn(n, free.len(), |i, c| l[(i, free[c])]);
+        let mut a = lf.transpose() * &lf;
+        let mut rhs = Mat::<f64>::zeros(free.len(), k);
+        for (col, &c) in controls.iter().enumerate() {
+            let f = free.iter().position(|&v| v == c).unwrap();
+            a[(f, f)] += w * w;
+            rhs[(f, col)] = w * w;
+        }
+        let x = a.partial_piv_lu().solve(&rhs);
+        let mut out = vec![0.0; n * k];
+        for (c, &i) in free.iter().enumerate() {
+            for col in 0..k {
+                out[i * k + col] = x[(c, col)];
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn sparse_solve_matches_dense_reference() {
+        let mesh = grid(10, 10, 0.3, 0.3, 1);
+        let n = mesh.vertex_count();
+        let controls: Vec<usize> = control_lattice(10, 10, 3, 3)
+            .into_iter()
+            .map(|v| v as usize)
+            .collect();
+        // Freeze the bottom row of the grid.
+        let frozen: Vec<bool> = (0..n).map(|i| i < 10).collect();
+        for weights in [
+            LaplacianWeights::Uniform,
+            LaplacianWeights::MeanValue,
+            LaplacianWeights::Cotangent,
+        ] {
+            let rows = laplacian_rows(&mesh.positions, &mesh.triangles, weights);
+            let sparse = laplacian_columns(&rows, &frozen, &controls, 3.0, "test").unwrap();
+            let dense = dense_reference(&rows, &frozen, &controls, 3.0);
+            let scale = dense.iter().fold(0f64, |a, v| a.max(v.abs()));
+            // Both are backward-stable solves of a system with condition ~1e4 here: 1e-9 * max|B|.
+            for (s, d) in sparse.iter().zip(&dense) {
+                assert!((s - d).abs() <= 1e-9 * scale, "{weights:?}: {s} vs {d}");
+            }
+            for i in 0..10 {
+                assert!(
+                    sparse[i * 9..(i + 1) * 9].iter().all(|v| *v == 0.0),
+                    "frozen row {i} moved"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn mean_value_and_cotangent_have_linear_precision_on_a_plane() {
+        // Mean-value and cotangent weights reproduce linear functions at interior vertices of a
+        // planar mesh: sum_j w_ij v_j / sum_j w_ij = v_i, i.e. L V = 0 (uniform weights do not
+        // on a jittered mesh). The jittered triangular lattice keeps every angle below 90 degrees,
+        // so no cotangent is clamped.
+        let mesh = tri_lattice(8, 8, 0.1, 9);
+        for weights in [
+            LaplacianWeights::MeanValue,
+            LaplacianWeights::Cotangent,
+            LaplacianWeights::Uniform,
+        ] {
+            let rows = laplacian_rows(&mesh.positions, &mesh.triangles, weights);
+            let mut worst = 0f64;
+            for j in 1..7 {
+                for i in 1..7 {
+                    let v = j * 8 + i;
+                    let lv = rows.row(v).fold(mesh.positions[v].as_dvec3(), |a, (c, w)| {
+                        a + mesh.positions[c].as_dvec3() * w
+                    });
+                    worst = worst.max(lv.length());
+                }
+            }
+            // f32 positions of size 1, weights of size 1/6: a few ulps, 1e-6 is generous.
+            if weights == LaplacianWeights::Uniform {
+                assert!(
+                    worst > 1e-3,
+                    "uniform weights should not be linear-precise on a jittered grid"
+                );
+            } else {
+                assert!(worst < 1e-6, "{weights:?}: |L V| = {worst}");
+            }
+        }
+    }
+
+    #[test]
+    fn mean_value_weights_match_hand_computation() {
+        // Regular fan of 6 equilateral triangles around the origin: every angle is 60 degrees and
+        // every spoke has length 1, so all weights are equal and each normalised entry is -1/6.
+        let mut positions = vec![Vec3::ZERO];
+        for a in 0..6 {
+            let t = a as f32 * std::f32::consts::PI / 3.0;
+            positions.push(Vec3::new(t.cos(), t.sin(), 0.0));
+        }
+        let triangles: Vec<[u32; 3]> = (0..6).map(|a| [0, 1 + a, 1 + (a + 1) % 6]).collect();
+        let rows = laplacian_rows(&positions, &triangles, LaplacianWeights::MeanValue);
+        let entries: Vec<_> = rows.row(0).collect();
+        assert_eq!(entries.len(), 6);
+        for (_, v) in entries {
+            assert!((v + 1.0 / 6.0).abs() < 1e-7);
+        }
+        // Boundary vertex 1: neighbours 0 (two triangles, angles 60 each) and 2, 6 (one each, angle
+        // 60): raw weights 2 tan30 / 1 for 0 and tan30 / 1 for 2 and 6 -> 1/2, 1/4, 1/4.
+        let row1: Vec<_> = rows.row(1).collect();
+        let get = |c: usize| row1.iter().find(|e| e.0 == c).unwrap().1;
+        assert!(
+            (get(0) + 0.5).abs() < 1e-7
+                && (get(2) + 0.25).abs() < 1e-7
+                && (get(6) + 0.25).abs() < 1e-7
+        );
+    }
+
+    #[test]
+    fn translation_moves_every_vertex_exactly_when_nothing_is_frozen() {
+        // L 1 = 0, so u = t everywhere has zero energy and meets every constraint: it is the
+        // unique minimiser. Columns therefore sum to 1 in every row (up to solver round-off ~1e-12).
+        let mesh = grid(12, 9, 0.2, 0.2, 4);
+        let n = mesh.vertex_count();
+        let controls: Vec<usize> = control_lattice(12, 9, 4, 3)
+            .into_iter()
+            .map(|v| v as usize)
+            .collect();
+        for weights in [
+            LaplacianWeights::Uniform,
+            LaplacianWeights::MeanValue,
+            LaplacianWeights::Cotangent,
+        ] {
+            let rows = laplacian_rows(&mesh.positions, &mesh.triangles, weights);
+            let cols = laplacian_columns(&rows, &vec![false; n], &controls, 2.0, "t").unwrap();
+            for row in cols.chunks_exact(controls.len()) {
+                assert!((row.iter().sum::<f64>() - 1.0).abs() < 1e-9, "{weights:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn degenerate_meshes_give_documented_zeros_not_nan() {
+        // Part 1: a strip with a zero-area triangle (collinear 0, 1, 2) and a repeated vertex index.
+        // Part 2: an isolated vertex 6. Part 3: a floating triangle 7, 8, 9 with no control.
+        let positions = vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(2.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(1.0, 1.0, 0.0),
+            Vec3::new(2.0, 1.0, 0.0),
+            Vec3::new(5.0, 5.0, 5.0),
+            Vec3::new(9.0, 0.0, 0.0),
+            Vec3::new(10.0, 0.0, 0.0),
+            Vec3::new(9.0, 1.0, 0.0),
+        ];
+        let triangles = vec![
+            [0, 1, 2],
+            [0, 1, 4],
+            [0, 4, 3],
+            [1, 2, 5],
+            [1, 5, 4],
+            [2, 2, 5],
+            [7, 8, 9],
+        ];
+        let mut seed = 3;
+        for weights in [
+            LaplacianWeights::Uniform,
+            LaplacianWeights::MeanValue,
+            LaplacianWeights::Cotangent,
+        ] {
+            let rows = laplacian_rows(&positions, &triangles, weights);
+            assert!(rows.vals.iter().all(|v| v.is_finite()), "{weights:?}");
+            assert_eq!(rows.diagonal(6), 0.0, "isolated vertex has an empty row");
+            let controls = [0usize, 5];
+            let cols = laplacian_columns(&rows, &[false; 10], &controls, 5.0, "t").unwrap();
+            assert!(cols.iter().all(|v| v.is_finite()));
+            // Isolated and floating vertices are held still.
+            for i in 6..10 {
+                assert_eq!(&cols[i * 2..i * 2 + 2], &[0.0, 0.0]);
+            }
+            // The strip itself still reproduces a translation (its rows sum to 1).
+            let _ = lcg(&mut seed);
+            for i in 0..6 {
+                assert!(
+                    (cols[i * 2] + cols[i * 2 + 1] - 1.0).abs() < 1e-9,
+                    "{weights:?} row {i}"
+                );
+            }
+        }
+        // An isolated control vertex follows its control (weight w^2 / w^2).
+        let rows = laplacian_rows(&positions, &triangles, LaplacianWeights::MeanValue);
+        let cols = laplacian_columns(&rows, &[false; 10], &[0, 6], 5.0, "t").unwrap();
+        assert!((cols[6 * 2 + 1] - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn rejects_bad_constraint_weight() {
+        let mesh = grid(3, 3, 0.0, 0.0, 0);
+        let rows = laplacian_rows(&mesh.positions, &mesh.triangles, LaplacianWeights::Uniform);
+        for w in [0.0, -1.0, f64::NAN] {
+            assert!(matches!(
+                laplacian_columns(&rows, &[false; 9], &[4], w, "t"),
+                Err(SolveError::InvalidSetting(_))
+            ));
+        }
     }
 }

@@ -104,3 +104,204 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
     let data = b.into_iter().map(|v| v as f32).collect();
     Basis::from_row_major(n, m, data).ok_or(SolveError::NoControls)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_meshes::{control_lattice, grid, random_d, rig};
+    use glam::Vec3;
+    use mimic_types::{LaplacianWeights, RbfKernel, RigError};
+
+    fn settings(kind: SolverKind, regions: bool) -> SolverSettings {
+        SolverSettings {
+            kind,
+            kernel: RbfKernel::Exponential { radius: 0.3 },
+            affine: false,
+            weights: LaplacianWeights::MeanValue,
+            constraint_weight: 10.0,
+            regions,
+        }
+    }
+
+    fn test_rig(band: f32) -> Rig {
+        rig(
+            grid(20, 20, 0.3, 0.3, 5),
+            &control_lattice(20, 20, 6, 6),
+            band,
+        )
+    }
+
+    fn apply(b: &Basis, d: &[Vec3]) -> Vec<Vec3> {
+        let mut out = vec![Vec3::NAN; b.vertex_count()];
+        b.apply(d, &mut out);
+        out
+    }
+
+    #[test]
+    fn rbf_hits_every_control_exactly() {
+        let r = test_rig(0.1);
+        let b = build_basis(&r, &settings(SolverKind::Rbf, false)).unwrap();
+        let mut seed = 1;
+        let d = random_d(&mut seed, r.controls.len(), 0.05);
+        let u = apply(&b, &d);
+        let dmax = d.iter().fold(0f32, |a, v| a.max(v.abs().max_element()));
+        for (c, dj) in r.controls.iter().zip(&d) {
+            // f32 basis and f32 sums: 1e-4 * max|d| as the brief states.
+            assert!(
+                (u[c.vertex as usize] - *dj).abs().max_element() <= 1e-4 * dmax,
+                "{}",
+                c.fdp
+            );
+        }
+    }
+
+    #[test]
+    fn zero_and_linearity_and_frozen_rows_for_both_solvers() {
+        let mut r = test_rig(0.1);
+        for (i, f) in r.frozen.iter_mut().enumerate() {
+            *f = i < 20; // bottom row of the grid (no controls there)
+        }
+        let mut seed = 2;
+        for kind in [SolverKind::Rbf, SolverKind::Laplacian] {
+            for regions in [false, true] {
+                let b = build_basis(&r, &settings(kind, regions)).unwrap();
+                let m = r.controls.len();
+                assert!(
+                    apply(&b, &vec![Vec3::ZERO; m])
+                        .iter()
+                        .all(|v| *v == Vec3::ZERO)
+                );
+                let d1 = random_d(&mut seed, m, 0.05);
+                let d2 = random_d(&mut seed, m, 0.05);
+                let (a, c) = (0.7f32, -1.3f32);
+                let mix: Vec<Vec3> = d1.iter().zip(&d2).map(|(x, y)| *x * a + *y * c).collect();
+                let (u1, u2, um) = (apply(&b, &d1), apply(&b, &d2), apply(&b, &mix));
+                for i in 0..b.vertex_count() {
+                    // f32 sums of m terms |B_ij d_j| <= 0.05 * max|B|: 1e-5 covers m eps (|B| <= ~3).
+                    assert!(
+                        (um[i] - (u1[i] * a + u2[i] * c)).length() < 1e-5,
+                        "{kind:?} {regions}"
+                    );
+                    if r.frozen[i] {
+                        assert!(b.row(i).iter().all(|w| *w == 0.0));
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn laplacian_translation_moves_every_vertex() {
+        // L 1 = 0: with nothing frozen the exact minimiser for a uniform translation t is u = t.
+        let r = test_rig(0.1);
+        let b = build_basis(&r, &settings(SolverKind::Laplacian, false)).unwrap();
+        let t = Vec3::new(0.01, -0.02, 0.03);
+        for u in apply(&b, &vec![t; r.controls.len()]) {
+            // Solver residual ~1e-12 plus f32 rounding of B and 36-term sums: 1e-5 |t|.
+            assert!((u - t).length() <= 1e-5 * t.length(), "{u}");
+        }
+    }
+
+    #[test]
+    fn regions_fold_into_blended_independent_solves() {
+        // Independent truth: solve each region on its own rig (its controls only, regions off),
+        // then blend by RegionBands::weights; the folded basis must give the same field.
+        let r = test_rig(0.15);
+        let mut seed = 3;
+        let d = random_d(&mut seed, r.controls.len(), 0.05);
+        for kind in [SolverKind::Rbf, SolverKind::Laplacian] {
+            let folded = apply(&build_basis(&r, &settings(kind, true)).unwrap(), &d);
+            let mut blended = vec![Vec3::ZERO; r.mesh.vertex_count()];
+            for region in mimic_types::Region::ALL {
+                let keep: Vec<usize> = (0..r.controls.len())
+                    .filter(|&j| r.controls[j].region == region)
+                    .collect();
+                let mut sub = r.clone();
+                sub.controls = keep.iter().map(|&j| r.controls[j].clone()).collect();
+                let dr: Vec<Vec3> = keep.iter().map(|&j| d[j]).collect();
+                let u = apply(&build_basis(&sub, &settings(kind, false)).unwrap(), &dr);
+                for (i, (acc, ui)) in blended.iter_mut().zip(&u).enumerate() {
+                    *acc += *ui * r.regions.weights(r.mesh.positions[i].y)[region.index()];
+                }
+            }
+            for (a, b) in folded.iter().zip(&blended) {
+                // Same arithmetic up to f32 rounding order: 1e-6 on displacements ~0.05.
+                assert!((*a - *b).length() < 1e-6, "{kind:?}");
+            }
+        }
+    }
+
+    #[test]
+    fn region_blend_has_no_seam() {
+        // Across an edge (i, j): |u_i - u_j| <= max_r |u_r(i) - u_r(j)| + sum_r |alpha_r(i) - alpha_r(j)| |u_r(j)|
+        // and |alpha(i) - alpha(j)| <= |y_i - y_j| / band. So the jump across any edge is bounded by
+        // the regions' own variation plus (2 |dy| / band) max |u_r|: no seam larger than the band allows.
+        // With band 0 the same bound fails somewhere (a hard seam), which shows the test bites.
+        let mut seed = 4;
+        let base = test_rig(0.0);
+        let d = random_d(&mut seed, base.controls.len(), 0.05);
+        for kind in [SolverKind::Rbf, SolverKind::Laplacian] {
+            let mut per_region = Vec::new();
+            for region in mimic_types::Region::ALL {
+                let keep: Vec<usize> = (0..base.controls.len())
+                    .filter(|&j| base.controls[j].region == region)
+                    .collect();
+                let mut sub = base.clone();
+                sub.controls = keep.iter().map(|&j| base.controls[j].clone()).collect();
+                let dr: Vec<Vec3> = keep.iter().map(|&j| d[j]).collect();
+                per_region.push(apply(
+                    &build_basis(&sub, &settings(kind, false)).unwrap(),
+                    &dr,
+                ));
+            }
+            let umax = per_region
+                .iter()
+                .flatten()
+                .fold(0f32, |a, v| a.max(v.length()));
+            for (band, expect_ok) in [(0.2f32, true), (0.0, false)] {
+                let mut r = base.clone();
+                r.regions.band = band;
+                let u = apply(&build_basis(&r, &settings(kind, true)).unwrap(), &d);
+                let mut ok = true;
+                for (a, b) in r.mesh.edges() {
+                    let (a, b) = (a as usize, b as usize);
+                    let own = per_region
+                        .iter()
+                        .fold(0f32, |m, ur| m.max((ur[a] - ur[b]).length()));
+                    let dy = (r.mesh.positions[a].y - r.mesh.positions[b].y).abs();
+                    let bound =
+                        own + if band > 0.0 {
+                            2.0 * dy / band * umax
+                        } else {
+                            0.0
+                        } + 1e-6;
+                    ok &= (u[a] - u[b]).length() <= bound;
+                }
+                assert_eq!(ok, expect_ok, "{kind:?} band {band}");
+            }
+        }
+    }
+
+    #[test]
+    fn bad_rigs_are_errors() {
+        let mut r = test_rig(0.1);
+        r.frozen[r.controls[0].vertex as usize] = true;
+        assert!(matches!(
+            build_basis(&r, &settings(SolverKind::Rbf, false)),
+            Err(SolveError::InvalidRig(RigError::FrozenControl { .. }))
+        ));
+        let mut r = test_rig(0.1);
+        r.controls.clear();
+        assert!(matches!(
+            build_basis(&r, &settings(SolverKind::Laplacian, true)),
+            Err(SolveError::NoControls)
+        ));
+        let r = test_rig(0.1);
+        let mut s = settings(SolverKind::Rbf, true);
+        s.kernel = RbfKernel::ThinPlate;
+        assert!(matches!(
+            build_basis(&r, &s),
+            Err(SolveError::InvalidSetting(_))
+        ));
+    }
+}

@@ -164,3 +164,150 @@ fn affine_entry(p: DVec3, a: usize) -> f64 {
         _ => p.z,
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::test_meshes::{control_lattice, fdp, grid, lcg};
+
+    fn setup() -> (Vec<Vec3>, Vec<Vec3>, Vec<Fdp>) {
+        let mesh = grid(15, 15, 0.3, 0.3, 2);
+        let centres: Vec<Vec3> = control_lattice(15, 15, 4, 4)
+            .iter()
+            .map(|&v| mesh.positions[v as usize])
+            .collect();
+        let fdps = (0..centres.len()).map(fdp).collect();
+        (mesh.positions, centres, fdps)
+    }
+
+    const KERNELS: [(RbfKernel, bool); 5] = [
+        (RbfKernel::Exponential { radius: 0.3 }, false),
+        (RbfKernel::Exponential { radius: 0.3 }, true),
+        (RbfKernel::Gaussian { radius: 0.4 }, false),
+        (RbfKernel::Gaussian { radius: 0.4 }, true),
+        (RbfKernel::ThinPlate, true),
+    ];
+
+    #[test]
+    fn columns_are_the_identity_at_the_controls() {
+        // Interpolation: the column of control c is 1 at c and 0 at every other control.
+        let (_, centres, fdps) = setup();
+        for (kernel, affine) in KERNELS {
+            let cols = rbf_columns(&centres, &[], &centres, &fdps, kernel, affine, "t").unwrap();
+            let k = centres.len();
+            for a in 0..k {
+                for b in 0..k {
+                    let want = if a == b { 1.0 } else { 0.0 };
+                    // Conditioning of Phi ~1e6 at most here: 1e-8 leaves room for f64 round-off.
+                    assert!((cols[a * k + b] - want).abs() < 1e-8, "{kernel:?} {affine}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn affine_term_reproduces_affine_fields_everywhere() {
+        // With the affine term, displacements d_j = M c_j + t are interpolated by exactly u(x) = M x + t
+        // (the kernel part vanishes), at every vertex, not just the controls.
+        let (positions, centres, fdps) = setup();
+        let mut s = 17;
+        let m = glam::DMat3::from_cols_array(&std::array::from_fn(|_| lcg(&mut s) as f64));
+        let t = glam::DVec3::new(0.1, -0.2, 0.3);
+        let k = centres.len();
+        for (kernel, _) in KERNELS.into_iter().filter(|(_, a)| *a) {
+            let cols = rbf_columns(&positions, &[], &centres, &fdps, kernel, true, "t").unwrap();
+            for (p, row) in positions.iter().zip(cols.chunks_exact(k)) {
+                let u = row
+                    .iter()
+                    .zip(&centres)
+                    .fold(glam::DVec3::ZERO, |a, (w, c)| {
+                        a + (m * c.as_dvec3() + t) * *w
+                    });
+                let want = m * p.as_dvec3() + t;
+                // Exact in exact arithmetic; f64 solve of a system with condition <= 1e8: 1e-7.
+                assert!((u - want).length() < 1e-7, "{kernel:?}: {u} vs {want}");
+            }
+        }
+    }
+
+    #[test]
+    fn without_affine_term_the_field_decays_away_from_controls() {
+        // exp(-r/s) columns far from every control (r >> s) vanish: a far point's row is ~0.
+        let (_, centres, fdps) = setup();
+        let far = [Vec3::new(100.0, 0.0, 0.0)];
+        let cols = rbf_columns(
+            &far,
+            &[],
+            &centres,
+            &fdps,
+            RbfKernel::Exponential { radius: 0.3 },
+            false,
+            "t",
+        )
+        .unwrap();
+        assert!(cols.iter().all(|v| v.abs() < 1e-100));
+    }
+
+    #[test]
+    fn frozen_rows_stay_zero() {
+        let (positions, centres, fdps) = setup();
+        let frozen: Vec<bool> = (0..positions.len()).map(|i| i % 3 == 0).collect();
+        let cols = rbf_columns(
+            &positions,
+            &frozen,
+            &centres,
+            &fdps,
+            RbfKernel::default(),
+            false,
+            "t",
+        )
+        .unwrap();
+        let k = centres.len();
+        for (i, row) in cols.chunks_exact(k).enumerate() {
+            assert_eq!(frozen[i], row.iter().all(|v| *v == 0.0), "row {i}");
+        }
+    }
+
+    #[test]
+    fn degenerate_setups_are_errors() {
+        let (_, mut centres, fdps) = setup();
+        let thin = rbf_columns(
+            &centres,
+            &[],
+            &centres,
+            &fdps,
+            RbfKernel::ThinPlate,
+            false,
+            "t",
+        );
+        assert!(matches!(thin, Err(SolveError::InvalidSetting(_))));
+        let zero = rbf_columns(
+            &centres,
+            &[],
+            &centres,
+            &fdps,
+            RbfKernel::Gaussian { radius: 0.0 },
+            false,
+            "t",
+        );
+        assert!(matches!(zero, Err(SolveError::InvalidSetting(_))));
+        // All controls on the plane z = 0 make the affine system singular.
+        let flat: Vec<Vec3> = centres.iter().map(|c| Vec3::new(c.x, c.y, 0.0)).collect();
+        let r = rbf_columns(&flat, &[], &flat, &fdps, RbfKernel::ThinPlate, true, "t");
+        assert!(matches!(r, Err(SolveError::Singular { .. })), "{r:?}");
+        centres[3] = centres[5];
+        let r = rbf_columns(
+            &centres,
+            &[],
+            &centres,
+            &fdps,
+            RbfKernel::default(),
+            false,
+            "t",
+        );
+        assert!(
+            matches!(r, Err(SolveError::CoincidentControls { .. })),
+            "{r:?}"
+        );
+    }
+}

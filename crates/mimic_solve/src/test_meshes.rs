@@ -1,7 +1,7 @@
 //! Generated meshes and rigs for the unit tests.
 
 use glam::Vec3;
-use mimic_types::{Fdp, Mesh, Region, RegionBands, Rig, RigControl, SolverSettings};
+use mimic_types::{Fdp, Mesh, RegionBands, Rig, RigControl, SolverSettings};
 
 /// Deterministic pseudo-random value in [-1, 1) (64-bit LCG).
 pub fn lcg(seed: &mut u64) -> f32 {
@@ -37,6 +37,42 @@ pub fn grid(nx: usize, ny: usize, bump: f32, jitter: f32, seed: u64) -> Mesh {
             let d = c + 1;
             triangles.push([a, b, d]);
             triangles.push([a, d, c]);
+        }
+    }
+    Mesh {
+        positions,
+        triangles,
+        ..Default::default()
+    }
+}
+
+/// `nx x ny` vertices of an equilateral triangular lattice in the z = 0 plane (odd rows shifted by
+/// half a cell), interior vertices jittered by up to `jitter` of the spacing (seeded).
+pub fn tri_lattice(nx: usize, ny: usize, jitter: f32, seed: u64) -> Mesh {
+    let mut s = seed;
+    let h = 3f32.sqrt() / 2.0;
+    let mut positions = Vec::with_capacity(nx * ny);
+    for j in 0..ny {
+        for i in 0..nx {
+            let mut p = Vec3::new(i as f32 + 0.5 * (j % 2) as f32, j as f32 * h, 0.0);
+            if i > 0 && j > 0 && i + 1 < nx && j + 1 < ny {
+                p += Vec3::new(lcg(&mut s), lcg(&mut s), 0.0) * jitter;
+            }
+            positions.push(p);
+        }
+    }
+    let mut triangles = Vec::new();
+    for j in 0..ny - 1 {
+        for i in 0..nx - 1 {
+            let a = (j * nx + i) as u32;
+            let (b, c, d) = (a + 1, a + nx as u32, a + nx as u32 + 1);
+            if j % 2 == 0 {
+                triangles.push([a, b, c]);
+                triangles.push([b, d, c]);
+            } else {
+                triangles.push([a, d, c]);
+                triangles.push([a, b, d]);
+            }
         }
     }
     Mesh {
