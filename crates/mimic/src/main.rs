@@ -20,6 +20,10 @@ struct Cli {
 enum Command {
     /// Validate a recording, layout or rig and print a summary.
     Info(cmd::info::Args),
+    /// Replay a recording onto a rig and write the deformed frames.
+    Replay(cmd::replay::Args),
+    /// Measure a solver against real expression meshes of the rig.
+    Eval(cmd::eval::Args),
     /// Convert another tracker's file into a v1 recording.
     #[command(subcommand)]
     Import(cmd::import::ImportCommand),
@@ -34,7 +38,9 @@ fn main() -> ExitCode {
         .init();
     let result = match cli.command {
         Command::Info(a) => cmd::info::run(a),
+        Command::Replay(a) => cmd::replay::run(a),
         Command::Import(c) => cmd::import::run(c),
+        Command::Eval(a) => cmd::eval::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -5,12 +5,14 @@
 //! that line. This crate knows nothing of recordings (that is `mimic_capture`) or solvers.
 
 mod error;
+mod frames;
 mod layout;
 mod obj;
 mod rig;
 mod span;
 
 pub use error::AssetError;
+pub use frames::{FRAMES_MAGIC, FRAMES_VERSION, FrameRecord, FramesReader, FramesWriter};
 pub use layout::{ConfigDirs, load_layout};
 pub use obj::{load_obj, write_obj};
 pub use rig::{RigFile, load_rig};

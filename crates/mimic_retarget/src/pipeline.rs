@@ -284,7 +284,9 @@ impl Retargeter {
             status: FrameStatus::Calibrating,
             positions: self.rest.clone(),
             normals: if self.settings.normals {
-                vec![Vec3::ZERO; n]
+                let mut normals = vec![Vec3::ZERO; n];
+                vertex_normals(&self.rest, &self.triangles, &mut normals);
+                normals
             } else {
                 Vec::new()
             },

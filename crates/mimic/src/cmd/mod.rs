@@ -1,5 +1,8 @@
 //! One module per subcommand.
 
+pub mod eval;
 pub mod import;
 pub mod info;
 pub mod recording_info;
+pub mod replay;
+pub mod setup;
