@@ -1,12 +1,12 @@
 //! Errors of reading and writing recordings.
 
-use std::fmt;
 use std::path::PathBuf;
 
 /// Why one frame line was rejected.
-#[derive(Debug, Clone, PartialEq, Eq)]
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
 pub enum FrameProblem {
     /// The line is not a valid frame object.
+    #[error("invalid JSON at column {column} ({detail})")]
     Json {
         /// 1-based column where parsing failed.
         column: usize,
@@ -14,11 +14,13 @@ pub enum FrameProblem {
         detail: String,
     },
     /// The last line ends without a newline and does not parse: the file was cut off.
+    #[error("truncated JSON ({detail})")]
     Truncated {
         /// What the JSON parser said.
         detail: String,
     },
     /// A tracked frame whose point count differs from the layout's.
+    #[error("frame has {found} points; layout {layout} has {expected}")]
     PointCount {
         /// Points in the frame.
         found: usize,
@@ -28,11 +30,13 @@ pub enum FrameProblem {
         layout: String,
     },
     /// A point not listed in `invalid` is `null`, has a `null` coordinate or does not fit in f32.
+    #[error("point {point} has a NaN coordinate (null or out of range) but is not listed invalid")]
     BadCoordinate {
         /// 0-based point index.
         point: usize,
     },
     /// `invalid` names a point the frame does not have.
+    #[error("`invalid` lists point {index}, but the frame has {count} points")]
     InvalidIndexOutOfRange {
         /// The listed index.
         index: usize,
@@ -40,57 +44,25 @@ pub enum FrameProblem {
         count: usize,
     },
     /// The timestamp is not after the previous accepted frame's.
+    #[error("timestamp {t_us} us is not after the previous frame's {previous_us} us")]
     TimeNotIncreasing {
         /// This frame's timestamp (µs).
         t_us: i64,
         /// The previous accepted frame's timestamp (µs).
         previous_us: i64,
     },
+    /// The line is longer than the reader's limit; the rest of it was skipped.
+    #[error("line longer than {limit} bytes")]
+    TooLong {
+        /// The limit, in bytes.
+        limit: usize,
+    },
     /// Reading the line failed.
+    #[error("read error: {detail}")]
     Io {
         /// The I/O error, in words.
         detail: String,
     },
-}
-
-impl fmt::Display for FrameProblem {
-    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        match self {
-            FrameProblem::Json { column, detail } => {
-                write!(f, "invalid JSON at column {column} ({detail})")
-            }
-            FrameProblem::Truncated { detail } => write!(f, "truncated JSON ({detail})"),
-            FrameProblem::PointCount {
-                found,
-                expected,
-                layout,
-            } => {
-                write!(
-                    f,
-                    "frame has {found} points; layout {layout} has {expected}"
-                )
-            }
-            FrameProblem::BadCoordinate { point } => {
-                write!(
-                    f,
-                    "point {point} has a NaN coordinate (null or out of range) but is not listed invalid"
-                )
-            }
-            FrameProblem::InvalidIndexOutOfRange { index, count } => {
-                write!(
-                    f,
-                    "`invalid` lists point {index}, but the frame has {count} points"
-                )
-            }
-            FrameProblem::TimeNotIncreasing { t_us, previous_us } => {
-                write!(
-                    f,
-                    "timestamp {t_us} us is not after the previous frame's {previous_us} us"
-                )
-            }
-            FrameProblem::Io { detail } => write!(f, "read error: {detail}"),
-        }
-    }
 }
 
 /// A rejected frame: which file, which line, what was wrong.

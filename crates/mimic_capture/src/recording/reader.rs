@@ -7,7 +7,7 @@ use glam::Vec3;
 use mimic_types::LandmarkFrame;
 use serde::{Deserialize, Serialize};
 use std::fs::File;
-use std::io::{BufRead, BufReader};
+use std::io::{BufRead, BufReader, Read};
 use std::path::{Path, PathBuf};
 
 /// Rejected frames, by reason.
@@ -25,6 +25,8 @@ pub struct RejectCounts {
     pub bad_invalid_index: usize,
     /// Timestamps not after the previous accepted frame's.
     pub time_not_increasing: usize,
+    /// Lines longer than the reader's limit.
+    pub too_long: usize,
     /// Lines that could not be read.
     pub io: usize,
 }
@@ -38,6 +40,7 @@ impl RejectCounts {
             + self.bad_coordinate
             + self.bad_invalid_index
             + self.time_not_increasing
+            + self.too_long
             + self.io
     }
 
@@ -49,11 +52,15 @@ impl RejectCounts {
             FrameProblem::BadCoordinate { .. } => &mut self.bad_coordinate,
             FrameProblem::InvalidIndexOutOfRange { .. } => &mut self.bad_invalid_index,
             FrameProblem::TimeNotIncreasing { .. } => &mut self.time_not_increasing,
+            FrameProblem::TooLong { .. } => &mut self.too_long,
             FrameProblem::Io { .. } => &mut self.io,
         };
         *slot += 1;
     }
 }
+
+/// Longest line the reader takes (16 MiB; a 10 000-point frame is about 0.4 MB).
+pub const MAX_LINE_BYTES: usize = 1 << 24;
 
 /// Running counts of what a reader has seen so far.
 #[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
@@ -100,6 +107,7 @@ pub struct RecordingReader<R> {
     last_t_us: Option<i64>,
     stats: ReadStats,
     buf: Vec<u8>,
+    max_line_bytes: usize,
     done: bool,
 }
 
@@ -127,11 +135,16 @@ impl<R: BufRead> RecordingReader<R> {
             reason,
         };
         let mut buf = Vec::new();
-        let n = input
-            .read_until(b'\n', &mut buf)
+        let n = read_line_capped(&mut input, &mut buf, MAX_LINE_BYTES)
             .map_err(|e| header_error(format!("cannot read the header: {e}")))?;
-        if n == 0 {
-            return Err(header_error("empty file: no header line".to_string()));
+        match n {
+            LineRead::Eof => return Err(header_error("empty file: no header line".to_string())),
+            LineRead::TooLong => {
+                return Err(header_error(format!(
+                    "header line longer than {MAX_LINE_BYTES} bytes"
+                )));
+            }
+            LineRead::Line => {}
         }
         let header: RecordingHeader = serde_json::from_slice(trim_line_end(&buf))
             .map_err(|e| header_error(format!("header is not a valid recording header ({e})")))?;
@@ -154,8 +167,15 @@ impl<R: BufRead> RecordingReader<R> {
             last_t_us: None,
             stats: ReadStats::default(),
             buf,
+            max_line_bytes: MAX_LINE_BYTES,
             done: false,
         })
+    }
+
+    /// Sets the longest frame line taken (default [`MAX_LINE_BYTES`]); longer lines are rejected.
+    pub fn with_max_line_bytes(mut self, limit: usize) -> Self {
+        self.max_line_bytes = limit;
+        self
     }
 
     /// The recording's header.
@@ -189,8 +209,7 @@ impl<R: BufRead> RecordingReader<R> {
             if self.done {
                 return None;
             }
-            self.buf.clear();
-            let read = self.input.read_until(b'\n', &mut self.buf);
+            let read = read_line_capped(&mut self.input, &mut self.buf, self.max_line_bytes);
             let n = match read {
                 Ok(n) => n,
                 Err(e) => {
@@ -201,11 +220,16 @@ impl<R: BufRead> RecordingReader<R> {
                     })));
                 }
             };
-            if n == 0 {
+            if let LineRead::Eof = n {
                 self.done = true;
                 return None;
             }
             self.line += 1;
+            if let LineRead::TooLong = n {
+                return Some(Err(self.reject(FrameProblem::TooLong {
+                    limit: self.max_line_bytes,
+                })));
+            }
             let complete = self.buf.ends_with(b"\n");
             let text = trim_line_end(&self.buf);
             if text.iter().all(u8::is_ascii_whitespace) {
@@ -303,6 +327,38 @@ impl<R: BufRead> Iterator for RecordingReader<R> {
     fn next(&mut self) -> Option<Self::Item> {
         self.next_frame()
     }
+}
+
+/// What [`read_line_capped`] found.
+enum LineRead {
+    /// A line (possibly without a final newline) is in the buffer.
+    Line,
+    /// The line was longer than the limit; it was skipped up to its newline.
+    TooLong,
+    /// End of input.
+    Eof,
+}
+
+/// Reads one line into `buf` (cleared first), never buffering more than `limit` + 1 bytes.
+fn read_line_capped<R: BufRead>(
+    input: &mut R,
+    buf: &mut Vec<u8>,
+    limit: usize,
+) -> std::io::Result<LineRead> {
+    buf.clear();
+    let n = input
+        .by_ref()
+        .take(limit as u64 + 1)
+        .read_until(b'\n', buf)?;
+    if n == 0 {
+        return Ok(LineRead::Eof);
+    }
+    if buf.len() > limit && !buf.ends_with(b"\n") {
+        input.skip_until(b'\n')?;
+        buf.clear();
+        return Ok(LineRead::TooLong);
+    }
+    Ok(LineRead::Line)
 }
 
 /// The line without its trailing `\n` or `\r\n`.

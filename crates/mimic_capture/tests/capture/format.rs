@@ -404,3 +404,30 @@ fn compact_coordinates_have_six_significant_digits() {
     assert_eq!(f(1234567.0), "1234567");
     assert_eq!(f(f32::NAN), "null");
 }
+
+#[test]
+fn overlong_lines_are_skipped_without_buffering_them() {
+    let text = format!(
+        "{}\n{}\n{}\n{}\n",
+        header(2),
+        frame_line(10, 2),
+        frame_line(20, 200),
+        frame_line(30, 2)
+    );
+    // frame_line(_, 2) is about 50 bytes; the 200-point line is about 2.6 kB.
+    let mut r = RecordingReader::new(Cursor::new(text.into_bytes()), "x.jsonl", None)
+        .unwrap()
+        .with_max_line_bytes(1000);
+    let items: Vec<_> = r.by_ref().collect();
+    assert_eq!(items.len(), 3);
+    assert_eq!(items[0].as_ref().unwrap().frame.timestamp_us, 10);
+    assert_eq!(
+        items[1].as_ref().unwrap_err().to_string(),
+        "x.jsonl:3: line longer than 1000 bytes"
+    );
+    assert_eq!(items[2].as_ref().unwrap().frame.timestamp_us, 30);
+    assert_eq!(
+        (r.stats().rejected.too_long, r.stats().rejected.total()),
+        (1, 1)
+    );
+}
