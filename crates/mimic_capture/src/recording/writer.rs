@@ -108,13 +108,13 @@ impl<W: Write> RecordingWriter<W> {
             }
             if frame.is_valid(i) {
                 let p = frame.points[i];
-                let _ = write!(
-                    line,
-                    "[{},{},{}]",
-                    format_coordinate(p.x),
-                    format_coordinate(p.y),
-                    format_coordinate(p.z)
-                );
+                line.push('[');
+                write_coordinate(line, p.x);
+                line.push(',');
+                write_coordinate(line, p.y);
+                line.push(',');
+                write_coordinate(line, p.z);
+                line.push(']');
             } else {
                 line.push_str("null");
                 invalid.push(i);
@@ -154,19 +154,107 @@ impl<W: Write> RecordingWriter<W> {
 
 /// A finite coordinate as compact JSON with six significant digits (`0.0123457`, `-0.836`, `0`).
 pub fn format_coordinate(v: f32) -> String {
+    let mut s = String::new();
+    write_coordinate(&mut s, v);
+    s
+}
+
+/// Appends [`format_coordinate`]'s text to `out` (`null` for a non-finite value).
+pub fn write_coordinate(out: &mut String, v: f32) {
     if !v.is_finite() {
-        return "null".to_string();
-    }
-    if v == 0.0 {
-        return "0".to_string();
+        out.push_str("null");
+        return;
     }
     let v = f64::from(v);
-    let magnitude = v.abs().log10().floor() as i32;
-    let decimals = (SIGNIFICANT_DIGITS - 1 - magnitude).clamp(0, 45) as usize;
-    let mut s = format!("{v:.decimals$}");
-    if s.contains('.') {
-        let trimmed = s.trim_end_matches('0').trim_end_matches('.').len();
-        s.truncate(trimmed);
+    if v == 0.0 {
+        out.push('0');
+        return;
     }
-    if s == "-0" { "0".to_string() } else { s }
+    let magnitude = v.abs().log10().floor() as i32;
+    let decimals = (SIGNIFICANT_DIGITS - 1 - magnitude).max(0);
+    if decimals > 15 || magnitude > 15 {
+        // Outside metres' usual range: let the formatter round exactly.
+        let mut s = format!("{v:.prec$}", prec = decimals.min(45) as usize);
+        if s.contains('.') {
+            let kept = s.trim_end_matches('0').trim_end_matches('.').len();
+            s.truncate(kept);
+        }
+        out.push_str(if s == "-0" { "0" } else { &s });
+        return;
+    }
+    // |scaled| < 10^7 and decimals <= 15: an exact integer, printed with the point put in by hand.
+    let scaled = (v * 10f64.powi(decimals)).round_ties_even() as i64;
+    if scaled == 0 {
+        out.push('0');
+        return;
+    }
+    if scaled < 0 {
+        out.push('-');
+    }
+    let digits = scaled.unsigned_abs().to_string();
+    let decimals = decimals as usize;
+    let (int_part, frac_part) = if digits.len() > decimals {
+        digits.split_at(digits.len() - decimals)
+    } else {
+        ("", digits.as_str())
+    };
+    if int_part.is_empty() {
+        out.push('0');
+    } else {
+        out.push_str(int_part);
+    }
+    let frac = frac_part.trim_end_matches('0');
+    if !frac.is_empty() {
+        out.push('.');
+        for _ in frac_part.len()..decimals {
+            out.push('0');
+        }
+        out.push_str(frac);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fast_coordinate_text_equals_exact_six_digit_rounding() {
+        // Reference: Rust's exact decimal rounding to 6 significant digits ({:.5e}). The two may
+        // differ only when v·10^d lies within f64 rounding (1e-9 relative) of a .5 tie.
+        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut ties = 0;
+        for _ in 0..20_000 {
+            state = state
+                .wrapping_mul(6_364_136_223_846_793_005)
+                .wrapping_add(1_442_695_040_888_963_407);
+            let mantissa = (state >> 40) as f64 / (1u64 << 24) as f64; // [0, 1)
+            let exponent = ((state >> 8) % 24) as i32 - 12; // 1e-12 .. 1e11
+            let sign = if state & 1 == 0 { 1.0 } else { -1.0 };
+            let v = (sign * (1.0 + 9.0 * mantissa) * 10f64.powi(exponent)) as f32;
+            let ours = format_coordinate(v);
+            let got: f64 = serde_json::from_str(&ours).unwrap();
+            let d = SIGNIFICANT_DIGITS - 1 - f64::from(v).abs().log10().floor() as i32;
+            // From 1e6 up, whole numbers are written in full (more digits, never fewer), ties to even.
+            let exact: f64 = if d < 0 {
+                f64::from(v).round_ties_even()
+            } else {
+                format!("{:.5e}", f64::from(v)).parse().unwrap()
+            };
+            let scaled = f64::from(v).abs() * 10f64.powi(d);
+            let near_tie = (scaled.fract() - 0.5).abs() < 1e-9 * scaled;
+            if near_tie {
+                // Either neighbour is a correct rounding: within half a unit of the last digit.
+                let unit = 10f64.powi(-d);
+                assert!(
+                    (got - f64::from(v)).abs() <= 0.5 * unit * (1.0 + 1e-9),
+                    "{v}: {ours}"
+                );
+                ties += 1;
+            } else {
+                assert_eq!(got, exact, "{v}: {ours}");
+            }
+        }
+        // f32 has about 7.2 decimal digits, so exact .5 ties at the 7th digit are not rare.
+        assert!(ties < 1_000, "{ties}");
+    }
 }
