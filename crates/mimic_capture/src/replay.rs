@@ -5,7 +5,8 @@
 //! never accumulates. Looping restarts at the beginning of the recording (not at the seek
 //! point) and shifts timestamps so they keep increasing: the first frame of a pass comes one
 //! nominal frame interval (`1 / rate_hz`) after the last frame of the previous pass.
-//! Lost-tracking frames are handed on like any other frame.
+//! Lost-tracking frames are handed on like any other frame. A consumer slower than the recording
+//! gets the late frames back to back; replay never drops frames to catch up.
 
 use crate::recording::{FrameError, RecordedFrame, RecordingError, RecordingReader};
 use mimic_types::LandmarkFrame;
