@@ -226,3 +226,34 @@ async fn file_replay_skips_rejected_lines_and_loops_by_reopening() {
     );
     assert_eq!(r.skipped(), 2);
 }
+
+#[tokio::test(start_paused = true)]
+async fn a_real_gfe_recording_replays_in_its_recorded_duration() {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../recordings/a_affirmative.jsonl");
+    let opts = ReplayOptions {
+        pace: Pace::Recorded { speed: 2.0 },
+        ..Default::default()
+    };
+    let mut r = Replay::open(&path, Some(100), opts).unwrap();
+    let start = Instant::now();
+    let (mut n, mut first, mut last) = (0, None, 0);
+    while let Some(f) = r.next().await {
+        let f = f.unwrap();
+        let t0 = *first.get_or_insert(f.frame.timestamp_us);
+        last = f.frame.timestamp_us;
+        // Each frame at (t - t0) / 2, never early, at most one timer tick late: no drift over 1062 frames.
+        let due = Duration::from_micros(((last - t0) as f64 / 2.0).round() as u64);
+        let e = start.elapsed();
+        assert!(
+            e >= due && e <= due + TIMER_RESOLUTION,
+            "frame {n}: {e:?} vs {due:?}"
+        );
+        n += 1;
+    }
+    assert_eq!(n, 1062);
+    // 69.0 s recorded (dataset notes) at double speed: about 34.5 s of (paused) tokio time.
+    let span_s = (last - first.unwrap()) as f64 * 1e-6;
+    assert!((span_s - 69.0).abs() < 0.05, "{span_s}");
+    assert_eq!(r.skipped(), 0);
+}
