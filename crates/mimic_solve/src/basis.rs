@@ -89,28 +89,152 @@ impl Basis {
             dy[j] = v.y;
             dz[j] = v.z;
         }
-        let (dx, dy, dz) = (&dx[..m], &dy[..m], &dz[..m]);
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
         {
-            // SAFETY: the CPU supports AVX2 and FMA, checked just above; the function is otherwise safe.
-            unsafe { apply_soa_avx2_fma(&self.data, m, dx, dy, dz, out) };
+            // SAFETY: AVX2 and FMA are checked just above; data.len() == n * m by construction,
+            // 0 < m <= STACK_CONTROLS here, and the stack arrays are zero past m.
+            unsafe { apply_avx2_fma(&self.data, m, &dx, &dy, &dz, out) };
             return;
         }
-        apply_soa::<false>(&self.data, m, dx, dy, dz, out);
+        apply_soa::<false>(&self.data, m, &dx[..m], &dy[..m], &dz[..m], out);
     }
 }
 
-/// [`apply_soa`] compiled for AVX2 + FMA (8 lanes, fused multiply-add).
+/// `u = B d` with AVX2 + FMA: per row, 8-wide fused multiply-adds against the zero-padded
+/// coordinate arrays, the last partial chunk read with a masked load (never past the row).
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA; `b.len() == out.len() * m`, `0 < m <= STACK_CONTROLS`, and
+/// `dx`, `dy`, `dz` hold `STACK_CONTROLS` values (zero past `m`).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-fn apply_soa_avx2_fma(b: &[f32], m: usize, dx: &[f32], dy: &[f32], dz: &[f32], out: &mut [Vec3]) {
-    apply_soa::<true>(b, m, dx, dy, dz, out);
+unsafe fn apply_avx2_fma(
+    b: &[f32],
+    m: usize,
+    dx: &[f32; STACK_CONTROLS],
+    dy: &[f32; STACK_CONTROLS],
+    dz: &[f32; STACK_CONTROLS],
+    out: &mut [Vec3],
+) {
+    use std::arch::x86_64::*;
+    debug_assert!(m > 0 && m <= STACK_CONTROLS && b.len() == out.len() * m);
+    let full = m / LANES;
+    let tail = m % LANES;
+    // Lane l of the mask is set (sign bit) when l < tail.
+    let lane = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
+    let mask = _mm256_cmpgt_epi32(_mm256_set1_epi32(tail as i32), lane);
+    let (px, py, pz) = (dx.as_ptr(), dy.as_ptr(), dz.as_ptr());
+    let base = b.as_ptr();
+    // Rows go in pairs so that each chunk of d, once loaded, feeds two rows.
+    let mut pairs = out.chunks_exact_mut(2);
+    for (p, o) in (&mut pairs).enumerate() {
+        // SAFETY: rows 2p and 2p + 1 span b[2p * m .. (2p + 2) * m], inside b; chunk c reads
+        // [8c, 8c + 8) of a row with 8c + 8 <= m; the masked load touches only the `tail` values
+        // left in the row; the d arrays hold STACK_CONTROLS >= 8 * ceil(m / 8) values.
+        unsafe {
+            let r0 = base.add(2 * p * m);
+            let r1 = r0.add(m);
+            let (mut x0, mut y0, mut z0) = (
+                _mm256_setzero_ps(),
+                _mm256_setzero_ps(),
+                _mm256_setzero_ps(),
+            );
+            let (mut x1, mut y1, mut z1) = (
+                _mm256_setzero_ps(),
+                _mm256_setzero_ps(),
+                _mm256_setzero_ps(),
+            );
+            for c in 0..full {
+                let (vx, vy, vz) = (
+                    _mm256_loadu_ps(px.add(c * LANES)),
+                    _mm256_loadu_ps(py.add(c * LANES)),
+                    _mm256_loadu_ps(pz.add(c * LANES)),
+                );
+                let a = _mm256_loadu_ps(r0.add(c * LANES));
+                let b = _mm256_loadu_ps(r1.add(c * LANES));
+                x0 = _mm256_fmadd_ps(a, vx, x0);
+                y0 = _mm256_fmadd_ps(a, vy, y0);
+                z0 = _mm256_fmadd_ps(a, vz, z0);
+                x1 = _mm256_fmadd_ps(b, vx, x1);
+                y1 = _mm256_fmadd_ps(b, vy, y1);
+                z1 = _mm256_fmadd_ps(b, vz, z1);
+            }
+            if tail > 0 {
+                let (vx, vy, vz) = (
+                    _mm256_loadu_ps(px.add(full * LANES)),
+                    _mm256_loadu_ps(py.add(full * LANES)),
+                    _mm256_loadu_ps(pz.add(full * LANES)),
+                );
+                let a = _mm256_maskload_ps(r0.add(full * LANES), mask);
+                let b = _mm256_maskload_ps(r1.add(full * LANES), mask);
+                x0 = _mm256_fmadd_ps(a, vx, x0);
+                y0 = _mm256_fmadd_ps(a, vy, y0);
+                z0 = _mm256_fmadd_ps(a, vz, z0);
+                x1 = _mm256_fmadd_ps(b, vx, x1);
+                y1 = _mm256_fmadd_ps(b, vy, y1);
+                z1 = _mm256_fmadd_ps(b, vz, z1);
+            }
+            // Reduce the six accumulators at once: two levels of horizontal adds leave, per
+            // 128-bit half, [x0, y0, z0, x1] and [y1, z1, 0, 0]; adding the halves gives the six
+            // sums in the order of the two Vec3s in memory (Vec3 is repr(C) x, y, z).
+            let g1 = _mm256_hadd_ps(_mm256_hadd_ps(x0, y0), _mm256_hadd_ps(z0, x1));
+            let g2 = _mm256_hadd_ps(_mm256_hadd_ps(y1, z1), _mm256_setzero_ps());
+            let s1 = _mm_add_ps(_mm256_castps256_ps128(g1), _mm256_extractf128_ps::<1>(g1));
+            let s2 = _mm_add_ps(_mm256_castps256_ps128(g2), _mm256_extractf128_ps::<1>(g2));
+            let dst = o.as_mut_ptr().cast::<f32>();
+            _mm_storeu_ps(dst, s1);
+            _mm_storel_epi64(dst.add(4).cast::<__m128i>(), _mm_castps_si128(s2));
+        }
+    }
+    if let [o] = pairs.into_remainder() {
+        let last = out_len_minus_one(b.len(), m);
+        // SAFETY: the last row spans b[last * m .. (last + 1) * m]; chunk and tail reads as above.
+        unsafe {
+            let r = base.add(last * m);
+            let (mut x, mut y, mut z) = (
+                _mm256_setzero_ps(),
+                _mm256_setzero_ps(),
+                _mm256_setzero_ps(),
+            );
+            for c in 0..full {
+                let a = _mm256_loadu_ps(r.add(c * LANES));
+                x = _mm256_fmadd_ps(a, _mm256_loadu_ps(px.add(c * LANES)), x);
+                y = _mm256_fmadd_ps(a, _mm256_loadu_ps(py.add(c * LANES)), y);
+                z = _mm256_fmadd_ps(a, _mm256_loadu_ps(pz.add(c * LANES)), z);
+            }
+            if tail > 0 {
+                let a = _mm256_maskload_ps(r.add(full * LANES), mask);
+                x = _mm256_fmadd_ps(a, _mm256_loadu_ps(px.add(full * LANES)), x);
+                y = _mm256_fmadd_ps(a, _mm256_loadu_ps(py.add(full * LANES)), y);
+                z = _mm256_fmadd_ps(a, _mm256_loadu_ps(pz.add(full * LANES)), z);
+            }
+            *o = Vec3::new(hsum256(x), hsum256(y), hsum256(z));
+        }
+    }
 }
 
-/// Row-wise dot products of `B` with the three coordinate arrays of `d`, in `LANES` partial sums.
+/// Index of the last row of a row-major matrix of `len` values with `m` columns (`len >= m > 0`).
+#[cfg(target_arch = "x86_64")]
+fn out_len_minus_one(len: usize, m: usize) -> usize {
+    len / m - 1
+}
+
+/// Sum of the 8 lanes of an AVX register.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn hsum256(v: std::arch::x86_64::__m256) -> f32 {
+    use std::arch::x86_64::*;
+    let q = _mm_add_ps(_mm256_castps256_ps128(v), _mm256_extractf128_ps::<1>(v));
+    let h = _mm_add_ps(q, _mm_movehl_ps(q, q));
+    _mm_cvtss_f32(_mm_add_ss(h, _mm_movehdup_ps(h)))
+}
+
+/// Row-wise dot products of `B` with the three coordinate arrays of `d`.
 ///
-/// `FUSED` uses `mul_add`, which is only fast where the target has FMA.
+/// One plain dot product per axis (each in `LANES` partial sums) is the shape LLVM vectorises
+/// reliably; the row is read three times, from L1. `FUSED` uses `mul_add`, which is only fast where
+/// the target has FMA.
 #[inline(always)]
 fn apply_soa<const FUSED: bool>(
     b: &[f32],
@@ -120,34 +244,47 @@ fn apply_soa<const FUSED: bool>(
     dz: &[f32],
     out: &mut [Vec3],
 ) {
-    let full = m / LANES * LANES;
-    let (dxh, dxt) = dx.split_at(full);
-    let (dyh, dyt) = dy.split_at(full);
-    let (dzh, dzt) = dz.split_at(full);
-    let madd = |a: f32, b: f32, c: f32| if FUSED { a.mul_add(b, c) } else { a * b + c };
     for (row, o) in b.chunks_exact(m).zip(out.iter_mut()) {
-        let (head, tail) = row.split_at(full);
-        let mut ax = [0f32; LANES];
-        let mut ay = [0f32; LANES];
-        let mut az = [0f32; LANES];
-        for (((r, x), y), z) in head
-            .chunks_exact(LANES)
-            .zip(dxh.chunks_exact(LANES))
-            .zip(dyh.chunks_exact(LANES))
-            .zip(dzh.chunks_exact(LANES))
-        {
-            for l in 0..LANES {
-                ax[l] = madd(r[l], x[l], ax[l]);
-                ay[l] = madd(r[l], y[l], ay[l]);
-                az[l] = madd(r[l], z[l], az[l]);
-            }
-        }
-        let mut s = Vec3::new(hsum(&ax), hsum(&ay), hsum(&az));
-        for (((r, x), y), z) in tail.iter().zip(dxt).zip(dyt).zip(dzt) {
-            s += Vec3::new(*x, *y, *z) * *r;
-        }
-        *o = s;
+        *o = Vec3::new(
+            dot::<FUSED>(row, dx),
+            dot::<FUSED>(row, dy),
+            dot::<FUSED>(row, dz),
+        );
     }
+}
+
+/// Dot product of two equally long slices in `LANES` partial sums, then a 4-wide and a scalar tail.
+#[inline(always)]
+fn dot<const FUSED: bool>(a: &[f32], b: &[f32]) -> f32 {
+    let madd = |x: f32, y: f32, acc: f32| {
+        if FUSED {
+            x.mul_add(y, acc)
+        } else {
+            x * y + acc
+        }
+    };
+    let mut acc = [0f32; LANES];
+    let mut ca = a.chunks_exact(LANES);
+    let mut cb = b.chunks_exact(LANES);
+    for (x, y) in (&mut ca).zip(&mut cb) {
+        for l in 0..LANES {
+            acc[l] = madd(x[l], y[l], acc[l]);
+        }
+    }
+    let (ra, rb) = (ca.remainder(), cb.remainder());
+    let mut quad = [0f32; 4];
+    let mut qa = ra.chunks_exact(4);
+    let mut qb = rb.chunks_exact(4);
+    for (x, y) in (&mut qa).zip(&mut qb) {
+        for l in 0..4 {
+            quad[l] = madd(x[l], y[l], quad[l]);
+        }
+    }
+    let mut s = hsum(&acc) + (quad[0] + quad[2]) + (quad[1] + quad[3]);
+    for (x, y) in qa.remainder().iter().zip(qb.remainder()) {
+        s = madd(*x, *y, s);
+    }
+    s
 }
 
 /// Sum of the lanes, pairwise (so it vectorises as a shuffle tree).
@@ -198,6 +335,22 @@ mod tests {
             let b = Basis::from_row_major(n, m, data.clone()).unwrap();
             let mut out = vec![Vec3::splat(f32::NAN); n];
             b.apply(&d, &mut out);
+            // The portable path too (apply takes the AVX2 one on CPUs that have it).
+            let mut portable = vec![Vec3::splat(f32::NAN); n];
+            let dx: Vec<f32> = d.iter().map(|v| v.x).collect();
+            let dy: Vec<f32> = d.iter().map(|v| v.y).collect();
+            let dz: Vec<f32> = d.iter().map(|v| v.z).collect();
+            apply_soa::<false>(&data, m, &dx, &dy, &dz, &mut portable);
+            for i in 0..n {
+                for k in 0..3 {
+                    let r: f64 = (0..m)
+                        .map(|j| data[i * m + j] as f64 * d[j][k] as f64)
+                        .sum();
+                    assert!(
+                        (portable[i][k] as f64 - r).abs() <= (m * m) as f64 * f32::EPSILON as f64
+                    );
+                }
+            }
             for i in 0..n {
                 let mut r = [0f64; 3];
                 for j in 0..m {
