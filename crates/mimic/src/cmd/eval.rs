@@ -1,0 +1,326 @@
+//! `mimic eval`: measure a solver against real expression meshes.
+//!
+//! For each expression shape (same topology as the rig mesh), the rig's controls are driven with
+//! the shape's own displacements at the control vertices, the neutral is deformed with `u = B d`,
+//! and the result is compared with the true shape at every non-frozen vertex, per region
+//! (by `RegionBands::region_at` of the rest height). `ratio = mean_error / mean_displacement`:
+//! 0 is perfect, 1 is no better than leaving the neutral unchanged.
+
+use anyhow::{Context, bail};
+use glam::Vec3;
+use mimic_assets::{load_obj, load_rig};
+use mimic_solve::{Basis, build_basis};
+use mimic_types::{LaplacianWeights, RbfKernel, Region, Rig, SolverKind, SolverSettings};
+use serde_json::{Value, json};
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Which solver, on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum SolverArg {
+    /// Radial basis functions.
+    Rbf,
+    /// Laplacian surface editing.
+    Laplacian,
+}
+
+/// A switch, on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum OnOff {
+    /// Enabled.
+    On,
+    /// Disabled.
+    Off,
+}
+
+/// RBF kernel family, on the command line (the radius comes from `--radius` or the rig).
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum KernelArg {
+    /// `exp(-r / radius)`.
+    Exponential,
+    /// `exp(-(r / radius)^2)`.
+    Gaussian,
+    /// `r^2 log r` (turns the affine term on).
+    ThinPlate,
+}
+
+/// Laplacian edge weights, on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum WeightsArg {
+    /// Uniform.
+    Uniform,
+    /// Mean-value.
+    MeanValue,
+    /// Cotangent.
+    Cotangent,
+}
+
+/// Arguments of `mimic eval`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// Rig file (configs/rigs/*.toml).
+    #[arg(long)]
+    pub rig: PathBuf,
+    /// Expression meshes (OBJ) with the rig mesh's topology.
+    #[arg(long, num_args = 1.., required = true)]
+    pub shapes: Vec<PathBuf>,
+    /// Solver (default: the rig's).
+    #[arg(long, value_enum)]
+    pub solver: Option<SolverArg>,
+    /// Solve regions separately and blend them (default: the rig's).
+    #[arg(long, value_enum)]
+    pub regions: Option<OnOff>,
+    /// RBF kernel radius in rig units (default: the rig's).
+    #[arg(long)]
+    pub radius: Option<f64>,
+    /// RBF kernel family (default: the rig's).
+    #[arg(long, value_enum)]
+    pub kernel: Option<KernelArg>,
+    /// RBF affine term (default: the rig's).
+    #[arg(long, value_enum)]
+    pub affine: Option<OnOff>,
+    /// Laplacian edge weights (default: the rig's).
+    #[arg(long, value_enum)]
+    pub weights: Option<WeightsArg>,
+    /// Laplacian constraint weight (default: the rig's).
+    #[arg(long)]
+    pub constraint_weight: Option<f64>,
+    /// Region blend band width in rig units (default: the rig's).
+    #[arg(long)]
+    pub band: Option<f32>,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Error statistics over a set of vertices.
+#[derive(Clone, Copy, Debug, Default)]
+struct Stats {
+    vertices: usize,
+    mean_error: f64,
+    p95_error: f64,
+    max_error: f64,
+    mean_displacement: f64,
+    ratio: f64,
+}
+
+impl Stats {
+    fn of(errors: &mut [f64], displacements: &[f64]) -> Stats {
+        let n = errors.len();
+        if n == 0 {
+            return Stats::default();
+        }
+        let mean_error = errors.iter().sum::<f64>() / n as f64;
+        let mean_displacement = displacements.iter().sum::<f64>() / n as f64;
+        errors.sort_by(f64::total_cmp);
+        let p95_error = errors[((n as f64 * 0.95).ceil() as usize).clamp(1, n) - 1];
+        Stats {
+            vertices: n,
+            mean_error,
+            p95_error,
+            max_error: errors[n - 1],
+            mean_displacement,
+            ratio: if mean_displacement > 0.0 {
+                mean_error / mean_displacement
+            } else {
+                f64::NAN
+            },
+        }
+    }
+
+    fn json(&self) -> Value {
+        json!({
+            "vertices": self.vertices,
+            "mean_error": self.mean_error,
+            "p95_error": self.p95_error,
+            "max_error": self.max_error,
+            "mean_displacement": self.mean_displacement,
+            "ratio": self.ratio,
+        })
+    }
+}
+
+/// The rig's settings with the command line's overrides.
+fn settings(rig: &Rig, args: &Args) -> SolverSettings {
+    let mut s = rig.solver;
+    if let Some(k) = args.solver {
+        s.kind = match k {
+            SolverArg::Rbf => SolverKind::Rbf,
+            SolverArg::Laplacian => SolverKind::Laplacian,
+        };
+    }
+    if let Some(r) = args.regions {
+        s.regions = matches!(r, OnOff::On);
+    }
+    let radius = args.radius.or(match s.kernel {
+        RbfKernel::Exponential { radius } | RbfKernel::Gaussian { radius } => Some(radius),
+        RbfKernel::ThinPlate => None,
+    });
+    if let Some(k) = args.kernel {
+        s.kernel = match k {
+            KernelArg::Exponential => RbfKernel::Exponential {
+                radius: radius.unwrap_or(1.0),
+            },
+            KernelArg::Gaussian => RbfKernel::Gaussian {
+                radius: radius.unwrap_or(1.0),
+            },
+            KernelArg::ThinPlate => {
+                s.affine = true;
+                RbfKernel::ThinPlate
+            }
+        };
+    } else if let Some(r) = args.radius {
+        s.kernel = match s.kernel {
+            RbfKernel::Gaussian { .. } => RbfKernel::Gaussian { radius: r },
+            _ => RbfKernel::Exponential { radius: r },
+        };
+    }
+    if let Some(a) = args.affine {
+        s.affine = matches!(a, OnOff::On);
+    }
+    if let Some(w) = args.weights {
+        s.weights = match w {
+            WeightsArg::Uniform => LaplacianWeights::Uniform,
+            WeightsArg::MeanValue => LaplacianWeights::MeanValue,
+            WeightsArg::Cotangent => LaplacianWeights::Cotangent,
+        };
+    }
+    if let Some(w) = args.constraint_weight {
+        s.constraint_weight = w;
+    }
+    s
+}
+
+/// Runs `mimic eval`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut rig = load_rig(&args.rig)?;
+    if let Some(band) = args.band {
+        rig.regions.band = band;
+    }
+    let settings = settings(&rig, &args);
+    let started = Instant::now();
+    let basis = build_basis(&rig, &settings)
+        .with_context(|| format!("building the basis of {}", args.rig.display()))?;
+    let setup_ms = started.elapsed().as_secs_f64() * 1e3;
+    let mut shapes = Vec::new();
+    for path in &args.shapes {
+        let mesh = load_obj(path)?;
+        if mesh.vertex_count() != rig.mesh.vertex_count() || mesh.triangles != rig.mesh.triangles {
+            bail!(
+                "{}: not the rig mesh's topology ({} vertices, {} triangles; the rig mesh has {} and {})",
+                path.display(),
+                mesh.vertex_count(),
+                mesh.triangles.len(),
+                rig.mesh.vertex_count(),
+                rig.mesh.triangles.len()
+            );
+        }
+        let (all, regions) = evaluate(&rig, &basis, &mesh.positions);
+        shapes.push((path.clone(), all, regions));
+    }
+    let mut ratios: Vec<f64> = shapes.iter().map(|s| s.1.ratio).collect();
+    ratios.sort_by(f64::total_cmp);
+    let median = if ratios.is_empty() {
+        f64::NAN
+    } else if ratios.len() % 2 == 1 {
+        ratios[ratios.len() / 2]
+    } else {
+        0.5 * (ratios[ratios.len() / 2 - 1] + ratios[ratios.len() / 2])
+    };
+    let report = json!({
+        "rig": args.rig.display().to_string(),
+        "units": rig.units,
+        "settings": serde_json::to_value(settings)?,
+        "band": rig.regions.band,
+        "setup_ms": setup_ms,
+        "median_ratio": median,
+        "max_ratio": ratios.last().copied().unwrap_or(f64::NAN),
+        "shapes": shapes.iter().map(|(p, all, regions)| json!({
+            "shape": p.display().to_string(),
+            "all": all.json(),
+            "regions": Region::ALL.iter().zip(regions).map(|(r, s)| (r.name().to_string(), s.json())).collect::<serde_json::Map<_, _>>(),
+        })).collect::<Vec<_>>(),
+    });
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "rig {} ({}), solver {:?}, regions {}, kernel {:?}, affine {}, weights {:?}, constraint weight {}, band {}; setup {:.0} ms",
+        args.rig.display(),
+        rig.units,
+        settings.kind,
+        settings.regions,
+        settings.kernel,
+        settings.affine,
+        settings.weights,
+        settings.constraint_weight,
+        rig.regions.band,
+        setup_ms
+    );
+    println!(
+        "{:<28} {:<7} {:>7} {:>9} {:>9} {:>9} {:>9} {:>6}",
+        "shape", "region", "verts", "mean_err", "p95_err", "max_err", "mean_disp", "ratio"
+    );
+    for (path, all, regions) in &shapes {
+        let name = path.file_name().map_or_else(
+            || path.display().to_string(),
+            |n| n.to_string_lossy().into_owned(),
+        );
+        let rows = std::iter::once(("all", all))
+            .chain(Region::ALL.iter().map(|r| r.name()).zip(regions.iter()));
+        for (region, s) in rows {
+            println!(
+                "{:<28} {:<7} {:>7} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>6.3}",
+                name,
+                region,
+                s.vertices,
+                s.mean_error,
+                s.p95_error,
+                s.max_error,
+                s.mean_displacement,
+                s.ratio
+            );
+        }
+    }
+    println!(
+        "median ratio {median:.3}, max ratio {:.3}",
+        ratios.last().copied().unwrap_or(f64::NAN)
+    );
+    Ok(())
+}
+
+/// Drives the rig with the shape's control displacements and measures the result, overall and per region.
+fn evaluate(rig: &Rig, basis: &Basis, shape: &[Vec3]) -> (Stats, [Stats; 3]) {
+    let neutral = &rig.mesh.positions;
+    let d: Vec<Vec3> = rig
+        .controls
+        .iter()
+        .map(|c| shape[c.vertex as usize] - neutral[c.vertex as usize])
+        .collect();
+    let mut u = vec![Vec3::ZERO; neutral.len()];
+    basis.apply(&d, &mut u);
+    let mut errors: [Vec<f64>; 4] = Default::default();
+    let mut moves: [Vec<f64>; 4] = Default::default();
+    for i in 0..neutral.len() {
+        if rig.frozen[i] {
+            continue;
+        }
+        let truth = shape[i] - neutral[i];
+        let e = (u[i] - truth).length() as f64;
+        let t = truth.length() as f64;
+        let r = 1 + rig.regions.region_at(neutral[i].y).index();
+        for slot in [0, r] {
+            errors[slot].push(e);
+            moves[slot].push(t);
+        }
+    }
+    let [mut e0, mut e1, mut e2, mut e3] = errors;
+    let all = Stats::of(&mut e0, &moves[0]);
+    let regions = [
+        Stats::of(&mut e1, &moves[1]),
+        Stats::of(&mut e2, &moves[2]),
+        Stats::of(&mut e3, &moves[3]),
+    ];
+    (all, regions)
+}
