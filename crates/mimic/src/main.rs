@@ -24,6 +24,8 @@ enum Command {
     Replay(cmd::replay::Args),
     /// Measure a solver against real expression meshes of the rig.
     Eval(cmd::eval::Args),
+    /// Time the per-frame pipeline on a rig, stage by stage.
+    Bench(cmd::bench::Args),
     /// Convert another tracker's file into a v1 recording.
     #[command(subcommand)]
     Import(cmd::import::ImportCommand),
@@ -39,6 +41,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Info(a) => cmd::info::run(a),
         Command::Replay(a) => cmd::replay::run(a),
+        Command::Bench(a) => cmd::bench::run(a),
         Command::Import(c) => cmd::import::run(c),
         Command::Eval(a) => cmd::eval::run(a),
     };

@@ -26,7 +26,7 @@ impl Corner {
         match parts.as_slice() {
             [_] => Corner::V,
             [_, _] => Corner::VVt,
-            [_, t, _] if t.is_empty() => Corner::VVn,
+            [_, "", _] => Corner::VVn,
             _ => Corner::VVtVn,
         }
     }
@@ -188,7 +188,6 @@ pub(crate) fn parse_obj(path: &Path, text: &str) -> Result<Mesh, AssetError> {
         triangulate: true,
         ignore_points: true,
         ignore_lines: true,
-        ..Default::default()
     };
     let (models, _materials) = tobj::load_obj_buf(&mut buf.as_bytes(), &options, |_| {
         Err(tobj::LoadError::OpenFileFailed)
@@ -372,7 +371,7 @@ f 4/1 1/2 2/1 3/2
             .map(|x| x.parse().unwrap())
             .collect();
         assert_eq!(m.positions[0], Vec3::new(c[0], c[1], c[2]));
-        let last_v = text.lines().filter(|l| l.starts_with("v ")).last().unwrap();
+        let last_v = text.lines().rfind(|l| l.starts_with("v ")).unwrap();
         let c: Vec<f32> = last_v
             .split_whitespace()
             .skip(1)

@@ -165,6 +165,8 @@ pub struct Retargeter {
     neutral_points: Vec<Vec3>,
     neutral_valid: Vec<bool>,
     neutral_controls: Vec<Vec3>,
+    /// Target-space displacements longer than this (target units) are outliers.
+    outlier_limit: f32,
     to_target: Option<SourceToTarget>,
     accumulator: Option<Accumulator>,
     // Per-frame state.
@@ -178,6 +180,8 @@ pub struct Retargeter {
     // Scratch.
     stable_src: Vec<Vec3>,
     stable_dst: Vec<Vec3>,
+    stable_residual: Vec<f32>,
+    stable_sorted: Vec<f32>,
     controls_now: Vec<Option<Vec3>>,
     stats: Stats,
 }
@@ -224,6 +228,7 @@ impl Retargeter {
             neutral_points: vec![Vec3::ZERO; p],
             neutral_valid: vec![false; p],
             neutral_controls: vec![Vec3::ZERO; m],
+            outlier_limit: f32::INFINITY,
             to_target: None,
             accumulator: None,
             filters: vec![[OneEuro::default(); 3]; m],
@@ -235,6 +240,8 @@ impl Retargeter {
             lost_since_us: None,
             stable_src: Vec::with_capacity(layout.stable.len()),
             stable_dst: Vec::with_capacity(layout.stable.len()),
+            stable_residual: Vec::with_capacity(layout.stable.len()),
+            stable_sorted: Vec::with_capacity(layout.stable.len()),
             controls_now: vec![None; m],
             stats: Stats::default(),
             settings: settings.clone(),
@@ -365,7 +372,7 @@ impl Retargeter {
                 self.stable_dst.push(frame.points[i]);
             }
         }
-        let Some(pose) = fit_similarity(&self.stable_src, &self.stable_dst, false) else {
+        let Some(pose) = self.robust_pose() else {
             return self.lost(frame.timestamp_us, out);
         };
         let t2 = Instant::now();
@@ -379,8 +386,12 @@ impl Retargeter {
         let mut filled = 0u32;
         for j in 0..self.controls_now.len() {
             let e = match self.controls_now[j] {
-                Some(p) => pose.inverse_apply(p) - self.neutral_controls[j],
-                None => {
+                Some(p) => Some(pose.inverse_apply(p) - self.neutral_controls[j]),
+                None => None,
+            };
+            let e = match e {
+                Some(e) if to_target.apply(e).length() <= self.outlier_limit => e,
+                _ => {
                     filled += 1;
                     self.last_e[j]
                 }
@@ -511,6 +522,36 @@ impl Retargeter {
         out.status
     }
 
+    /// Head pose from the stable pairs in `stable_src`/`stable_dst`, refitted once without pairs whose
+    /// residual exceeds `stable_trim` times the median residual (if at least 3 remain).
+    fn robust_pose(&mut self) -> Option<HeadPose> {
+        let pose = fit_similarity(&self.stable_src, &self.stable_dst, false)?;
+        self.stable_residual.clear();
+        for (s, d) in self.stable_src.iter().zip(&self.stable_dst) {
+            self.stable_residual.push(pose.apply(*s).distance(*d));
+        }
+        let k = self.stable_residual.len();
+        self.stable_sorted.clear();
+        self.stable_sorted.extend_from_slice(&self.stable_residual);
+        self.stable_sorted.sort_unstable_by(f32::total_cmp);
+        let limit = self.settings.stable_trim * self.stable_sorted[k / 2];
+        let keep = self.stable_residual.iter().filter(|r| **r <= limit).count();
+        if keep == k || keep < 3 {
+            return Some(pose);
+        }
+        let mut w = 0;
+        for r in 0..k {
+            if self.stable_residual[r] <= limit {
+                self.stable_src[w] = self.stable_src[r];
+                self.stable_dst[w] = self.stable_dst[r];
+                w += 1;
+            }
+        }
+        self.stable_src.truncate(w);
+        self.stable_dst.truncate(w);
+        fit_similarity(&self.stable_src, &self.stable_dst, false).or(Some(pose))
+    }
+
     /// Derives the neutral controls and the source-to-target map; false if the neutral is unusable.
     fn finish_neutral(&mut self) -> bool {
         let neutral = LandmarkFrame {
@@ -546,6 +587,17 @@ impl Retargeter {
                 "neutral fixed; source-to-target map fitted"
             );
         }
+        // Outliers are judged in target units against the rig's (clean) control spread.
+        let m = self.target_controls.len().max(1) as f32;
+        let centre = self.target_controls.iter().fold(Vec3::ZERO, |a, p| a + *p) / m;
+        let rms_radius = (self
+            .target_controls
+            .iter()
+            .map(|p| p.distance_squared(centre))
+            .sum::<f32>()
+            / m)
+            .sqrt();
+        self.outlier_limit = self.settings.outlier_fraction * rms_radius;
         stable_ok && self.to_target.is_some()
     }
 }

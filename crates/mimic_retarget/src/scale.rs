@@ -18,13 +18,14 @@ pub struct SourceToTarget {
     pub axis: Vec3,
     /// RMS distance between mapped source controls and target controls after the fit (target units).
     pub rms_residual: f32,
+    /// Controls left out of the fit as outliers.
+    pub outliers: usize,
 }
 
 const MIRROR_X: Mat3 = Mat3::from_cols(Vec3::NEG_X, Vec3::Y, Vec3::Z);
 
-fn rms(a: &[Vec3], b: &[Vec3]) -> f32 {
-    let sum: f32 = a.iter().zip(b).map(|(p, q)| p.distance_squared(*q)).sum();
-    (sum / a.len().max(1) as f32).sqrt()
+fn rms(residuals: &[f32]) -> f32 {
+    (residuals.iter().map(|r| r * r).sum::<f32>() / residuals.len().max(1) as f32).sqrt()
 }
 
 fn spread(points: impl Iterator<Item = Vec3> + Clone) -> Vec3 {
@@ -36,6 +37,11 @@ fn spread(points: impl Iterator<Item = Vec3> + Clone) -> Vec3 {
 impl SourceToTarget {
     /// Fits the map from the neutral source controls to the rest target controls (same order).
     ///
+    /// Robust to a few bad pairs (e.g. a source point whose depth hit the background): every
+    /// triple of pairs (or an evenly spread subset of 20,000 triples) proposes a similarity, the
+    /// one with the most pairs within 15 % of the target's RMS radius wins, and the map is refitted
+    /// on those inliers. With `allow_mirror`, the x-mirrored source competes too and wins only
+    /// with more inliers, or as many and a clearly (20 %) smaller residual.
     /// `None` if fewer than 3 pairs or the points are degenerate (all on one line).
     pub fn fit(
         source: &[Vec3],
@@ -43,29 +49,101 @@ impl SourceToTarget {
         allow_mirror: bool,
         per_axis: bool,
     ) -> Option<Self> {
-        let direct = fit_similarity(source, target, true)?;
-        let mapped = |pose: &mimic_types::HeadPose,
-                      pts: &mut dyn Iterator<Item = Vec3>|
-         -> Vec<Vec3> { pts.map(|p| pose.apply(p)).collect() };
-        let direct_rms = rms(&mapped(&direct, &mut source.iter().copied()), target);
-        let mut best = (direct, direct_rms, false);
-        if allow_mirror {
-            let flipped: Vec<Vec3> = source.iter().map(|p| MIRROR_X * *p).collect();
-            if let Some(m) = fit_similarity(&flipped, target, true) {
-                let m_rms = rms(&mapped(&m, &mut flipped.iter().copied()), target);
-                // Prefer the unmirrored fit unless the mirrored one is clearly better.
-                if m_rms < 0.8 * direct_rms {
-                    best = (m, m_rms, true);
+        let m = source.len().min(target.len());
+        if m < 3 {
+            return None;
+        }
+        let (source, target) = (&source[..m], &target[..m]);
+        let centre = target.iter().fold(Vec3::ZERO, |a, p| a + *p) / m as f32;
+        let radius = (target
+            .iter()
+            .map(|p| p.distance_squared(centre))
+            .sum::<f32>()
+            / m as f32)
+            .sqrt();
+        let tolerance = 0.15 * radius;
+        let direct = Self::consensus(source, target, Mat3::IDENTITY, tolerance, per_axis)?;
+        let mut best = direct;
+        if allow_mirror
+            && let Some(mirrored) = Self::consensus(source, target, MIRROR_X, tolerance, per_axis)
+        {
+            let more = mirrored.outliers < best.outliers;
+            let as_many_and_tighter = mirrored.outliers == best.outliers
+                && mirrored.rms_residual < 0.8 * best.rms_residual;
+            if more || as_many_and_tighter {
+                best = mirrored;
+            }
+        }
+        Some(best)
+    }
+
+    /// The consensus fit of `mirror * source` onto `target` (see [`SourceToTarget::fit`]).
+    fn consensus(
+        source: &[Vec3],
+        target: &[Vec3],
+        mirror: Mat3,
+        tolerance: f32,
+        per_axis: bool,
+    ) -> Option<Self> {
+        let m = source.len();
+        let src: Vec<Vec3> = source.iter().map(|p| mirror * *p).collect();
+        let triples = m * (m - 1) * (m - 2) / 6;
+        let stride = triples.div_ceil(20_000).max(1);
+        let mut best: Option<(usize, f32, mimic_types::HeadPose)> = None;
+        let mut index = 0usize;
+        for i in 0..m {
+            for j in i + 1..m {
+                for k in j + 1..m {
+                    index += 1;
+                    if !index.is_multiple_of(stride) {
+                        continue;
+                    }
+                    let Some(pose) = fit_similarity(
+                        &[src[i], src[j], src[k]],
+                        &[target[i], target[j], target[k]],
+                        true,
+                    ) else {
+                        continue;
+                    };
+                    let (count, sum) =
+                        src.iter()
+                            .zip(target)
+                            .fold((0usize, 0f32), |(c, s), (p, t)| {
+                                let r = pose.apply(*p).distance(*t);
+                                if r < tolerance {
+                                    (c + 1, s + r)
+                                } else {
+                                    (c, s)
+                                }
+                            });
+                    if best.is_none_or(|(c, s, _)| count > c || (count == c && sum < s)) {
+                        best = Some((count, sum, pose));
+                    }
                 }
             }
         }
-        let (pose, rms_residual, mirrored) = best;
-        let similarity = Mat3::from_quat(pose.rotation)
-            * pose.scale
-            * if mirrored { MIRROR_X } else { Mat3::IDENTITY };
+        let (_, _, pose) = best?;
+        let inliers: Vec<usize> = (0..m)
+            .filter(|&k| pose.apply(src[k]).distance(target[k]) < tolerance)
+            .collect();
+        let (s_in, t_in): (Vec<Vec3>, Vec<Vec3>) = if inliers.len() >= 3 {
+            inliers.iter().map(|&k| (src[k], target[k])).unzip()
+        } else {
+            (src.clone(), target.to_vec())
+        };
+        let pose = fit_similarity(&s_in, &t_in, true)?;
+        let residual: Vec<f32> = s_in
+            .iter()
+            .zip(&t_in)
+            .map(|(p, t)| pose.apply(*p).distance(*t))
+            .collect();
+        let similarity = Mat3::from_quat(pose.rotation) * pose.scale * mirror;
         let axis = if per_axis {
-            let s_src = spread(source.iter().map(|p| similarity * *p));
-            let s_tgt = spread(target.iter().copied());
+            let s_src = spread(
+                s_in.iter()
+                    .map(|p| Mat3::from_quat(pose.rotation) * pose.scale * *p),
+            );
+            let s_tgt = spread(t_in.iter().copied());
             Vec3::select(s_src.cmpgt(Vec3::splat(1e-12)), s_tgt / s_src, Vec3::ONE)
         } else {
             Vec3::ONE
@@ -74,9 +152,10 @@ impl SourceToTarget {
             linear: Mat3::from_diagonal(axis) * similarity,
             scale: pose.scale,
             rotation: pose.rotation,
-            mirrored,
+            mirrored: mirror != Mat3::IDENTITY,
             axis,
-            rms_residual,
+            rms_residual: rms(&residual),
+            outliers: m - s_in.len(),
         })
     }
 
@@ -142,7 +221,18 @@ mod tests {
         // Mirrored: +x in the source is -x in the target, times the scale of 100.
         assert!((s.apply(e) - Vec3::new(-0.1, 0.0, 0.0)).length() < 1e-4);
         let no = SourceToTarget::fit(&source, &target, false, false).unwrap();
-        assert!(!no.mirrored && no.rms_residual > 0.5);
+        assert!(!no.mirrored && no.rms_residual > 10.0 * s.rms_residual.max(1e-3));
+    }
+
+    #[test]
+    fn an_outlier_pair_does_not_bend_the_fit() {
+        let target = face();
+        let mut source: Vec<Vec3> = target.iter().map(|p| *p * 0.01).collect();
+        source[2].z -= 0.5; // a depth sample that hit the background, 50 face-units away
+        let s = SourceToTarget::fit(&source, &target, false, false).unwrap();
+        assert_eq!(s.outliers, 1);
+        // Without the outlier the fit is exact: scale 100 up to f32 rounding.
+        assert!((s.scale - 100.0).abs() < 0.01, "{}", s.scale);
     }
 
     #[test]
@@ -150,7 +240,7 @@ mod tests {
         let target = face();
         let source: Vec<Vec3> = target
             .iter()
-            .map(|p| Vec3::new(p.x * 2.0, p.y, p.z))
+            .map(|p| Vec3::new(p.x * 1.1, p.y, p.z * 0.9))
             .collect();
         let s = SourceToTarget::fit(&source, &target, false, true).unwrap();
         // Spreads of S*source equal the target's spreads per axis, up to f32 rounding.

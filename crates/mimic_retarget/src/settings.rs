@@ -29,6 +29,13 @@ pub struct RetargetSettings {
     pub lost_ease_secs: f32,
     /// Compute vertex normals of the deformed mesh.
     pub normals: bool,
+    /// A control whose displacement, scaled to the target, exceeds this fraction of the RMS radius
+    /// of the rig's controls is an outlier (e.g. a depth sample that hit the background): it is
+    /// held like a missing control.
+    pub outlier_fraction: f32,
+    /// Stable points whose residual after the head-pose fit exceeds this many times the median
+    /// residual are dropped and the pose refitted (robust to a bad stable point).
+    pub stable_trim: f32,
 }
 
 impl Default for RetargetSettings {
@@ -41,6 +48,8 @@ impl Default for RetargetSettings {
             lost_hold_secs: 0.25,
             lost_ease_secs: 0.5,
             normals: true,
+            outlier_fraction: 0.8,
+            stable_trim: 3.0,
         }
     }
 }

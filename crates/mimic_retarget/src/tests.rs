@@ -197,7 +197,7 @@ fn frame_deltas_sum_to_the_neutral_relative_displacement() {
     let (mut r, neutral) = setup(plain());
     let mut out = r.new_output();
     r.step(&frame(0, neutral.clone()), &mut out);
-    let mut sum = vec![Vec3::ZERO; 6];
+    let mut sum = [Vec3::ZERO; 6];
     let mut seed = 7u32;
     let mut rnd = move || {
         seed = seed.wrapping_mul(1664525).wrapping_add(1013904223);

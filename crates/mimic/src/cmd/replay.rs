@@ -42,6 +42,9 @@ pub struct Args {
     /// Per-frame metrics as CSV (time, status, label, control motion per region).
     #[arg(long)]
     pub metrics: Option<PathBuf>,
+    /// Per-frame control displacements (target units) as CSV: one x, y, z column triple per control.
+    #[arg(long)]
+    pub controls: Option<PathBuf>,
     /// Replay at the recorded pace instead of as fast as possible.
     #[arg(long)]
     pub realtime: bool,
@@ -150,6 +153,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         None => None,
     };
+    let mut controls_csv = match &args.controls {
+        Some(p) => {
+            let mut w = BufWriter::new(File::create(p).with_context(|| p.display().to_string())?);
+            write!(w, "frame,t_us,status")?;
+            for c in &rig.controls {
+                write!(w, ",{0}_x,{0}_y,{0}_z", c.fdp)?;
+            }
+            writeln!(w)?;
+            Some(w)
+        }
+        None => None,
+    };
     let regions: Vec<Region> = rig.controls.iter().map(|c| c.region).collect();
     let rest = rig.mesh.positions.clone();
 
@@ -210,7 +225,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     max_vertex
                 )?;
             }
-            if frame_index % args.every.max(1) == 0 {
+            if let Some(w) = controls_csv.as_mut() {
+                write!(
+                    w,
+                    "{frame_index},{},{}",
+                    rf.frame.timestamp_us,
+                    status_code(status)
+                )?;
+                for d in &out.displacements {
+                    write!(w, ",{:.5},{:.5},{:.5}", d.x, d.y, d.z)?;
+                }
+                writeln!(w)?;
+            }
+            if frame_index.is_multiple_of(args.every.max(1)) {
                 write_frame(
                     &mut sink,
                     frame_index,
@@ -220,7 +247,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 )?;
             }
             frame_index += 1;
-            if progress && frame_index % 50 == 0 {
+            if progress && frame_index.is_multiple_of(50) {
                 let fps = frame_index as f64 / wall.elapsed().as_secs_f64();
                 eprint!("\rreplay: {frame_index} frames ({fps:.0} frames/s)");
             }
@@ -238,8 +265,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Sink::Bin { writer, .. } = sink {
         writer.finish()?;
     }
-    if let Some(mut w) = metrics {
-        w.flush()?;
+    for w in [metrics, controls_csv].into_iter().flatten() {
+        w.into_inner().map_err(|e| e.into_error())?;
     }
 
     let read = replay.source().reader().stats().clone();

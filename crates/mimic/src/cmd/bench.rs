@@ -1,0 +1,158 @@
+//! `mimic bench`: per-stage timing of the retarget pipeline on a rig, with an in-process baseline.
+
+use crate::cmd::replay::median_p99_us;
+use crate::cmd::setup::{PipelineArgs, RigArgs, prepare};
+use anyhow::Context;
+use glam::Vec3;
+use mimic_capture::RecordingReader;
+use mimic_retarget::{FrameStatus, Stage};
+use serde_json::json;
+use std::path::PathBuf;
+use std::time::Instant;
+
+/// Arguments of `mimic bench`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    pub rig: RigArgs,
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
+    /// Recording whose frames drive the benchmark (looped).
+    #[arg(long, default_value = "recordings/a_affirmative.jsonl")]
+    pub recording: PathBuf,
+    /// Number of timed steps.
+    #[arg(long, default_value_t = 3000)]
+    pub steps: usize,
+    /// Print the report as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+/// Runs `mimic bench`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut reader = RecordingReader::open(&args.recording, None)?;
+    let layout_name = reader.header().layout.clone();
+    let mut frames = Vec::new();
+    while let Some(item) = reader.next_frame() {
+        if let Ok(f) = item {
+            frames.push(f.frame);
+        }
+    }
+    anyhow::ensure!(
+        !frames.is_empty(),
+        "{}: no usable frames",
+        args.recording.display()
+    );
+    let span_us =
+        frames.last().map(|f| f.timestamp_us).unwrap_or(0) - frames[0].timestamp_us + 33_333;
+    let mut p = prepare(&args.rig, &args.pipeline, &layout_name)?;
+    let mut out = p.retargeter.new_output();
+    let mut stage_ns: [Vec<u32>; 5] = Default::default();
+    let mut step_ns = Vec::with_capacity(args.steps);
+    let mut k = 0usize;
+    let mut guard = 0usize;
+    while step_ns.len() < args.steps {
+        let src = &frames[k % frames.len()];
+        let mut f = src.clone();
+        f.timestamp_us += (k / frames.len()) as i64 * span_us;
+        let t = Instant::now();
+        let status = p.retargeter.step(&f, &mut out);
+        let ns = u32::try_from(t.elapsed().as_nanos()).unwrap_or(u32::MAX);
+        if status == FrameStatus::Tracked {
+            step_ns.push(ns);
+            for s in Stage::ALL {
+                stage_ns[s as usize].push(out.times.get(s));
+            }
+        }
+        k += 1;
+        guard += 1;
+        anyhow::ensure!(
+            guard < 100 * args.steps.max(100),
+            "too few tracked frames in {}",
+            args.recording.display()
+        );
+    }
+
+    // Baseline in the same process: the dense product over every vertex of the rig and
+    // full-mesh normals, as a pipeline without the moving-part restriction would do.
+    let n = p.rig.mesh.vertex_count();
+    let basis = p.retargeter.basis();
+    let d = out.displacements.clone();
+    let mut u = vec![Vec3::ZERO; n];
+    let mut normals = vec![Vec3::ZERO; n];
+    let baseline_steps = (args.steps / 4).max(50);
+    let mut base_apply = Vec::with_capacity(baseline_steps);
+    let mut base_normals = Vec::with_capacity(baseline_steps);
+    for _ in 0..baseline_steps {
+        let t = Instant::now();
+        basis.apply(&d, &mut u);
+        let t1 = Instant::now();
+        mimic_solve::vertex_normals(&u, &p.rig.mesh.triangles, &mut normals);
+        base_normals.push(u32::try_from(t1.elapsed().as_nanos()).unwrap_or(u32::MAX));
+        base_apply.push(u32::try_from((t1 - t).as_nanos()).unwrap_or(u32::MAX));
+    }
+    std::hint::black_box(&normals);
+
+    let mut stages = serde_json::Map::new();
+    for s in Stage::ALL {
+        let (m, p99) = median_p99_us(&mut stage_ns[s as usize]);
+        stages.insert(s.name().into(), json!({"median_us": m, "p99_us": p99}));
+    }
+    let (step_m, step_p99) = median_p99_us(&mut step_ns);
+    let (ba, _) = median_p99_us(&mut base_apply);
+    let (bn, _) = median_p99_us(&mut base_normals);
+    let deform_m = stages["deform"]["median_us"].as_f64().unwrap_or(0.0);
+    let normals_m = stages["normals"]["median_us"].as_f64().unwrap_or(0.0);
+    let report = json!({
+        "rig": p.rig.name,
+        "vertices": n,
+        "moving_vertices": p.retargeter.moving_vertex_count(),
+        "controls": basis.control_count(),
+        "solver": serde_json::to_value(p.solver)?,
+        "basis_setup_ms": p.basis_time.as_secs_f64() * 1e3,
+        "recording": args.recording.display().to_string(),
+        "steps": step_ns.len(),
+        "stages": stages,
+        "step": {"median_us": step_m, "p99_us": step_p99, "frames_per_second": if step_m > 0.0 { 1e6 / step_m } else { 0.0 }},
+        "baseline": {
+            "what": "dense B d over every vertex plus full-mesh normals, same process",
+            "apply_median_us": ba,
+            "normals_median_us": bn,
+            "deform_speedup": if deform_m > 0.0 { ba / deform_m } else { 0.0 },
+            "normals_speedup": if normals_m > 0.0 { bn / normals_m } else { 0.0 },
+        },
+        "build": if cfg!(debug_assertions) { "debug (not representative)" } else { "release" },
+    });
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).context("report")?
+        );
+    } else {
+        println!(
+            "rig {} ({} vertices, {} moving, {} controls), basis {:.0} ms, {} steps",
+            p.rig.name,
+            n,
+            p.retargeter.moving_vertex_count(),
+            basis.control_count(),
+            p.basis_time.as_secs_f64() * 1e3,
+            step_ns.len()
+        );
+        for s in Stage::ALL {
+            let v = &report["stages"][s.name()];
+            println!(
+                "  {:<10} median {:>8.1} us  p99 {:>8.1} us",
+                s.name(),
+                v["median_us"].as_f64().unwrap_or(0.0),
+                v["p99_us"].as_f64().unwrap_or(0.0)
+            );
+        }
+        println!(
+            "  {:<10} median {step_m:>8.1} us  p99 {step_p99:>8.1} us  ({:.0} frames/s)",
+            "step",
+            1e6 / step_m.max(1e-9)
+        );
+        println!("  baseline: full apply {ba:.1} us, full normals {bn:.1} us");
+    }
+    Ok(())
+}
