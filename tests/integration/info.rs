@@ -18,7 +18,10 @@ fn shipped(dir: &str) -> Vec<String> {
 
 #[test]
 fn accepts_every_shipped_layout_and_rig() {
-    let files: Vec<String> = shipped("configs/layouts").into_iter().chain(shipped("configs/rigs")).collect();
+    let files: Vec<String> = shipped("configs/layouts")
+        .into_iter()
+        .chain(shipped("configs/rigs"))
+        .collect();
     for f in &files {
         let out = mimic(&["info", f, "--json"]);
         let (stdout, stderr) = text(&out);
@@ -41,13 +44,20 @@ fn missing_obj_is_a_one_line_error_naming_it() {
     let (_, stderr) = text(&out);
     assert!(!out.status.success());
     assert_eq!(stderr.lines().count(), 1, "{stderr}");
-    assert!(stderr.contains("r.toml: mesh: ") && stderr.contains("nope.obj: No such file"), "{stderr}");
+    assert!(
+        stderr.contains("r.toml: mesh: ") && stderr.contains("nope.obj: No such file"),
+        "{stderr}"
+    );
 }
 
 #[test]
 fn control_vertex_out_of_range_names_file_and_line() {
     let dir = tempfile::tempdir().unwrap();
-    std::fs::write(dir.path().join("t.obj"), "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n").unwrap();
+    std::fs::write(
+        dir.path().join("t.obj"),
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nf 1 2 3\n",
+    )
+    .unwrap();
     let rig = dir.path().join("r.toml");
     std::fs::write(
         &rig,
@@ -58,7 +68,9 @@ fn control_vertex_out_of_range_names_file_and_line() {
     let (_, stderr) = text(&out);
     assert!(!out.status.success());
     assert!(
-        stderr.trim_end().ends_with("r.toml:9: control 8.3 uses vertex 3, but the mesh has 3 vertices"),
+        stderr
+            .trim_end()
+            .ends_with("r.toml:9: control 8.3 uses vertex 3, but the mesh has 3 vertices"),
         "{stderr}"
     );
 }

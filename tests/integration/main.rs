@@ -2,13 +2,17 @@
 
 mod import;
 mod info;
+mod replay;
 
 use std::path::PathBuf;
 use std::process::{Command, Output};
 
 /// Repository root.
 pub fn repo() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..").canonicalize().expect("repo root")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../..")
+        .canonicalize()
+        .expect("repo root")
 }
 
 /// Runs the built `mimic` binary in the repo root.
@@ -23,5 +27,8 @@ pub fn mimic(args: &[&str]) -> Output {
 
 /// Stdout and stderr of an output, as text.
 pub fn text(o: &Output) -> (String, String) {
-    (String::from_utf8_lossy(&o.stdout).into_owned(), String::from_utf8_lossy(&o.stderr).into_owned())
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
 }

@@ -51,26 +51,33 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             crate::cmd::recording_info::summary(&args.file, &configs)?
         }
     };
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
+    let text = if args.json {
+        serde_json::to_string_pretty(&summary)? + "\n"
     } else {
-        print_plain(&summary, 0);
-    }
+        let mut text = String::new();
+        plain(&summary, 0, &mut text);
+        text
+    };
+    // A closed pipe (e.g. `| head`) is not an error of ours.
+    let _ = std::io::Write::write_all(&mut std::io::stdout(), text.as_bytes());
     Ok(())
 }
 
-fn print_plain(v: &Value, indent: usize) {
+/// Renders a JSON object as indented `key: value` lines.
+fn plain(v: &Value, indent: usize, out: &mut String) {
+    use std::fmt::Write as _;
     let pad = "  ".repeat(indent);
     if let Value::Object(map) = v {
         for (k, val) in map {
-            match val {
+            let _ = match val {
                 Value::Object(_) => {
-                    println!("{pad}{k}:");
-                    print_plain(val, indent + 1);
+                    let _ = writeln!(out, "{pad}{k}:");
+                    plain(val, indent + 1, out);
+                    Ok(())
                 }
-                Value::String(s) => println!("{pad}{k}: {s}"),
-                other => println!("{pad}{k}: {other}"),
-            }
+                Value::String(s) => writeln!(out, "{pad}{k}: {s}"),
+                other => writeln!(out, "{pad}{k}: {other}"),
+            };
         }
     }
 }
