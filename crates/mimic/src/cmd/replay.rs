@@ -1,6 +1,6 @@
 //! `mimic replay`: a recorded performance onto a rig, written as OBJ frames or one binary file.
 
-use crate::cmd::setup::{PipelineArgs, RigArgs, prepare};
+use crate::cmd::setup::{PipelineArgs, RigArgs, prepare_with};
 use anyhow::Context;
 use mimic_assets::{FramesWriter, write_obj};
 use mimic_capture::{Pace, Replay, ReplayOptions};
@@ -106,7 +106,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let header = mimic_capture::RecordingReader::open(&args.recording, None)?
         .header()
         .clone();
-    let mut prepared = prepare(&args.rig, &args.pipeline, &header.layout)?;
+    // Normals are only written by the binary format; OBJ readers recompute their own.
+    let settings = mimic_retarget::RetargetSettings {
+        normals: args.format == OutFormat::Bin && args.out.is_some(),
+        ..args.pipeline.settings()
+    };
+    let mut prepared = prepare_with(&args.rig, settings, &header.layout)?;
     let rig = &prepared.rig;
     let options = ReplayOptions {
         pace: if args.realtime {

@@ -155,10 +155,19 @@ pub fn prepare(
     pipeline: &PipelineArgs,
     layout_name: &str,
 ) -> anyhow::Result<Prepared> {
+    prepare_with(rig_args, pipeline.settings(), layout_name)
+}
+
+/// [`prepare`] with pipeline settings given directly.
+pub fn prepare_with(
+    rig_args: &RigArgs,
+    settings: mimic_retarget::RetargetSettings,
+    layout_name: &str,
+) -> anyhow::Result<Prepared> {
     let layout = rig_args.config_dirs().load_layout_named(layout_name)?;
     let rig = rig_args.load_rig()?;
     let (basis, solver, basis_time) = rig_args.build_basis(&rig)?;
-    let retargeter = Retargeter::new(&rig, &layout, basis, pipeline.settings())
+    let retargeter = Retargeter::new(&rig, &layout, basis, settings)
         .with_context(|| format!("rig `{}` with layout `{}`", rig.name, layout.name))?;
     Ok(Prepared {
         rig,
