@@ -8,6 +8,7 @@
 
 pub mod basis;
 pub mod error;
+pub mod geodesic;
 pub mod kabsch;
 pub mod laplacian;
 pub mod morph_fit;
@@ -21,7 +22,7 @@ pub use basis::Basis;
 pub use error::SolveError;
 pub use normals::vertex_normals;
 
-use mimic_types::{Rig, SolverKind, SolverSettings};
+use mimic_types::{RbfDistance, Rig, SolverKind, SolverSettings};
 
 /// Builds the deformation basis of `rig` with `settings` (the rig's own `rig.solver` is not read).
 ///
@@ -54,6 +55,15 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
     let weights = regions::vertex_region_weights(&rig.regions, positions);
     let lap_rows = (settings.kind == SolverKind::Laplacian)
         .then(|| laplacian::laplacian_rows(positions, &rig.mesh.triangles, settings.weights));
+    // Geodesic RBF: one Dijkstra per control, shared by every region.
+    let geodesic = (settings.kind == SolverKind::Rbf && settings.distance == RbfDistance::Geodesic)
+        .then(|| {
+            let graph = geodesic::EdgeGraph::new(positions, &rig.mesh.triangles);
+            rig.controls
+                .iter()
+                .map(|c| graph.distances_from(c.vertex as usize))
+                .collect::<Vec<_>>()
+        });
     let mut b = vec![0f64; n * m];
     for (region, subset) in &groups {
         if subset.is_empty() {
@@ -70,6 +80,22 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
                     .map(|&j| positions[rig.controls[j].vertex as usize])
                     .collect();
                 let fdps: Vec<_> = subset.iter().map(|&j| rig.controls[j].fdp).collect();
+                let table: Vec<Vec<f64>>;
+                let vertices: Vec<usize>;
+                let metric = match &geodesic {
+                    None => rbf::Metric::Euclidean,
+                    Some(all) => {
+                        table = subset.iter().map(|&j| all[j].clone()).collect();
+                        vertices = subset
+                            .iter()
+                            .map(|&j| rig.controls[j].vertex as usize)
+                            .collect();
+                        rbf::Metric::Table {
+                            to_vertex: &table,
+                            centre_vertices: &vertices,
+                        }
+                    }
+                };
                 rbf::rbf_columns(
                     positions,
                     &rig.frozen,
@@ -77,6 +103,7 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
                     &fdps,
                     settings.kernel,
                     settings.affine,
+                    metric,
                     &system,
                 )?
             }
@@ -117,6 +144,7 @@ mod tests {
             kind,
             kernel: RbfKernel::Exponential { radius: 0.3 },
             affine: false,
+            distance: mimic_types::RbfDistance::Euclidean,
             weights: LaplacianWeights::MeanValue,
             constraint_weight: 10.0,
             regions,
@@ -280,6 +308,53 @@ mod tests {
                 assert_eq!(ok, expect_ok, "{kind:?} band {band}");
             }
         }
+    }
+
+    #[test]
+    fn geodesic_rbf_hits_controls_and_does_not_leak_across_a_slit() {
+        // A 20 x 20 grid cut between rows 9 and 10 for columns 0..15 (like parted lips). Control
+        // A below the cut moves, control B just above it stays. Along the skin the rows above the
+        // cut are far from A (around the end of the cut), in space they are 1/19 away.
+        let mut mesh = grid(20, 20, 0.0, 0.0, 0);
+        mesh.triangles.retain(|t| {
+            let rows: Vec<u32> = t.iter().map(|v| v / 20).collect();
+            let cols: Vec<u32> = t.iter().map(|v| v % 20).collect();
+            !(rows.contains(&9) && rows.contains(&10) && cols.iter().all(|c| *c < 15))
+        });
+        let (a, b) = (9 * 20 + 5, 10 * 20 + 5);
+        let mut r = rig(
+            mesh,
+            &[a, b, 2 * 20 + 2, 17 * 20 + 17, 2 * 20 + 17, 17 * 20 + 2],
+            0.1,
+        );
+        r.controls
+            .iter_mut()
+            .for_each(|c| c.region = mimic_types::Region::Middle);
+        let mut d = vec![Vec3::ZERO; 6];
+        d[0] = Vec3::new(0.0, 0.0, 0.1);
+        let mut moved = Vec::new();
+        for distance in [RbfDistance::Euclidean, RbfDistance::Geodesic] {
+            let s = SolverSettings {
+                distance,
+                ..settings(SolverKind::Rbf, false)
+            };
+            let u = apply(&build_basis(&r, &s).unwrap(), &d);
+            for (c, dj) in r.controls.iter().zip(&d) {
+                // Interpolation is exact for either metric: f32 round-off, 1e-4 * max|d|.
+                assert!(
+                    (u[c.vertex as usize] - *dj).length() <= 1e-5,
+                    "{distance:?}"
+                );
+            }
+            moved.push(u[11 * 20 + 4].length());
+        }
+        // Vertex (4, 11), above the cut: Euclidean lets A's motion through, geodesic much less.
+        assert!(
+            moved[1] < 0.5 * moved[0],
+            "euclidean {} geodesic {}",
+            moved[0],
+            moved[1]
+        );
     }
 
     #[test]

@@ -53,9 +53,26 @@ pub fn check_kernel(kernel: RbfKernel, affine: bool) -> Result<(), SolveError> {
     Ok(())
 }
 
+/// How [`rbf_columns`] measures the distance from a vertex to a centre.
+#[derive(Clone, Copy, Debug)]
+pub enum Metric<'a> {
+    /// Straight-line distance.
+    Euclidean,
+    /// Precomputed distances: `to_vertex[c][i]` from centre `c` to vertex `i`; centre `c` sits on
+    /// vertex `centre_vertices[c]`. Infinite entries (unreachable) give a kernel value of 0, and a
+    /// vertex no centre reaches gets a zero row.
+    Table {
+        /// Distance from each centre to every vertex.
+        to_vertex: &'a [Vec<f64>],
+        /// Vertex of each centre.
+        centre_vertices: &'a [usize],
+    },
+}
+
 /// Basis columns of an RBF through `centres` (rest positions of the controls, named by `fdps` for
 /// errors): returns `n x k` values, row-major, for the `positions` (frozen rows are left zero).
 /// `system` names the solve in errors (e.g. `RBF of region top`).
+#[allow(clippy::too_many_arguments)]
 pub fn rbf_columns(
     positions: &[Vec3],
     frozen: &[bool],
@@ -63,6 +80,7 @@ pub fn rbf_columns(
     fdps: &[Fdp],
     kernel: RbfKernel,
     affine: bool,
+    metric: Metric<'_>,
     system: &str,
 ) -> Result<Vec<f64>, SolveError> {
     check_kernel(kernel, affine)?;
@@ -88,13 +106,33 @@ pub fn rbf_columns(
             }
         }
     }
-    let phi = |r: f64| kernel_value(kernel, r);
+    let phi = |r: f64| {
+        if r.is_finite() {
+            kernel_value(kernel, r)
+        } else {
+            0.0
+        }
+    };
+    // Distance from centre l to vertex i (at position p), and between centres a and b.
+    let to_vertex = |l: usize, i: usize, p: DVec3| match metric {
+        Metric::Euclidean => (p - c[l]).length(),
+        Metric::Table { to_vertex, .. } => to_vertex[l][i],
+    };
+    let between = |a: usize, b: usize| match metric {
+        Metric::Euclidean => (c[a] - c[b]).length(),
+        Metric::Table {
+            to_vertex,
+            centre_vertices,
+        } => 0.5 * (to_vertex[a][centre_vertices[b]] + to_vertex[b][centre_vertices[a]]),
+    };
+    let table = matches!(metric, Metric::Table { .. });
     let extra = if affine { 4 } else { 0 };
     let size = k + extra;
     // Weights X (size x k): coefficient vector of the interpolant of each unit control displacement.
-    let x = if affine {
+    // Kernels of graph distances need not be positive definite: those go through LU too.
+    let x = if affine || table {
         let m = Mat::<f64>::from_fn(size, size, |i, j| match (i < k, j < k) {
-            (true, true) => phi((c[i] - c[j]).length()),
+            (true, true) => phi(between(i, j)),
             (true, false) => affine_entry(c[i], j - k),
             (false, true) => affine_entry(c[j], i - k),
             (false, false) => 0.0,
@@ -108,13 +146,13 @@ pub fn rbf_columns(
             return Err(SolveError::Singular {
                 system: system.to_string(),
                 detail: format!(
-                    "affine RBF system residual {residual:e}; are the controls coplanar or fewer than 4?"
+                    "RBF system residual {residual:e} (with the affine term: are the controls coplanar or fewer than 4?)"
                 ),
             });
         }
         x
     } else {
-        let m = Mat::<f64>::from_fn(k, k, |i, j| phi((c[i] - c[j]).length()));
+        let m = Mat::<f64>::from_fn(k, k, |i, j| phi(between(i, j)));
         let llt = m.llt(Side::Lower).map_err(|e| SolveError::Singular {
             system: system.to_string(),
             detail: format!("{e:?}"),
@@ -135,9 +173,12 @@ pub fn rbf_columns(
             continue;
         }
         let p = p.as_dvec3();
+        if table && (0..k).all(|l| !to_vertex(l, i, p).is_finite()) {
+            continue;
+        }
         for (l, el) in e.iter_mut().enumerate() {
             *el = if l < k {
-                phi((p - c[l]).length())
+                phi(to_vertex(l, i, p))
             } else {
                 affine_entry(p, l - k)
             };
@@ -193,7 +234,17 @@ mod tests {
         // Interpolation: the column of control c is 1 at c and 0 at every other control.
         let (_, centres, fdps) = setup();
         for (kernel, affine) in KERNELS {
-            let cols = rbf_columns(&centres, &[], &centres, &fdps, kernel, affine, "t").unwrap();
+            let cols = rbf_columns(
+                &centres,
+                &[],
+                &centres,
+                &fdps,
+                kernel,
+                affine,
+                Metric::Euclidean,
+                "t",
+            )
+            .unwrap();
             let k = centres.len();
             for a in 0..k {
                 for b in 0..k {
@@ -215,7 +266,17 @@ mod tests {
         let t = glam::DVec3::new(0.1, -0.2, 0.3);
         let k = centres.len();
         for (kernel, _) in KERNELS.into_iter().filter(|(_, a)| *a) {
-            let cols = rbf_columns(&positions, &[], &centres, &fdps, kernel, true, "t").unwrap();
+            let cols = rbf_columns(
+                &positions,
+                &[],
+                &centres,
+                &fdps,
+                kernel,
+                true,
+                Metric::Euclidean,
+                "t",
+            )
+            .unwrap();
             for (p, row) in positions.iter().zip(cols.chunks_exact(k)) {
                 let u = row
                     .iter()
@@ -242,6 +303,7 @@ mod tests {
             &fdps,
             RbfKernel::Exponential { radius: 0.3 },
             false,
+            Metric::Euclidean,
             "t",
         )
         .unwrap();
@@ -259,6 +321,7 @@ mod tests {
             &fdps,
             RbfKernel::default(),
             false,
+            Metric::Euclidean,
             "t",
         )
         .unwrap();
@@ -278,6 +341,7 @@ mod tests {
             &fdps,
             RbfKernel::ThinPlate,
             false,
+            Metric::Euclidean,
             "t",
         );
         assert!(matches!(thin, Err(SolveError::InvalidSetting(_))));
@@ -288,12 +352,22 @@ mod tests {
             &fdps,
             RbfKernel::Gaussian { radius: 0.0 },
             false,
+            Metric::Euclidean,
             "t",
         );
         assert!(matches!(zero, Err(SolveError::InvalidSetting(_))));
         // All controls on the plane z = 0 make the affine system singular.
         let flat: Vec<Vec3> = centres.iter().map(|c| Vec3::new(c.x, c.y, 0.0)).collect();
-        let r = rbf_columns(&flat, &[], &flat, &fdps, RbfKernel::ThinPlate, true, "t");
+        let r = rbf_columns(
+            &flat,
+            &[],
+            &flat,
+            &fdps,
+            RbfKernel::ThinPlate,
+            true,
+            Metric::Euclidean,
+            "t",
+        );
         assert!(matches!(r, Err(SolveError::Singular { .. })), "{r:?}");
         centres[3] = centres[5];
         let r = rbf_columns(
@@ -303,6 +377,7 @@ mod tests {
             &fdps,
             RbfKernel::default(),
             false,
+            Metric::Euclidean,
             "t",
         );
         assert!(

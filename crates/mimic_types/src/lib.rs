@@ -18,7 +18,9 @@ pub use layout::{Layout, LayoutControl, LayoutError};
 pub use mesh::{Mesh, MeshError};
 pub use pose::HeadPose;
 pub use region::{Region, RegionBands};
-pub use rig::{LaplacianWeights, RbfKernel, Rig, RigControl, RigError, SolverKind, SolverSettings};
+pub use rig::{
+    LaplacianWeights, RbfDistance, RbfKernel, Rig, RigControl, RigError, SolverKind, SolverSettings,
+};
 
 /// Nominal number of MPEG-4 control points mimic drives a face with.
 pub const NOMINAL_CONTROL_COUNT: usize = 38;

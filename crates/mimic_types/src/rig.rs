@@ -160,6 +160,18 @@ pub enum LaplacianWeights {
     Cotangent,
 }
 
+/// How the RBF solver measures the distance `r` between a vertex and a control.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum RbfDistance {
+    /// Straight-line distance in space.
+    #[default]
+    Euclidean,
+    /// Shortest path along the mesh edges (approximates the geodesic; keeps the lips and the
+    /// eyelids apart, which are close in space but far apart along the skin).
+    Geodesic,
+}
+
 /// Solver settings a rig ships with; the command line may override them.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
@@ -170,6 +182,8 @@ pub struct SolverSettings {
     pub kernel: RbfKernel,
     /// Whether the RBF adds an affine term.
     pub affine: bool,
+    /// How the RBF measures distances.
+    pub distance: RbfDistance,
     /// Laplacian edge weights.
     pub weights: LaplacianWeights,
     /// Weight of the soft control constraints of the Laplacian solve.
@@ -184,6 +198,7 @@ impl Default for SolverSettings {
             kind: SolverKind::Rbf,
             kernel: RbfKernel::default(),
             affine: false,
+            distance: RbfDistance::Euclidean,
             weights: LaplacianWeights::MeanValue,
             constraint_weight: 10.0,
             regions: true,

@@ -10,7 +10,9 @@ use anyhow::{Context, bail};
 use glam::Vec3;
 use mimic_assets::{load_obj, load_rig};
 use mimic_solve::{Basis, build_basis};
-use mimic_types::{LaplacianWeights, RbfKernel, Region, Rig, SolverKind, SolverSettings};
+use mimic_types::{
+    LaplacianWeights, RbfDistance, RbfKernel, Region, Rig, SolverKind, SolverSettings,
+};
 use serde_json::{Value, json};
 use std::path::PathBuf;
 use std::time::Instant;
@@ -42,6 +44,15 @@ pub enum KernelArg {
     Gaussian,
     /// `r^2 log r` (turns the affine term on).
     ThinPlate,
+}
+
+/// RBF distance, on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum DistanceArg {
+    /// Straight-line distance.
+    Euclidean,
+    /// Shortest path along the mesh edges.
+    Geodesic,
 }
 
 /// Laplacian edge weights, on the command line.
@@ -79,6 +90,9 @@ pub struct Args {
     /// RBF affine term (default: the rig's).
     #[arg(long, value_enum)]
     pub affine: Option<OnOff>,
+    /// RBF distance (default: the rig's).
+    #[arg(long, value_enum)]
+    pub distance: Option<DistanceArg>,
     /// Laplacian edge weights (default: the rig's).
     #[arg(long, value_enum)]
     pub weights: Option<WeightsArg>,
@@ -178,6 +192,12 @@ fn settings(rig: &Rig, args: &Args) -> SolverSettings {
     if let Some(a) = args.affine {
         s.affine = matches!(a, OnOff::On);
     }
+    if let Some(d) = args.distance {
+        s.distance = match d {
+            DistanceArg::Euclidean => RbfDistance::Euclidean,
+            DistanceArg::Geodesic => RbfDistance::Geodesic,
+        };
+    }
     if let Some(w) = args.weights {
         s.weights = match w {
             WeightsArg::Uniform => LaplacianWeights::Uniform,
@@ -246,13 +266,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "rig {} ({}), solver {:?}, regions {}, kernel {:?}, affine {}, weights {:?}, constraint weight {}, band {}; setup {:.0} ms",
+        "rig {} ({}), solver {:?}, regions {}, kernel {:?}, affine {}, distance {:?}, weights {:?}, constraint weight {}, band {}; setup {:.0} ms",
         args.rig.display(),
         rig.units,
         settings.kind,
         settings.regions,
         settings.kernel,
         settings.affine,
+        settings.distance,
         settings.weights,
         settings.constraint_weight,
         rig.regions.band,
