@@ -61,6 +61,36 @@ pub enum AssetError {
         /// The mesh's own error.
         source: Box<AssetError>,
     },
+    /// A morph target mesh whose topology is not the neutral's.
+    #[error("{}: {message}", path.display())]
+    MorphTopology {
+        /// The target's OBJ file.
+        path: PathBuf,
+        /// What differs, e.g. `26718 vertices, the neutral has 26719`.
+        message: String,
+    },
+    /// A rig's morph target could not be loaded.
+    #[error("{}:{line}: morph target `{name}`: {source}", path.display())]
+    MorphTarget {
+        /// The rig file.
+        path: PathBuf,
+        /// 1-based line of the target's entry.
+        line: usize,
+        /// The target's name.
+        name: String,
+        /// The target's own error.
+        source: Box<AssetError>,
+    },
+    /// A morph data file with a bad line or wrong counts.
+    #[error("{}:{line}: {message}", path.display())]
+    MorphFile {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the problem.
+        line: usize,
+        /// What was wrong.
+        message: String,
+    },
     /// A named layout was not found in any config directory.
     #[error("no layout named `{name}` (looked for {})", tried.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "))]
     LayoutNotFound {

@@ -7,6 +7,7 @@
 mod error;
 mod frames;
 mod layout;
+mod morph;
 mod obj;
 mod rig;
 mod span;
@@ -14,5 +15,9 @@ mod span;
 pub use error::AssetError;
 pub use frames::{FRAMES_MAGIC, FRAMES_VERSION, FrameRecord, FramesReader, FramesWriter};
 pub use layout::{ConfigDirs, load_layout};
+pub use morph::{
+    MORPH_FILE_DECIMALS, MorphTargetEntry, load_morph_file, load_morph_targets, morph_target,
+    read_morph_file, save_morph_file, write_morph_file,
+};
 pub use obj::{load_obj, write_obj};
 pub use rig::{RigFile, load_rig};

@@ -30,6 +30,9 @@ pub struct RigFile {
     pub solver: SolverSettings,
     /// Control vertices.
     pub controls: Vec<Spanned<RigControl>>,
+    /// Morph targets (blendshapes) on the mesh's topology; loaded by [`crate::load_morph_targets`].
+    #[serde(default)]
+    pub morph_targets: Vec<Spanned<crate::MorphTargetEntry>>,
 }
 
 /// Loads a rig file and its mesh, and validates them; errors name the file and line.

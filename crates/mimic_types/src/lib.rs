@@ -8,6 +8,7 @@ pub mod fdp;
 pub mod frame;
 pub mod layout;
 pub mod mesh;
+pub mod morph;
 pub mod pose;
 pub mod region;
 pub mod rig;
@@ -16,6 +17,7 @@ pub use fdp::{Fdp, FdpError};
 pub use frame::LandmarkFrame;
 pub use layout::{Layout, LayoutControl, LayoutError};
 pub use mesh::{Mesh, MeshError};
+pub use morph::MorphTarget;
 pub use pose::HeadPose;
 pub use region::{Region, RegionBands};
 pub use rig::{
