@@ -6,14 +6,18 @@
 //! at a time: select the controls -> remove rigid head motion (Kabsch on the layout's stable points)
 //! -> displacement against the neutral -> scale to the target -> One Euro filter -> `u = B d`
 //! -> normals, writing into a caller-owned [`FrameOutput`] and allocating nothing.
+//! [`BlendshapeFitter`] turns the same control displacements into morph-target weights and the
+//! blended mesh (blendshape mode).
 //! No tokio, no wgpu, no file formats: sources and sinks live in other crates.
 
+mod blendshape;
 mod filter;
 mod patch;
 mod pipeline;
 mod scale;
 mod settings;
 
+pub use blendshape::{BlendshapeError, BlendshapeFitter, BlendshapeSettings};
 pub use filter::{OneEuro, OneEuroSettings};
 pub use pipeline::{FrameOutput, FrameStatus, RetargetError, Retargeter, Stage, StageTimes, Stats};
 pub use scale::SourceToTarget;

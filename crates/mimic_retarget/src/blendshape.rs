@@ -1,0 +1,518 @@
+//! Blendshape mode: control displacements -> morph-target weights -> `P = P0 + sum_k w_k dP_k`.
+//!
+//! Per frame, [`BlendshapeFitter::apply`] takes the control displacements `d` the
+//! [`Retargeter`](crate::Retargeter) produced (38 x 3, target units) and solves
+//! `min_w |sum_k w_k D_k - d|^2 + lambda |w|^2` with `0 <= w_k <= 1` ([`MorphFit`]), where `D_k`
+//! are target `k`'s deltas at the rig's control vertices. The weights are then smoothed in time
+//! (One Euro per weight) and the mesh is evaluated as the GPU morph-target method does:
+//! positions `P0 + sum w_k dP_k`, normals `N0 + sum w_k dN_k` (renormalised). Nothing is allocated
+//! per frame.
+
+use crate::{FrameOutput, FrameStatus, OneEuro, OneEuroSettings};
+use glam::Vec3;
+use mimic_solve::morph_fit::{MorphFit, MorphScratch};
+use mimic_solve::{SolveError, vertex_normals};
+use mimic_types::{MorphTarget, Rig};
+
+/// Knobs of [`BlendshapeFitter`].
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct BlendshapeSettings {
+    /// Ridge weight `lambda`, relative to the mean of `|D_k|^2` over the targets (so it does not
+    /// depend on the rig's units): 0.01 shrinks a lone target's weight by about 1 %.
+    pub ridge: f64,
+    /// One Euro filter on each weight (speeds in weight units per second); `None` turns it off.
+    pub smoothing: Option<OneEuroSettings>,
+}
+
+impl Default for BlendshapeSettings {
+    fn default() -> Self {
+        Self {
+            ridge: 0.01,
+            smoothing: Some(OneEuroSettings {
+                min_cutoff: 3.0,
+                beta: 1.0,
+                derivative_cutoff: 1.0,
+            }),
+        }
+    }
+}
+
+/// Why a blendshape fitter cannot be set up.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum BlendshapeError {
+    /// The rig lists no morph targets.
+    #[error("rig `{0}` has no morph targets (add [[morph_targets]] to its file)")]
+    NoTargets(String),
+    /// A target does not cover the rig's vertices.
+    #[error(
+        "morph target `{name}` has {got} position and {normals} normal deltas, the rig mesh has {expected} vertices"
+    )]
+    VertexCount {
+        /// Target name.
+        name: String,
+        /// Position deltas given.
+        got: usize,
+        /// Normal deltas given.
+        normals: usize,
+        /// Vertices of the rig mesh.
+        expected: usize,
+    },
+    /// A target has a NaN or infinite delta.
+    #[error("morph target `{name}` has a non-finite delta at vertex {vertex}")]
+    NonFinite {
+        /// Target name.
+        name: String,
+        /// First offending vertex.
+        vertex: usize,
+    },
+    /// The ridge setting is negative or not finite.
+    #[error("blendshape ridge {0} must be finite and >= 0")]
+    Ridge(f64),
+    /// The bounded least-squares fit could not be prepared.
+    #[error(transparent)]
+    Fit(#[from] SolveError),
+}
+
+/// Fits morph-target weights to control displacements and evaluates the blended mesh.
+#[derive(Debug)]
+pub struct BlendshapeFitter {
+    names: Vec<String>,
+    fit: MorphFit,
+    scratch: MorphScratch,
+    smoothing: Option<OneEuroSettings>,
+    filters: Vec<OneEuro>,
+    last_time_us: Option<i64>,
+    raw: Vec<f32>,
+    weights: Vec<f32>,
+    rest: Vec<Vec3>,
+    rest_normals: Vec<Vec3>,
+    /// Target-major: `position_deltas[k * n + i]`.
+    position_deltas: Vec<Vec3>,
+    /// Target-major: `normal_deltas[k * n + i]`.
+    normal_deltas: Vec<Vec3>,
+    ridge: f64,
+}
+
+impl BlendshapeFitter {
+    /// Prepares the fit of `targets` (on `rig`'s mesh) against `rig`'s control displacements.
+    pub fn new(
+        rig: &Rig,
+        targets: &[MorphTarget],
+        settings: &BlendshapeSettings,
+    ) -> Result<Self, BlendshapeError> {
+        if targets.is_empty() {
+            return Err(BlendshapeError::NoTargets(rig.name.clone()));
+        }
+        if !(settings.ridge.is_finite() && settings.ridge >= 0.0) {
+            return Err(BlendshapeError::Ridge(settings.ridge));
+        }
+        let n = rig.mesh.vertex_count();
+        let k = targets.len();
+        let mut position_deltas = Vec::with_capacity(k * n);
+        let mut normal_deltas = Vec::with_capacity(k * n);
+        let mut at_controls = Vec::with_capacity(k);
+        for t in targets {
+            if t.position_deltas.len() != n || t.normal_deltas.len() != n {
+                return Err(BlendshapeError::VertexCount {
+                    name: t.name.clone(),
+                    got: t.position_deltas.len(),
+                    normals: t.normal_deltas.len(),
+                    expected: n,
+                });
+            }
+            if let Some(vertex) = (0..n)
+                .find(|&i| !(t.position_deltas[i].is_finite() && t.normal_deltas[i].is_finite()))
+            {
+                return Err(BlendshapeError::NonFinite {
+                    name: t.name.clone(),
+                    vertex,
+                });
+            }
+            position_deltas.extend_from_slice(&t.position_deltas);
+            normal_deltas.extend_from_slice(&t.normal_deltas);
+            // Rig::validate guarantees control vertices are inside the mesh.
+            at_controls.push(
+                rig.controls
+                    .iter()
+                    .map(|c| t.position_deltas[c.vertex as usize])
+                    .collect::<Vec<Vec3>>(),
+            );
+        }
+        let mean_sq = at_controls
+            .iter()
+            .map(|t| t.iter().map(|v| v.as_dvec3().length_squared()).sum::<f64>())
+            .sum::<f64>()
+            / k as f64;
+        let ridge = settings.ridge * mean_sq;
+        let fit = MorphFit::new(&at_controls, ridge)?;
+        let mut rest_normals = vec![Vec3::ZERO; n];
+        vertex_normals(&rig.mesh.positions, &rig.mesh.triangles, &mut rest_normals);
+        Ok(Self {
+            names: targets.iter().map(|t| t.name.clone()).collect(),
+            scratch: fit.scratch(),
+            fit,
+            smoothing: settings.smoothing,
+            filters: vec![OneEuro::default(); k],
+            last_time_us: None,
+            raw: vec![0.0; k],
+            weights: vec![0.0; k],
+            rest: rig.mesh.positions.clone(),
+            rest_normals,
+            position_deltas,
+            normal_deltas,
+            ridge,
+        })
+    }
+
+    /// Target names, in weight order.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
+    /// Number of targets.
+    pub fn target_count(&self) -> usize {
+        self.names.len()
+    }
+
+    /// The absolute ridge weight `lambda` in use (rig units squared).
+    pub fn ridge(&self) -> f64 {
+        self.ridge
+    }
+
+    /// Weights of the last frame, after smoothing.
+    pub fn weights(&self) -> &[f32] {
+        &self.weights
+    }
+
+    /// Weights of the last frame as fitted, before smoothing.
+    pub fn raw_weights(&self) -> &[f32] {
+        &self.raw
+    }
+
+    /// Forgets the smoothing history and the warm start; weights return to 0.
+    pub fn reset(&mut self) {
+        self.filters.iter_mut().for_each(OneEuro::reset);
+        self.last_time_us = None;
+        self.scratch = self.fit.scratch();
+        self.raw.fill(0.0);
+        self.weights.fill(0.0);
+    }
+
+    /// Fits weights to control displacements `d` (target units) taken at `timestamp_us`, smooths
+    /// them, and returns them; allocates nothing.
+    ///
+    /// # Panics
+    /// If `d` does not have one entry per rig control.
+    pub fn fit(&mut self, d: &[Vec3], timestamp_us: i64) -> &[f32] {
+        self.fit.fit(d, &mut self.scratch, &mut self.raw);
+        let dt = self
+            .last_time_us
+            .map_or(0.0, |t| (timestamp_us - t) as f32 * 1e-6);
+        self.last_time_us = Some(timestamp_us);
+        match &self.smoothing {
+            Some(s) => {
+                for ((w, f), x) in self
+                    .weights
+                    .iter_mut()
+                    .zip(&mut self.filters)
+                    .zip(&self.raw)
+                {
+                    *w = f.filter(s, *x, dt).clamp(0.0, 1.0);
+                }
+            }
+            None => self.weights.copy_from_slice(&self.raw),
+        }
+        &self.weights
+    }
+
+    /// Evaluates `P0 + sum w_k dP_k` into `positions` and, unless `normals` is empty, the
+    /// renormalised `N0 + sum w_k dN_k` into `normals`; allocates nothing.
+    ///
+    /// # Panics
+    /// If `weights` is not one per target, `positions` not one per vertex, or `normals` neither
+    /// empty nor one per vertex.
+    pub fn evaluate(&self, weights: &[f32], positions: &mut [Vec3], normals: &mut [Vec3]) {
+        let n = self.rest.len();
+        assert_eq!(weights.len(), self.names.len(), "one weight per target");
+        assert_eq!(positions.len(), n, "one position per vertex");
+        assert!(
+            normals.is_empty() || normals.len() == n,
+            "normals: empty or one per vertex"
+        );
+        positions.copy_from_slice(&self.rest);
+        for (k, &w) in weights.iter().enumerate() {
+            if w != 0.0 {
+                let dp = &self.position_deltas[k * n..(k + 1) * n];
+                for (p, d) in positions.iter_mut().zip(dp) {
+                    *p += w * *d;
+                }
+            }
+        }
+        if normals.is_empty() {
+            return;
+        }
+        normals.copy_from_slice(&self.rest_normals);
+        for (k, &w) in weights.iter().enumerate() {
+            if w != 0.0 {
+                let dn = &self.normal_deltas[k * n..(k + 1) * n];
+                for (m, d) in normals.iter_mut().zip(dn) {
+                    *m += w * *d;
+                }
+            }
+        }
+        for m in normals.iter_mut() {
+            *m = m.normalize_or_zero();
+        }
+    }
+
+    /// Turns a retargeter's output into the blendshape output, in place: fits and smooths the
+    /// weights from `out.displacements`, then overwrites `out.positions` (and `out.normals` when
+    /// the retargeter computes them) with the blended mesh. Calibrating frames give zero weights;
+    /// rejected frames leave `out` and the weights as they were. Returns the weights.
+    pub fn apply(&mut self, out: &mut FrameOutput) -> &[f32] {
+        match out.status {
+            FrameStatus::Rejected => return &self.weights,
+            FrameStatus::Calibrating => self.reset(),
+            FrameStatus::Tracked | FrameStatus::Lost => {
+                self.fit(&out.displacements, out.timestamp_us);
+            }
+        }
+        let weights = std::mem::take(&mut self.weights);
+        self.evaluate(&weights, &mut out.positions, &mut out.normals);
+        self.weights = weights;
+        &self.weights
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use mimic_types::{Mesh, Region, RegionBands, RigControl, SolverSettings};
+
+    /// A 4 x 4 grid in the xy plane with a control on every vertex of the middle 2 x 2.
+    fn grid_rig() -> Rig {
+        let mut positions = Vec::new();
+        for y in 0..4 {
+            for x in 0..4 {
+                positions.push(Vec3::new(x as f32, y as f32, 0.0));
+            }
+        }
+        let mut triangles = Vec::new();
+        for y in 0..3u32 {
+            for x in 0..3u32 {
+                let a = y * 4 + x;
+                triangles.push([a, a + 1, a + 5]);
+                triangles.push([a, a + 5, a + 4]);
+            }
+        }
+        let fdps = ["8.1", "8.2", "8.3", "8.4"];
+        let controls = [5u32, 6, 9, 10]
+            .iter()
+            .zip(fdps)
+            .map(|(&v, f)| RigControl {
+                fdp: f.parse().unwrap(),
+                vertex: v,
+                region: Region::Bottom,
+            })
+            .collect();
+        Rig {
+            name: "grid".into(),
+            units: "cm".into(),
+            mesh: Mesh {
+                positions,
+                triangles,
+                ..Mesh::default()
+            },
+            controls,
+            regions: RegionBands {
+                top_from: 10.0,
+                bottom_below: 5.0,
+                band: 0.1,
+            },
+            frozen: vec![false; 16],
+            solver: SolverSettings::default(),
+        }
+    }
+
+    /// Target `k` lifts vertices by a pattern that differs per target (linearly independent at the controls).
+    fn targets(rig: &Rig) -> Vec<MorphTarget> {
+        let n = rig.mesh.vertex_count();
+        (0..3)
+            .map(|k| {
+                let deltas: Vec<Vec3> = (0..n)
+                    .map(|i| {
+                        let p = rig.mesh.positions[i];
+                        match k {
+                            0 => Vec3::new(0.0, 0.0, 0.5 * p.x),
+                            1 => Vec3::new(0.0, 0.3 * p.y, 0.0),
+                            _ => Vec3::new(0.2, 0.0, 0.1 * p.x * p.y),
+                        }
+                    })
+                    .collect();
+                let moved: Vec<Vec3> = rig
+                    .mesh
+                    .positions
+                    .iter()
+                    .zip(&deltas)
+                    .map(|(a, b)| *a + *b)
+                    .collect();
+                let mut n0 = vec![Vec3::ZERO; n];
+                let mut n1 = vec![Vec3::ZERO; n];
+                vertex_normals(&rig.mesh.positions, &rig.mesh.triangles, &mut n0);
+                vertex_normals(&moved, &rig.mesh.triangles, &mut n1);
+                MorphTarget {
+                    name: format!("t{k}"),
+                    position_deltas: deltas,
+                    normal_deltas: n1.iter().zip(&n0).map(|(a, b)| *a - *b).collect(),
+                }
+            })
+            .collect()
+    }
+
+    fn control_d(rig: &Rig, t: &[MorphTarget], w: &[f32]) -> Vec<Vec3> {
+        rig.controls
+            .iter()
+            .map(|c| {
+                t.iter()
+                    .zip(w)
+                    .map(|(t, w)| t.position_deltas[c.vertex as usize] * *w)
+                    .sum()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn recovers_weights_and_evaluates_the_blend() {
+        let rig = grid_rig();
+        let t = targets(&rig);
+        let settings = BlendshapeSettings {
+            ridge: 0.0,
+            smoothing: None,
+        };
+        let mut f = BlendshapeFitter::new(&rig, &t, &settings).unwrap();
+        let truth = [0.6, 0.3, 0.0];
+        let d = control_d(&rig, &t, &truth);
+        let w = f.fit(&d, 0).to_vec();
+        // Exact data, no ridge, 12 x 3 full-rank system: error ~ f32 rounding, 1e-5 is generous.
+        for (a, b) in w.iter().zip(&truth) {
+            assert!((a - b).abs() < 1e-5, "{w:?}");
+        }
+        let mut p = vec![Vec3::ZERO; 16];
+        let mut nrm = vec![Vec3::ZERO; 16];
+        f.evaluate(&truth, &mut p, &mut nrm);
+        for i in 0..16 {
+            let q = rig.mesh.positions[i];
+            // Analytic blend: z = 0.6 * 0.5 x, y scaled by 1 + 0.3 * 0.3.
+            let want = Vec3::new(q.x, q.y * (1.0 + 0.09), 0.3 * q.x);
+            assert!((p[i] - want).length() < 1e-5, "{i}: {} vs {want}", p[i]);
+            // N0 = +z; the blend of normal deltas is renormalised to unit length.
+            assert!((nrm[i].length() - 1.0).abs() < 1e-5);
+        }
+    }
+
+    #[test]
+    fn ridge_matches_the_dense_unbounded_solution() {
+        // With the ridge, the minimiser is (G + lambda I)^-1 D^T d; when it lies inside the box it
+        // is also the bounded one. Solve the 3 x 3 system independently (Cramer's rule, f64).
+        let rig = grid_rig();
+        let t = targets(&rig);
+        let settings = BlendshapeSettings {
+            ridge: 0.05,
+            smoothing: None,
+        };
+        let mut f = BlendshapeFitter::new(&rig, &t, &settings).unwrap();
+        let truth = [0.5, 0.4, 0.7];
+        let d = control_d(&rig, &t, &truth);
+        let cols: Vec<Vec<f64>> = t
+            .iter()
+            .map(|t| {
+                rig.controls
+                    .iter()
+                    .flat_map(|c| t.position_deltas[c.vertex as usize].as_dvec3().to_array())
+                    .collect()
+            })
+            .collect();
+        let dd: Vec<f64> = d.iter().flat_map(|v| v.as_dvec3().to_array()).collect();
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        let lambda = settings.ridge * cols.iter().map(|c| dot(c, c)).sum::<f64>() / 3.0;
+        assert!((f.ridge() - lambda).abs() <= 1e-9 * lambda);
+        let g = glam::DMat3::from_cols_array_2d(&[0, 1, 2].map(|a| {
+            [0, 1, 2].map(|b| dot(&cols[a], &cols[b]) + if a == b { lambda } else { 0.0 })
+        }));
+        let rhs = glam::DVec3::new(dot(&cols[0], &dd), dot(&cols[1], &dd), dot(&cols[2], &dd));
+        let want = g.inverse() * rhs;
+        let w = f.fit(&d, 0);
+        for (a, b) in w.iter().zip(want.to_array()) {
+            // Gauss-Seidel stops at a step of 1e-9; f32 output rounding ~ 1e-7.
+            assert!((*a as f64 - b).abs() < 1e-5, "{w:?} vs {want}");
+            assert!((0.0..=1.0).contains(a));
+        }
+        // The ridge shrinks the norm: |w_lambda| < |w_0| = |truth| for exact data.
+        let norm = |v: &[f32]| v.iter().map(|x| x * x).sum::<f32>().sqrt();
+        assert!(norm(w) < norm(&truth));
+    }
+
+    #[test]
+    fn smoothing_converges_to_a_held_expression_and_calibration_zeroes() {
+        let rig = grid_rig();
+        let t = targets(&rig);
+        let mut f = BlendshapeFitter::new(
+            &rig,
+            &t,
+            &BlendshapeSettings {
+                ridge: 0.0,
+                ..BlendshapeSettings::default()
+            },
+        )
+        .unwrap();
+        let d = control_d(&rig, &t, &[1.0, 0.0, 0.0]);
+        let zero = vec![Vec3::ZERO; 4];
+        f.fit(&zero, 0);
+        let first = f.fit(&d, 33_333)[0];
+        // One Euro at >= 3 Hz with dt = 1/30 s: alpha = 1 / (1 + tau/dt) >= 0.386, and < 1.
+        assert!(first > 0.38 && first < 1.0, "{first}");
+        for i in 2..60 {
+            f.fit(&d, i * 33_333);
+        }
+        // After 2 s held the filtered weight is at the target (error decays like (1 - 0.386)^58).
+        assert!((f.weights()[0] - 1.0).abs() < 1e-4, "{:?}", f.weights());
+        let mut out = FrameOutput {
+            timestamp_us: 0,
+            status: FrameStatus::Calibrating,
+            positions: vec![Vec3::ONE; 16],
+            normals: Vec::new(),
+            displacements: d.clone(),
+            pose: mimic_types::HeadPose::IDENTITY,
+            target_rotation: glam::Quat::IDENTITY,
+            filled: 0,
+            times: Default::default(),
+        };
+        assert!(f.apply(&mut out).iter().all(|w| *w == 0.0));
+        assert_eq!(out.positions, rig.mesh.positions);
+        out.status = FrameStatus::Tracked;
+        f.apply(&mut out);
+        assert!((out.positions[3] - Vec3::new(3.0, 0.0, 1.5)).length() < 1e-4);
+    }
+
+    #[test]
+    fn rejects_mismatched_targets() {
+        let rig = grid_rig();
+        let mut t = targets(&rig);
+        let s = BlendshapeSettings::default();
+        assert!(matches!(
+            BlendshapeFitter::new(&rig, &[], &s),
+            Err(BlendshapeError::NoTargets(_))
+        ));
+        t[1].normal_deltas.pop();
+        assert!(matches!(
+            BlendshapeFitter::new(&rig, &t, &s),
+            Err(BlendshapeError::VertexCount { .. })
+        ));
+        let mut t = targets(&rig);
+        t[2].position_deltas[7] = Vec3::NAN;
+        assert!(matches!(
+            BlendshapeFitter::new(&rig, &t, &s),
+            Err(BlendshapeError::NonFinite { vertex: 7, .. })
+        ));
+    }
+}
