@@ -11,7 +11,7 @@ use mimic_solve::kabsch::fit_similarity;
 use mimic_solve::morph_fit::MorphFit;
 use mimic_solve::{Basis, build_basis, vertex_normals};
 use mimic_types::{
-    Fdp, LaplacianWeights, Mesh, RbfKernel, RegionBands, Rig, RigControl, SolverKind,
+    Fdp, LaplacianWeights, Mesh, RbfDistance, RbfKernel, RegionBands, Rig, RigControl, SolverKind,
     SolverSettings,
 };
 use std::hint::black_box;
@@ -199,6 +199,13 @@ fn bench_setup(c: &mut Criterion) {
         let n = r.mesh.vertex_count();
         g.bench_with_input(BenchmarkId::new("rbf_regions", n), &n, |bch, _| {
             bch.iter(|| build_basis(black_box(&r), &rbf_settings()).unwrap())
+        });
+        let geodesic = SolverSettings {
+            distance: RbfDistance::Geodesic,
+            ..rbf_settings()
+        };
+        g.bench_with_input(BenchmarkId::new("rbf_regions_geodesic", n), &n, |bch, _| {
+            bch.iter(|| build_basis(black_box(&r), &geodesic).unwrap())
         });
         g.bench_with_input(BenchmarkId::new("laplacian_mean_value", n), &n, |bch, _| {
             bch.iter(|| build_basis(black_box(&r), &laplacian_settings()).unwrap())
