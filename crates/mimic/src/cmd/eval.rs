@@ -345,3 +345,23 @@ fn evaluate(rig: &Rig, basis: &Basis, shape: &[Vec3]) -> (Stats, [Stats; 3]) {
     ];
     (all, regions)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stats_of_known_errors() {
+        // Errors 1..=100 (shuffled order does not matter): mean 50.5, nearest-rank p95 = 95, max 100;
+        // displacements all 101: ratio 0.5.
+        let mut errors: Vec<f64> = (1..=100).rev().map(f64::from).collect();
+        let s = Stats::of(&mut errors, &[101.0; 100]);
+        assert_eq!(s.vertices, 100);
+        assert!((s.mean_error - 50.5).abs() < 1e-12);
+        assert_eq!(s.p95_error, 95.0);
+        assert_eq!(s.max_error, 100.0);
+        assert!((s.ratio - 0.5).abs() < 1e-12);
+        let empty = Stats::of(&mut [], &[]);
+        assert_eq!(empty.vertices, 0);
+    }
+}
