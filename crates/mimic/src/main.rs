@@ -29,6 +29,9 @@ enum Command {
     /// Convert another tracker's file into a v1 recording.
     #[command(subcommand)]
     Import(cmd::import::ImportCommand),
+    /// Export a rig's morph targets as a morph data file, or check one against the rig.
+    #[command(subcommand)]
+    Morph(cmd::morph::MorphCommand),
 }
 
 fn main() -> ExitCode {
@@ -43,6 +46,7 @@ fn main() -> ExitCode {
         Command::Replay(a) => cmd::replay::run(a),
         Command::Bench(a) => cmd::bench::run(a),
         Command::Import(c) => cmd::import::run(c),
+        Command::Morph(c) => cmd::morph::run(c),
         Command::Eval(a) => cmd::eval::run(a),
     };
     match result {

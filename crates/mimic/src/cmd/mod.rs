@@ -4,6 +4,7 @@ pub mod bench;
 pub mod eval;
 pub mod import;
 pub mod info;
+pub mod morph;
 pub mod recording_info;
 pub mod replay;
 pub mod setup;

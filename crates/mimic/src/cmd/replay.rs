@@ -30,6 +30,8 @@ pub struct Args {
     pub rig: RigArgs,
     #[command(flatten)]
     pub pipeline: PipelineArgs,
+    #[command(flatten)]
+    pub blend: crate::cmd::morph::BlendshapeArgs,
     /// Directory for the deformed frames (nothing is written without it).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -113,6 +115,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut prepared = prepare_with(&args.rig, settings, &header.layout)?;
     let rig = &prepared.rig;
+    let rig_path = args.rig.config_dirs().rig_path(&args.rig.rig);
+    let mut blend = args.blend.blend(&rig_path, rig)?;
     let options = ReplayOptions {
         pace: if args.realtime {
             Pace::Recorded { speed: args.speed }
@@ -189,6 +193,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let t = Instant::now();
             let status = prepared.retargeter.step(&rf.frame, &mut out);
             let elapsed = u32::try_from(t.elapsed().as_nanos()).unwrap_or(u32::MAX);
+            if let Some(b) = blend.as_mut() {
+                b.frame(frame_index, status_code(status), rf.label, &mut out)?;
+            }
             if status == FrameStatus::Tracked {
                 step_ns.push(elapsed);
                 for s in Stage::ALL {
@@ -273,6 +280,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for w in [metrics, controls_csv].into_iter().flatten() {
         w.into_inner().map_err(|e| e.into_error())?;
     }
+    let blendshapes = blend.map(|b| b.finish()).transpose()?;
 
     let read = replay.source().reader().stats().clone();
     let stats = prepared.retargeter.stats();
@@ -306,6 +314,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "wall_s": wall_s,
         "frames_written": files,
         "out": args.out.as_ref().map(|p| p.display().to_string()),
+        "blendshapes": blendshapes,
     });
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);

@@ -1,0 +1,314 @@
+//! `mimic morph`: a rig's morph targets to the morph data file and back (docs/morph-format.md).
+
+use anyhow::{Context, bail};
+use clap::Subcommand;
+use mimic_assets::{
+    ConfigDirs, MORPH_FILE_DECIMALS, load_morph_file, load_morph_targets, load_rig, save_morph_file,
+};
+use mimic_retarget::{BlendshapeFitter, BlendshapeSettings, FrameOutput, FrameStatus};
+use mimic_types::{MorphTarget, Rig};
+use serde_json::json;
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+/// Export and import of morph data files.
+#[derive(Subcommand, Debug)]
+pub enum MorphCommand {
+    /// Write a rig's morph targets (position and normal deltas) as a morph data file.
+    Export {
+        /// Rig: a name in configs/rigs/ or a path to a rig .toml.
+        #[arg(long, default_value = "ict-face")]
+        rig: String,
+        /// Output file.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Config directory (default: ./configs or $MIMIC_CONFIGS).
+        #[arg(long)]
+        configs: Option<PathBuf>,
+    },
+    /// Read a morph data file and check it against a rig's own targets (round trip check).
+    Import {
+        /// The morph data file.
+        file: PathBuf,
+        /// Rig: a name in configs/rigs/ or a path to a rig .toml.
+        #[arg(long, default_value = "ict-face")]
+        rig: String,
+        /// Config directory (default: ./configs or $MIMIC_CONFIGS).
+        #[arg(long)]
+        configs: Option<PathBuf>,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// A rig and its morph targets, loaded from a rig name or path.
+pub fn load_rig_with_targets(
+    rig: &str,
+    configs: Option<&Path>,
+) -> anyhow::Result<(Rig, Vec<MorphTarget>)> {
+    let path = ConfigDirs::locate(configs).rig_path(rig);
+    let rig = load_rig(&path)?;
+    let targets = load_morph_targets(&path, &rig)?;
+    Ok((rig, targets))
+}
+
+/// Largest difference a value may show after printing with [`MORPH_FILE_DECIMALS`] decimals and
+/// parsing back to f32: half the last printed digit plus half an f32 ulp of the value.
+fn round_trip_tolerance(v: f32) -> f32 {
+    0.5 * 10f32.powi(-(MORPH_FILE_DECIMALS as i32)) + v.abs() * f32::EPSILON
+}
+
+/// Largest component difference between two delta lists, and whether all are within tolerance.
+fn compare(a: &[glam::Vec3], b: &[glam::Vec3]) -> (f32, bool) {
+    let mut max = 0f32;
+    let mut ok = true;
+    for (p, q) in a.iter().zip(b) {
+        for (x, y) in p.to_array().into_iter().zip(q.to_array()) {
+            let e = (x - y).abs();
+            max = max.max(e);
+            ok &= e <= round_trip_tolerance(x);
+        }
+    }
+    (max, ok)
+}
+
+/// Runs `mimic morph`.
+pub fn run(command: MorphCommand) -> anyhow::Result<()> {
+    match command {
+        MorphCommand::Export {
+            rig,
+            output,
+            configs,
+        } => {
+            let (rig, targets) = load_rig_with_targets(&rig, configs.as_deref())?;
+            if targets.is_empty() {
+                bail!("rig `{}` has no morph targets", rig.name);
+            }
+            let comment = format!(
+                "rig {}, units {}, {} targets: {}",
+                rig.name,
+                rig.units,
+                targets.len(),
+                targets
+                    .iter()
+                    .map(|t| t.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            );
+            save_morph_file(&output, &comment, &targets)?;
+            println!(
+                "wrote {} targets x {} vertices of rig {} to {}",
+                targets.len(),
+                rig.mesh.vertex_count(),
+                rig.name,
+                output.display()
+            );
+            Ok(())
+        }
+        MorphCommand::Import {
+            file,
+            rig,
+            configs,
+            json,
+        } => {
+            let read = load_morph_file(&file)?;
+            let (rig, targets) = load_rig_with_targets(&rig, configs.as_deref())?;
+            let n = rig.mesh.vertex_count();
+            if let Some(t) = read.iter().find(|t| t.vertex_count() != n) {
+                bail!(
+                    "{}: {} vertices per target, rig `{}` has {n}",
+                    file.display(),
+                    t.vertex_count(),
+                    rig.name
+                );
+            }
+            let mut rows = Vec::new();
+            let mut all_ok = read.len() == targets.len();
+            for t in &read {
+                let Some(own) = targets.iter().find(|o| o.name == t.name) else {
+                    all_ok = false;
+                    rows.push(json!({"target": t.name, "in_rig": false}));
+                    continue;
+                };
+                let (dp, okp) = compare(&own.position_deltas, &t.position_deltas);
+                let (dn, okn) = compare(&own.normal_deltas, &t.normal_deltas);
+                all_ok &= okp && okn;
+                rows.push(json!({
+                    "target": t.name,
+                    "in_rig": true,
+                    "max_position_difference": dp,
+                    "max_normal_difference": dn,
+                    "within_printed_precision": okp && okn,
+                }));
+            }
+            let report = json!({
+                "file": file.display().to_string(),
+                "rig": rig.name,
+                "targets_in_file": read.len(),
+                "targets_in_rig": targets.len(),
+                "vertices": n,
+                "decimals": MORPH_FILE_DECIMALS,
+                "targets": rows,
+                "round_trip_ok": all_ok,
+            });
+            if json {
+                println!("{}", serde_json::to_string_pretty(&report)?);
+            } else {
+                println!(
+                    "{}: {} targets x {n} vertices; rig {} has {} targets",
+                    file.display(),
+                    read.len(),
+                    rig.name,
+                    targets.len()
+                );
+                for r in &rows {
+                    println!(
+                        "  {:<16} max |position diff| {:>10.3e}   max |normal diff| {:>10.3e}",
+                        r["target"].as_str().unwrap_or(""),
+                        r["max_position_difference"].as_f64().unwrap_or(f64::NAN),
+                        r["max_normal_difference"].as_f64().unwrap_or(f64::NAN)
+                    );
+                }
+            }
+            if !all_ok {
+                bail!(
+                    "{}: does not match rig `{}`'s targets to {MORPH_FILE_DECIMALS} decimals",
+                    file.display(),
+                    rig.name
+                );
+            }
+            if !json {
+                println!("round trip ok: every value within the printed precision");
+            }
+            Ok(())
+        }
+    }
+}
+
+/// Output mode of the retarget pipeline.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Free-form deformation `P0 + B d` by the rig's solver.
+    Freeform,
+    /// Weights of the rig's morph targets fitted to `d`, mesh `P0 + sum w dP`.
+    Blendshapes,
+}
+
+/// Command-line options of the blendshape mode (flattened into `mimic replay`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct BlendshapeArgs {
+    /// Free-form deformation, or blendshape weights of the rig's `[[morph_targets]]`.
+    #[arg(long, value_enum, default_value = "freeform")]
+    pub mode: Mode,
+    /// Per-frame blendshape weights as CSV (frame, t_us, status, label, one column per target).
+    #[arg(long)]
+    pub weights: Option<PathBuf>,
+    /// Ridge of the weight fit, relative to the mean squared control delta of the targets.
+    #[arg(long, default_value_t = BlendshapeSettings::default().ridge)]
+    pub ridge: f64,
+    /// Turn the One Euro smoothing of the weights off.
+    #[arg(long)]
+    pub no_weight_filter: bool,
+}
+
+/// The blendshape stage of a replay: fitter, weights CSV and running statistics.
+pub struct Blend {
+    fitter: BlendshapeFitter,
+    csv: Option<(PathBuf, BufWriter<File>)>,
+    sum: Vec<f64>,
+    max: Vec<f32>,
+    frames: usize,
+}
+
+impl BlendshapeArgs {
+    /// The blendshape stage for `rig` (loaded from `rig_path`), or `None` in free-form mode.
+    pub fn blend(&self, rig_path: &Path, rig: &Rig) -> anyhow::Result<Option<Blend>> {
+        if self.mode == Mode::Freeform {
+            if self.weights.is_some() {
+                bail!("--weights needs --mode blendshapes");
+            }
+            return Ok(None);
+        }
+        let targets = load_morph_targets(rig_path, rig)?;
+        let settings = BlendshapeSettings {
+            ridge: self.ridge,
+            smoothing: if self.no_weight_filter {
+                None
+            } else {
+                BlendshapeSettings::default().smoothing
+            },
+        };
+        let fitter = BlendshapeFitter::new(rig, &targets, &settings)
+            .with_context(|| format!("blendshapes of rig `{}`", rig.name))?;
+        let csv = match &self.weights {
+            Some(p) => {
+                let mut w =
+                    BufWriter::new(File::create(p).with_context(|| p.display().to_string())?);
+                write!(w, "frame,t_us,status,label")?;
+                for name in fitter.names() {
+                    write!(w, ",{name}")?;
+                }
+                writeln!(w)?;
+                Some((p.clone(), w))
+            }
+            None => None,
+        };
+        let k = fitter.target_count();
+        Ok(Some(Blend {
+            fitter,
+            csv,
+            sum: vec![0.0; k],
+            max: vec![0.0; k],
+            frames: 0,
+        }))
+    }
+}
+
+impl Blend {
+    /// Replaces `out`'s mesh with the blend fitted to its displacements and writes the CSV row.
+    pub fn frame(
+        &mut self,
+        index: usize,
+        status_code: u32,
+        label: Option<i64>,
+        out: &mut FrameOutput,
+    ) -> anyhow::Result<()> {
+        let tracked = out.status == FrameStatus::Tracked;
+        let w = self.fitter.apply(out);
+        if tracked {
+            self.frames += 1;
+            for ((s, m), x) in self.sum.iter_mut().zip(&mut self.max).zip(w) {
+                *s += f64::from(*x);
+                *m = m.max(*x);
+            }
+        }
+        if let Some((path, csv)) = self.csv.as_mut() {
+            let label = label.map(|l| l.to_string()).unwrap_or_default();
+            write!(csv, "{index},{},{status_code},{label}", out.timestamp_us)
+                .with_context(|| path.display().to_string())?;
+            for x in w {
+                write!(csv, ",{x:.4}")?;
+            }
+            writeln!(csv)?;
+        }
+        Ok(())
+    }
+
+    /// Flushes the CSV; returns a summary (per target: mean and max weight over tracked frames).
+    pub fn finish(self) -> anyhow::Result<serde_json::Value> {
+        if let Some((path, csv)) = self.csv {
+            csv.into_inner()
+                .map_err(|e| e.into_error())
+                .with_context(|| path.display().to_string())?;
+        }
+        let n = self.frames.max(1) as f64;
+        Ok(json!({
+            "ridge": self.fitter.ridge(),
+            "targets": self.fitter.names().iter().zip(&self.sum).zip(&self.max).map(|((name, s), m)| {
+                json!({"target": name, "mean_weight": s / n, "max_weight": m})
+            }).collect::<Vec<_>>(),
+        }))
+    }
+}
