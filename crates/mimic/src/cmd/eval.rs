@@ -105,6 +105,44 @@ pub struct Args {
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Measure only these vertices (inclusive ranges such as `0-9408`, comma-separated); frozen
+    /// vertices are always left out. Default: every non-frozen vertex.
+    #[arg(long, value_parser = parse_ranges)]
+    pub vertices: Option<Ranges>,
+    /// Also write `<shape>.errors.csv` per shape into this folder (vertex, rest position, error,
+    /// true displacement), for plotting where the error is.
+    #[arg(long)]
+    pub dump: Option<PathBuf>,
+}
+
+/// Inclusive vertex index ranges.
+#[derive(Clone, Debug)]
+pub struct Ranges(Vec<(usize, usize)>);
+
+impl Ranges {
+    fn contains(&self, i: usize) -> bool {
+        self.0.iter().any(|&(a, b)| (a..=b).contains(&i))
+    }
+}
+
+/// Parses `0-9408,11248-14061` (a single index is a range of one).
+fn parse_ranges(text: &str) -> Result<Ranges, String> {
+    text.split(',')
+        .map(|part| {
+            let (a, b) = part.split_once('-').unwrap_or((part, part));
+            let parse = |s: &str| {
+                s.trim()
+                    .parse::<usize>()
+                    .map_err(|e| format!("`{part}`: {e}"))
+            };
+            let (a, b) = (parse(a)?, parse(b)?);
+            if a > b {
+                return Err(format!("`{part}`: range runs backwards"));
+            }
+            Ok((a, b))
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .map(Ranges)
 }
 
 /// Error statistics over a set of vertices.
@@ -235,7 +273,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 rig.mesh.triangles.len()
             );
         }
-        let (all, regions) = evaluate(&rig, &basis, &mesh.positions);
+        let measured: Vec<bool> = (0..rig.mesh.vertex_count())
+            .map(|i| !rig.frozen[i] && args.vertices.as_ref().is_none_or(|r| r.contains(i)))
+            .collect();
+        let (all, regions) = evaluate(
+            &rig,
+            &basis,
+            &mesh.positions,
+            &measured,
+            args.dump.as_deref(),
+            path,
+        )?;
         shapes.push((path.clone(), all, regions));
     }
     let mut ratios: Vec<f64> = shapes.iter().map(|s| s.1.ratio).collect();
@@ -252,6 +300,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "units": rig.units,
         "settings": serde_json::to_value(settings)?,
         "band": rig.regions.band,
+        "vertices": args.vertices.as_ref().map(|r| r.0.iter().map(|(a, b)| json!([a, b])).collect::<Vec<_>>()),
         "setup_ms": setup_ms,
         "median_ratio": median,
         "max_ratio": ratios.last().copied().unwrap_or(f64::NAN),
@@ -311,8 +360,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Drives the rig with the shape's control displacements and measures the result, overall and per region.
-fn evaluate(rig: &Rig, basis: &Basis, shape: &[Vec3]) -> (Stats, [Stats; 3]) {
+/// Drives the rig with the shape's control displacements and measures the result at the `measured`
+/// vertices, overall and per region; with `dump`, writes the per-vertex errors of `path` there as CSV.
+fn evaluate(
+    rig: &Rig,
+    basis: &Basis,
+    shape: &[Vec3],
+    measured: &[bool],
+    dump: Option<&std::path::Path>,
+    path: &std::path::Path,
+) -> anyhow::Result<(Stats, [Stats; 3])> {
     let neutral = &rig.mesh.positions;
     let d: Vec<Vec3> = rig
         .controls
@@ -321,10 +378,31 @@ fn evaluate(rig: &Rig, basis: &Basis, shape: &[Vec3]) -> (Stats, [Stats; 3]) {
         .collect();
     let mut u = vec![Vec3::ZERO; neutral.len()];
     basis.apply(&d, &mut u);
+    if let Some(dir) = dump {
+        use std::fmt::Write as _;
+        let mut csv = String::from("vertex,x,y,z,error,displacement\n");
+        for (i, p) in neutral.iter().enumerate().filter(|(i, _)| measured[*i]) {
+            let truth = shape[i] - *p;
+            let _ = writeln!(
+                csv,
+                "{i},{},{},{},{},{}",
+                p.x,
+                p.y,
+                p.z,
+                (u[i] - truth).length(),
+                truth.length()
+            );
+        }
+        let stem = path
+            .file_stem()
+            .map_or_else(|| "shape".into(), |s| s.to_string_lossy().into_owned());
+        let out = dir.join(format!("{stem}.errors.csv"));
+        std::fs::write(&out, csv).with_context(|| out.display().to_string())?;
+    }
     let mut errors: [Vec<f64>; 4] = Default::default();
     let mut moves: [Vec<f64>; 4] = Default::default();
     for i in 0..neutral.len() {
-        if rig.frozen[i] {
+        if !measured[i] {
             continue;
         }
         let truth = shape[i] - neutral[i];
@@ -343,12 +421,20 @@ fn evaluate(rig: &Rig, basis: &Basis, shape: &[Vec3]) -> (Stats, [Stats; 3]) {
         Stats::of(&mut e2, &moves[2]),
         Stats::of(&mut e3, &moves[3]),
     ];
-    (all, regions)
+    Ok((all, regions))
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn parses_vertex_ranges() {
+        let r = parse_ranges("0-9408,11248-14061,20000").unwrap();
+        assert!(r.contains(0) && r.contains(9408) && !r.contains(9409) && r.contains(12000));
+        assert!(r.contains(20000) && !r.contains(20001));
+        assert!(parse_ranges("5-1").is_err() && parse_ranges("a-3").is_err());
+    }
 
     #[test]
     fn stats_of_known_errors() {
