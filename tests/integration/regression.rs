@@ -18,12 +18,18 @@ fn metrics_table(csv: &str) -> Value {
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap_or_default().split(',').collect();
     let cols = ["status", "top", "middle", "bottom", "max_vertex"];
-    let idx: Vec<usize> = cols.iter().map(|c| header.iter().position(|h| h == c).unwrap()).collect();
+    let idx: Vec<usize> = cols
+        .iter()
+        .map(|c| header.iter().position(|h| h == c).unwrap())
+        .collect();
     let rows: Vec<Value> = lines
         .map(|l| {
             let f: Vec<&str> = l.split(',').collect();
             let status: u64 = f[idx[0]].parse().unwrap();
-            let vals: Vec<f64> = idx[1..].iter().map(|&i| (f[i].parse::<f64>().unwrap() * 1e4).round() / 1e4).collect();
+            let vals: Vec<f64> = idx[1..]
+                .iter()
+                .map(|&i| (f[i].parse::<f64>().unwrap() * 1e4).round() / 1e4)
+                .collect();
             json!([status, vals[0], vals[1], vals[2], vals[3]])
         })
         .collect();
@@ -42,10 +48,22 @@ fn regression_against_golden_metrics() {
     for rec in shipped_recordings() {
         for rig in ["ict-face", "candide3"] {
             for solver in ["rbf", "laplacian"] {
-                let stem = std::path::Path::new(&rec).file_stem().unwrap().to_string_lossy().into_owned();
+                let stem = std::path::Path::new(&rec)
+                    .file_stem()
+                    .unwrap()
+                    .to_string_lossy()
+                    .into_owned();
                 let name = format!("{stem}__{rig}__{solver}.json");
                 let metrics = dir.path().join(&name);
-                let s = replay_json(&[&rec, "--rig", rig, "--solver", solver, "--metrics", metrics.to_str().unwrap()]);
+                let s = replay_json(&[
+                    &rec,
+                    "--rig",
+                    rig,
+                    "--solver",
+                    solver,
+                    "--metrics",
+                    metrics.to_str().unwrap(),
+                ]);
                 let now = json!({
                     "recording": rec, "rig": rig, "solver": solver,
                     "counts": {
@@ -56,7 +74,8 @@ fn regression_against_golden_metrics() {
                 });
                 let golden_path = repo().join("tests/golden").join(&name);
                 if bless {
-                    std::fs::write(&golden_path, serde_json::to_string(&now).unwrap() + "\n").unwrap();
+                    std::fs::write(&golden_path, serde_json::to_string(&now).unwrap() + "\n")
+                        .unwrap();
                     continue;
                 }
                 let Ok(text) = std::fs::read_to_string(&golden_path) else {
@@ -65,10 +84,16 @@ fn regression_against_golden_metrics() {
                 };
                 let golden: Value = serde_json::from_str(&text).unwrap();
                 if golden["counts"] != now["counts"] {
-                    failures.push(format!("{name}: counts {} != golden {}", now["counts"], golden["counts"]));
+                    failures.push(format!(
+                        "{name}: counts {} != golden {}",
+                        now["counts"], golden["counts"]
+                    ));
                     continue;
                 }
-                let (g, n) = (golden["metrics"]["frames"].as_array().unwrap(), now["metrics"]["frames"].as_array().unwrap());
+                let (g, n) = (
+                    golden["metrics"]["frames"].as_array().unwrap(),
+                    now["metrics"]["frames"].as_array().unwrap(),
+                );
                 if g.len() != n.len() {
                     failures.push(format!("{name}: {} frames != golden {}", n.len(), g.len()));
                     continue;
@@ -85,7 +110,10 @@ fn regression_against_golden_metrics() {
                     }
                 }
                 if bad > 0 {
-                    failures.push(format!("{name}: {bad} frames differ, first {}", first.unwrap_or_default()));
+                    failures.push(format!(
+                        "{name}: {bad} frames differ, first {}",
+                        first.unwrap_or_default()
+                    ));
                 }
             }
         }

@@ -38,12 +38,19 @@ fn every_recording_onto_every_rig_with_both_solvers_has_no_nan() {
                 let s = replay_json(&[&rec, "--rig", rig, "--solver", solver]);
                 let frames_in = s["frames_in"].as_u64().unwrap();
                 assert!(frames_in >= 100, "{rec}: {frames_in} frames");
-                assert_eq!(s["frames_with_non_finite_vertices"], 0, "{rec} on {rig} with {solver}");
+                assert_eq!(
+                    s["frames_with_non_finite_vertices"], 0,
+                    "{rec} on {rig} with {solver}"
+                );
                 let tracked = s["tracked"].as_u64().unwrap();
                 // Every accepted frame is accounted for.
-                let sum = tracked + s["lost"].as_u64().unwrap() + s["calibrating"].as_u64().unwrap();
+                let sum =
+                    tracked + s["lost"].as_u64().unwrap() + s["calibrating"].as_u64().unwrap();
                 assert_eq!(sum, frames_in, "{rec} on {rig} with {solver}");
-                assert!(tracked * 10 >= frames_in * 9, "{rec} on {rig}: only {tracked} of {frames_in} tracked");
+                assert!(
+                    tracked * 10 >= frames_in * 9,
+                    "{rec} on {rig}: only {tracked} of {frames_in} tracked"
+                );
             }
         }
     }
@@ -75,7 +82,8 @@ fn ict_output_follows_the_expressive_segments_of_the_gfe_recordings() {
     // mouth region must be clearly larger there than in the neutral frames. The affirmative is
     // mostly a head nod and is reported, not asserted (its ratio is about 1).
     let dir = tempfile::tempdir().unwrap();
-    for (rec, min_bottom, min_top) in [("a_yn_question", 1.5, 1.0), ("a_doubt_question", 1.5, 1.2)] {
+    for (rec, min_bottom, min_top) in [("a_yn_question", 1.5, 1.0), ("a_doubt_question", 1.5, 1.2)]
+    {
         let metrics = dir.path().join(format!("{rec}.csv"));
         replay_json(&[
             &format!("recordings/{rec}.jsonl"),
@@ -87,8 +95,13 @@ fn ict_output_follows_the_expressive_segments_of_the_gfe_recordings() {
         let csv = std::fs::read_to_string(&metrics).unwrap();
         let bottom = median_where(&csv, "bottom", "1") / median_where(&csv, "bottom", "0");
         let top = median_where(&csv, "top", "1") / median_where(&csv, "top", "0");
-        eprintln!("{rec}: expressive / neutral median control motion: bottom {bottom:.2}, top {top:.2}");
-        assert!(bottom > min_bottom, "{rec}: mouth ratio {bottom:.2} <= {min_bottom}");
+        eprintln!(
+            "{rec}: expressive / neutral median control motion: bottom {bottom:.2}, top {top:.2}"
+        );
+        assert!(
+            bottom > min_bottom,
+            "{rec}: mouth ratio {bottom:.2} <= {min_bottom}"
+        );
         assert!(top > min_top, "{rec}: brow ratio {top:.2} <= {min_top}");
     }
 }
@@ -134,15 +147,28 @@ fn rigid_head_motion_of_a_real_face_gives_no_expression() {
     // One real frame of each tracker, moved rigidly (turns up to 25 degrees, shifts of 10 cm)
     // over 90 frames: the face never changes, so the expression displacement must stay ~0.
     let dir = tempfile::tempdir().unwrap();
-    for (rec, index) in [("recordings/openface_test.jsonl", 0), ("recordings/a_yn_question.jsonl", 0)] {
+    for (rec, index) in [
+        ("recordings/openface_test.jsonl", 0),
+        ("recordings/a_yn_question.jsonl", 0),
+    ] {
         let (layout, frames) = read_frames(rec);
         let face = &frames[index];
-        let centre = face.points.iter().zip(&face.valid).filter(|(_, v)| **v).fold(Vec3::ZERO, |a, (p, _)| a + *p)
+        let centre = face
+            .points
+            .iter()
+            .zip(&face.valid)
+            .filter(|(_, v)| **v)
+            .fold(Vec3::ZERO, |a, (p, _)| a + *p)
             / face.valid_count() as f32;
         let moved: Vec<_> = (0..90)
             .map(|k| {
                 let s = k as f32 / 89.0;
-                let rot = Quat::from_euler(glam::EulerRot::YXZ, 0.44 * (6.0 * s).sin(), 0.2 * (4.0 * s).sin(), 0.1 * s);
+                let rot = Quat::from_euler(
+                    glam::EulerRot::YXZ,
+                    0.44 * (6.0 * s).sin(),
+                    0.2 * (4.0 * s).sin(),
+                    0.1 * s,
+                );
                 let shift = Vec3::new(0.1 * s, -0.05 * s, 0.08 * (3.0 * s).sin());
                 let mut f = face.clone();
                 f.timestamp_us = k as i64 * 33_333;
@@ -157,13 +183,22 @@ fn rigid_head_motion_of_a_real_face_gives_no_expression() {
         let path = dir.path().join("rigid.jsonl");
         write_recording(&path, &layout, &moved);
         let controls = dir.path().join("controls.csv");
-        let s = replay_json(&[path.to_str().unwrap(), "--rig", "ict-face", "--controls", controls.to_str().unwrap()]);
+        let s = replay_json(&[
+            path.to_str().unwrap(),
+            "--rig",
+            "ict-face",
+            "--controls",
+            controls.to_str().unwrap(),
+        ]);
         assert_eq!(s["tracked"], 85, "{rec}: {s}");
         let max = max_control_displacement(&std::fs::read_to_string(&controls).unwrap());
         // Coordinates are stored to 6 significant digits (~1 um at 1 m); the head-pose fit turns
         // that into < 0.01 mm of source error, times a scale of ~100 into the cm-sized rig: < 0.01 cm.
         eprintln!("{rec}: largest control displacement under rigid motion {max:.5} cm");
-        assert!(max < 0.01, "{rec}: rigid motion produced {max} cm of expression");
+        assert!(
+            max < 0.01,
+            "{rec}: rigid motion produced {max} cm of expression"
+        );
     }
 }
 
@@ -199,24 +234,51 @@ fn crafted_bad_frames_are_counted_exactly_and_their_neighbours_kept() {
     std::fs::write(&path, body).unwrap();
 
     let controls = dir.path().join("c.csv");
-    let s = replay_json(&[path.to_str().unwrap(), "--rig", "ict-face", "--controls", controls.to_str().unwrap()]);
+    let s = replay_json(&[
+        path.to_str().unwrap(),
+        "--rig",
+        "ict-face",
+        "--controls",
+        controls.to_str().unwrap(),
+    ]);
     assert_eq!(s["rejected"], 5, "{s}");
     assert_eq!(s["frames_in"], 15);
     let r = &s["rejected_by_reason"];
-    assert_eq!((r["bad_json"].as_u64(), r["point_count"].as_u64()), (Some(1), Some(1)), "{r}");
-    assert_eq!((r["time_not_increasing"].as_u64(), r["bad_coordinate"].as_u64()), (Some(1), Some(1)), "{r}");
+    assert_eq!(
+        (r["bad_json"].as_u64(), r["point_count"].as_u64()),
+        (Some(1), Some(1)),
+        "{r}"
+    );
+    assert_eq!(
+        (
+            r["time_not_increasing"].as_u64(),
+            r["bad_coordinate"].as_u64()
+        ),
+        (Some(1), Some(1)),
+        "{r}"
+    );
     assert_eq!(r["truncated"], 1, "{r}");
     // The 15 good frames are all processed: the ones right before and after each bad line too.
     let csv = std::fs::read_to_string(&controls).unwrap();
-    let stamps: Vec<i64> = csv.lines().skip(1).map(|l| l.split(',').nth(1).unwrap().parse().unwrap()).collect();
-    let expected: Vec<i64> = [0, 1, 2, 3, 4, 5, 7, 8, 10, 11, 13, 14, 16, 17, 18].iter().map(|&k| frames[k].timestamp_us).collect();
+    let stamps: Vec<i64> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+        .collect();
+    let expected: Vec<i64> = [0, 1, 2, 3, 4, 5, 7, 8, 10, 11, 13, 14, 16, 17, 18]
+        .iter()
+        .map(|&k| frames[k].timestamp_us)
+        .collect();
     assert_eq!(stamps, expected);
 
     // `mimic info` refuses the same file with a one-line error naming the first bad line.
     let out = mimic(&["info", path.to_str().unwrap()]);
     let (_, stderr) = text(&out);
     assert!(!out.status.success());
-    assert!(stderr.trim_end().lines().count() == 1 && stderr.contains("bad.jsonl:8:"), "{stderr}");
+    assert!(
+        stderr.trim_end().lines().count() == 1 && stderr.contains("bad.jsonl:8:"),
+        "{stderr}"
+    );
 }
 
 #[test]
@@ -226,16 +288,32 @@ fn info_accepts_every_shipped_recording_and_names_bad_lines() {
         let (stdout, stderr) = text(&out);
         assert!(out.status.success(), "{rec}: {stderr}");
         let v: Value = serde_json::from_str(&stdout).unwrap();
-        assert!(v["frames"].as_u64().unwrap() >= 100 && v["layout_found"] == true, "{rec}: {v}");
+        assert!(
+            v["frames"].as_u64().unwrap() >= 100 && v["layout_found"] == true,
+            "{rec}: {v}"
+        );
     }
     let dir = tempfile::tempdir().unwrap();
     let header = r#"{"format":"mimic-recording","version":1,"layout":"kinect121","units":"m","source":"t","rate_hz":30}"#;
     let point = "[0.1,0.2,0.3]";
-    let frame = |t: i64, n: usize| format!(r#"{{"t_us":{t},"points":[{}]}}"#, vec![point; n].join(","));
+    let frame =
+        |t: i64, n: usize| format!(r#"{{"t_us":{t},"points":[{}]}}"#, vec![point; n].join(","));
     let cases = [
-        ("truncated", format!("{header}\n{}\n{{\"t_us\":9,\"points\":[[0,", frame(0, 121)), ":3: truncated JSON"),
-        ("short", format!("{header}\n{}\n{}\n", frame(0, 121), frame(5, 120)), ":3: frame has 120 points; layout kinect121 has 121"),
-        ("nan", format!("{header}\n{}\n", frame(0, 121).replacen("0.2", "NaN", 1)), ":2: "),
+        (
+            "truncated",
+            format!("{header}\n{}\n{{\"t_us\":9,\"points\":[[0,", frame(0, 121)),
+            ":3: truncated JSON",
+        ),
+        (
+            "short",
+            format!("{header}\n{}\n{}\n", frame(0, 121), frame(5, 120)),
+            ":3: frame has 120 points; layout kinect121 has 121",
+        ),
+        (
+            "nan",
+            format!("{header}\n{}\n", frame(0, 121).replacen("0.2", "NaN", 1)),
+            ":2: ",
+        ),
     ];
     for (name, body, expect) in cases {
         let p = dir.path().join(format!("{name}.jsonl"));
@@ -244,6 +322,9 @@ fn info_accepts_every_shipped_recording_and_names_bad_lines() {
         let (_, stderr) = text(&out);
         assert!(!out.status.success(), "{name}");
         assert_eq!(stderr.trim_end().lines().count(), 1, "{name}: {stderr}");
-        assert!(stderr.contains(&format!("{name}.jsonl{expect}")), "{name}: {stderr}");
+        assert!(
+            stderr.contains(&format!("{name}.jsonl{expect}")),
+            "{name}: {stderr}"
+        );
     }
 }

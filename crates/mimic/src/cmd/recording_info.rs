@@ -9,16 +9,15 @@ use std::path::Path;
 /// The layout named in the header is loaded from the config directory when it exists there, so
 /// frames are checked against the layout's point count; otherwise against the header's.
 pub fn summary(path: &Path, configs: &ConfigDirs) -> anyhow::Result<Value> {
-    let header = mimic_capture::RecordingReader::open(path, None)?.header().clone();
+    let header = mimic_capture::RecordingReader::open(path, None)?
+        .header()
+        .clone();
     let layout = configs.load_layout_named(&header.layout).ok();
     let summary = mimic_capture::summarize(path, layout.as_ref().map(|l| l.point_count))?;
     let mut v = serde_json::to_value(&summary)?;
     if let Value::Object(map) = &mut v {
         map.insert("kind".into(), "recording".into());
-        map.insert(
-            "layout_found".into(),
-            Value::Bool(layout.is_some()),
-        );
+        map.insert("layout_found".into(), Value::Bool(layout.is_some()));
     }
     Ok(v)
 }
