@@ -1,7 +1,8 @@
 //! Numeric core of mimic: builds the n x m deformation basis `B` once per rig, applies it per frame.
 //!
-//! Entry points: [`build_basis`] (RBF or Laplacian, optionally per face region, folded into one
-//! [`Basis`]), [`Basis::apply`] (`u = B d`, allocation-free), [`vertex_normals`],
+//! Entry points: [`build_basis`] (RBF with Euclidean or along-the-skin [`geodesic`] distances, or
+//! sparse Laplacian editing, optionally per face region, folded into one [`Basis`]),
+//! [`Basis::apply`] (`u = B d`, allocation-free, AVX2 + FMA where the CPU has it), [`vertex_normals`],
 //! [`kabsch::fit_similarity`] (head pose) and [`morph_fit::MorphFit`] (blendshape weights).
 //! Setup allocates and may fail with [`SolveError`]; the per-frame steps take `&self`, inputs and
 //! `&mut` outputs and allocate nothing. No I/O, no tokio, no wgpu.
