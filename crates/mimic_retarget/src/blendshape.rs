@@ -17,8 +17,9 @@ use mimic_types::{MorphTarget, Rig};
 /// Knobs of [`BlendshapeFitter`].
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct BlendshapeSettings {
-    /// Ridge weight `lambda`, relative to the mean of `|D_k|^2` over the targets (so it does not
-    /// depend on the rig's units): 0.01 shrinks a lone target's weight by about 1 %.
+    /// Ridge weight relative to each target's own `|D_k|^2`: `lambda_k = ridge |D_k|^2`, so it does
+    /// not depend on the rig's units or on how far a target moves the controls; 0.01 shrinks a
+    /// lone target's weight by 1 % (`w = 1 / (1 + ridge)`).
     pub ridge: f64,
     /// One Euro filter on each weight (speeds in weight units per second); `None` turns it off.
     pub smoothing: Option<OneEuroSettings>,
@@ -90,7 +91,10 @@ pub struct BlendshapeFitter {
     position_deltas: Vec<Vec3>,
     /// Target-major: `normal_deltas[k * n + i]`.
     normal_deltas: Vec<Vec3>,
-    ridge: f64,
+    /// Ridge weight of each target, `lambda_k` (rig units squared).
+    ridges: Vec<f64>,
+    /// `d` followed by zeros at the ridge's pseudo-controls (see [`BlendshapeFitter::new`]).
+    d_padded: Vec<Vec3>,
 }
 
 impl BlendshapeFitter {
@@ -138,13 +142,20 @@ impl BlendshapeFitter {
                     .collect::<Vec<Vec3>>(),
             );
         }
-        let mean_sq = at_controls
+        // A ridge per target, lambda_k = ridge |D_k|^2: MorphFit's ridge is one number, so each
+        // target gets sqrt(lambda_k) at a pseudo-control coordinate of its own, where d is 0.
+        // That adds exactly diag(lambda_k) to the Gram matrix D^T D.
+        let ridges: Vec<f64> = at_controls
             .iter()
-            .map(|t| t.iter().map(|v| v.as_dvec3().length_squared()).sum::<f64>())
-            .sum::<f64>()
-            / k as f64;
-        let ridge = settings.ridge * mean_sq;
-        let fit = MorphFit::new(&at_controls, ridge)?;
+            .map(|t| settings.ridge * t.iter().map(|v| v.as_dvec3().length_squared()).sum::<f64>())
+            .collect();
+        let m = rig.controls.len();
+        let pseudo = k.div_ceil(3);
+        for (t, (col, lambda)) in at_controls.iter_mut().zip(&ridges).enumerate() {
+            col.resize(m + pseudo, Vec3::ZERO);
+            col[m + t / 3][t % 3] = lambda.sqrt() as f32;
+        }
+        let fit = MorphFit::new(&at_controls, 0.0)?;
         let mut rest_normals = vec![Vec3::ZERO; n];
         vertex_normals(&rig.mesh.positions, &rig.mesh.triangles, &mut rest_normals);
         Ok(Self {
@@ -160,7 +171,8 @@ impl BlendshapeFitter {
             rest_normals,
             position_deltas,
             normal_deltas,
-            ridge,
+            ridges,
+            d_padded: vec![Vec3::ZERO; m + pseudo],
         })
     }
 
@@ -174,9 +186,9 @@ impl BlendshapeFitter {
         self.names.len()
     }
 
-    /// The absolute ridge weight `lambda` in use (rig units squared).
-    pub fn ridge(&self) -> f64 {
-        self.ridge
+    /// The ridge weight `lambda_k` of each target (rig units squared).
+    pub fn ridges(&self) -> &[f64] {
+        &self.ridges
     }
 
     /// Weights of the last frame, after smoothing.
@@ -204,7 +216,15 @@ impl BlendshapeFitter {
     /// # Panics
     /// If `d` does not have one entry per rig control.
     pub fn fit(&mut self, d: &[Vec3], timestamp_us: i64) -> &[f32] {
-        self.fit.fit(d, &mut self.scratch, &mut self.raw);
+        let m = self.d_padded.len() - self.names.len().div_ceil(3);
+        assert_eq!(
+            d.len(),
+            m,
+            "BlendshapeFitter::fit: one displacement per control"
+        );
+        self.d_padded[..m].copy_from_slice(d);
+        self.fit
+            .fit(&self.d_padded, &mut self.scratch, &mut self.raw);
         let dt = self
             .last_time_us
             .map_or(0.0, |t| (timestamp_us - t) as f32 * 1e-6);
@@ -434,10 +454,12 @@ mod tests {
             .collect();
         let dd: Vec<f64> = d.iter().flat_map(|v| v.as_dvec3().to_array()).collect();
         let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
-        let lambda = settings.ridge * cols.iter().map(|c| dot(c, c)).sum::<f64>() / 3.0;
-        assert!((f.ridge() - lambda).abs() <= 1e-9 * lambda);
+        let lambda: Vec<f64> = cols.iter().map(|c| settings.ridge * dot(c, c)).collect();
+        for (a, b) in f.ridges().iter().zip(&lambda) {
+            assert!((a - b).abs() <= 1e-6 * b, "{a} vs {b}");
+        }
         let g = glam::DMat3::from_cols_array_2d(&[0, 1, 2].map(|a| {
-            [0, 1, 2].map(|b| dot(&cols[a], &cols[b]) + if a == b { lambda } else { 0.0 })
+            [0, 1, 2].map(|b| dot(&cols[a], &cols[b]) + if a == b { lambda[a] } else { 0.0 })
         }));
         let rhs = glam::DVec3::new(dot(&cols[0], &dd), dot(&cols[1], &dd), dot(&cols[2], &dd));
         let want = g.inverse() * rhs;

@@ -9,7 +9,7 @@
 use anyhow::{Context, bail};
 use glam::Vec3;
 use mimic_assets::{load_obj, load_rig};
-use mimic_solve::{Basis, build_basis};
+use mimic_solve::build_basis;
 use mimic_types::{
     LaplacianWeights, RbfDistance, RbfKernel, Region, Rig, SolverKind, SolverSettings,
 };
@@ -24,6 +24,8 @@ pub enum SolverArg {
     Rbf,
     /// Laplacian surface editing.
     Laplacian,
+    /// Weights of the rig's morph targets fitted to the controls (`P0 + sum w dP`).
+    Blendshapes,
 }
 
 /// A switch, on the command line.
@@ -105,6 +107,12 @@ pub struct Args {
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Blendshapes: leave a shape's own morph target out of its fit.
+    #[arg(long)]
+    pub leave_one_out: bool,
+    /// Blendshapes: ridge of the weight fit, relative to each target's squared control deltas.
+    #[arg(long, default_value_t = mimic_retarget::BlendshapeSettings::default().ridge)]
+    pub ridge: f64,
     /// Measure only these vertices (inclusive ranges such as `0-9408`, comma-separated); frozen
     /// vertices are always left out. Default: every non-frozen vertex.
     #[arg(long, value_parser = parse_ranges)]
@@ -199,6 +207,7 @@ fn settings(rig: &Rig, args: &Args) -> SolverSettings {
         s.kind = match k {
             SolverArg::Rbf => SolverKind::Rbf,
             SolverArg::Laplacian => SolverKind::Laplacian,
+            SolverArg::Blendshapes => s.kind,
         };
     }
     if let Some(r) = args.regions {
@@ -260,6 +269,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let basis = build_basis(&rig, &settings)
         .with_context(|| format!("building the basis of {}", args.rig.display()))?;
     let setup_ms = started.elapsed().as_secs_f64() * 1e3;
+    let blend = matches!(args.solver, Some(SolverArg::Blendshapes))
+        .then(|| {
+            crate::cmd::morph::EvalBlend::load(&args.rig, &rig, args.leave_one_out, args.ridge)
+        })
+        .transpose()?;
+    let mut weights = serde_json::Map::new();
     let mut shapes = Vec::new();
     for path in &args.shapes {
         let mesh = load_obj(path)?;
@@ -276,9 +291,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let measured: Vec<bool> = (0..rig.mesh.vertex_count())
             .map(|i| !rig.frozen[i] && args.vertices.as_ref().is_none_or(|r| r.contains(i)))
             .collect();
+        let mut fitter = blend
+            .as_ref()
+            .map(|b| b.fitter(&rig, &mesh.positions))
+            .transpose()?;
+        let mut deform = |d: &[Vec3], u: &mut [Vec3]| match fitter.as_mut() {
+            Some(f) => {
+                let w = crate::cmd::morph::EvalBlend::deform(f, &rig.mesh.positions, d, u);
+                weights.insert(path.display().to_string(), json!(w));
+            }
+            None => basis.apply(d, u),
+        };
         let (all, regions) = evaluate(
             &rig,
-            &basis,
+            &mut deform,
             &mesh.positions,
             &measured,
             args.dump.as_deref(),
@@ -302,6 +328,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "band": rig.regions.band,
         "vertices": args.vertices.as_ref().map(|r| r.0.iter().map(|(a, b)| json!([a, b])).collect::<Vec<_>>()),
         "setup_ms": setup_ms,
+        "blendshape_weights": blend.is_some().then_some(&weights),
         "median_ratio": median,
         "max_ratio": ratios.last().copied().unwrap_or(f64::NAN),
         "shapes": shapes.iter().map(|(p, all, regions)| json!({
@@ -353,6 +380,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             );
         }
     }
+    for (shape, w) in &weights {
+        println!("weights for {shape}: {w}");
+    }
     println!(
         "median ratio {median:.3}, max ratio {:.3}",
         ratios.last().copied().unwrap_or(f64::NAN)
@@ -364,7 +394,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// vertices, overall and per region; with `dump`, writes the per-vertex errors of `path` there as CSV.
 fn evaluate(
     rig: &Rig,
-    basis: &Basis,
+    deform: &mut dyn FnMut(&[Vec3], &mut [Vec3]),
     shape: &[Vec3],
     measured: &[bool],
     dump: Option<&std::path::Path>,
@@ -377,7 +407,7 @@ fn evaluate(
         .map(|c| shape[c.vertex as usize] - neutral[c.vertex as usize])
         .collect();
     let mut u = vec![Vec3::ZERO; neutral.len()];
-    basis.apply(&d, &mut u);
+    deform(&d, &mut u);
     if let Some(dir) = dump {
         use std::fmt::Write as _;
         let mut csv = String::from("vertex,x,y,z,error,displacement\n");

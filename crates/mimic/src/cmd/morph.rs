@@ -205,7 +205,7 @@ pub struct BlendshapeArgs {
     /// Per-frame blendshape weights as CSV (frame, t_us, status, label, one column per target).
     #[arg(long)]
     pub weights: Option<PathBuf>,
-    /// Ridge of the weight fit, relative to the mean squared control delta of the targets.
+    /// Ridge of the weight fit, relative to each target's squared control deltas (0.01: 1 % shrink).
     #[arg(long, default_value_t = BlendshapeSettings::default().ridge)]
     pub ridge: f64,
     /// Turn the One Euro smoothing of the weights off.
@@ -305,10 +305,75 @@ impl Blend {
         }
         let n = self.frames.max(1) as f64;
         Ok(json!({
-            "ridge": self.fitter.ridge(),
+            "ridge_per_target": self.fitter.ridges(),
             "targets": self.fitter.names().iter().zip(&self.sum).zip(&self.max).map(|((name, s), m)| {
                 json!({"target": name, "mean_weight": s / n, "max_weight": m})
             }).collect::<Vec<_>>(),
         }))
+    }
+}
+
+/// Blendshape "solver" for `mimic eval`: fits weights to a shape's control displacements (no
+/// smoothing) and deforms the neutral with the rig's morph targets.
+pub struct EvalBlend {
+    targets: Vec<MorphTarget>,
+    leave_one_out: bool,
+    ridge: f64,
+}
+
+impl EvalBlend {
+    /// Loads the rig's morph targets; with `leave_one_out`, a target identical to the measured
+    /// shape is left out of that shape's fit (so a shape cannot be matched by itself).
+    pub fn load(
+        rig_path: &Path,
+        rig: &Rig,
+        leave_one_out: bool,
+        ridge: f64,
+    ) -> anyhow::Result<Self> {
+        let targets = load_morph_targets(rig_path, rig)?;
+        if targets.is_empty() {
+            bail!("rig `{}` has no morph targets", rig.name);
+        }
+        Ok(Self {
+            targets,
+            leave_one_out,
+            ridge,
+        })
+    }
+
+    /// The fitter for `shape` (positions on the rig's topology).
+    pub fn fitter(&self, rig: &Rig, shape: &[glam::Vec3]) -> anyhow::Result<BlendshapeFitter> {
+        let is_shape = |t: &MorphTarget| {
+            t.position_deltas
+                .iter()
+                .zip(shape.iter().zip(&rig.mesh.positions))
+                .all(|(d, (s, p))| (*s - *p - *d).abs().max_element() <= 1e-6)
+        };
+        let used: Vec<MorphTarget> = self
+            .targets
+            .iter()
+            .filter(|t| !(self.leave_one_out && is_shape(t)))
+            .cloned()
+            .collect();
+        let settings = BlendshapeSettings {
+            ridge: self.ridge,
+            smoothing: None,
+        };
+        Ok(BlendshapeFitter::new(rig, &used, &settings)?)
+    }
+
+    /// `u = P(w) - P0` for the weights `fitter` fits to `d`; returns the weights by name.
+    pub fn deform(
+        fitter: &mut BlendshapeFitter,
+        rest: &[glam::Vec3],
+        d: &[glam::Vec3],
+        u: &mut [glam::Vec3],
+    ) -> Vec<(String, f32)> {
+        let w = fitter.fit(d, 0).to_vec();
+        fitter.evaluate(&w, u, &mut []);
+        for (u, p) in u.iter_mut().zip(rest) {
+            *u -= *p;
+        }
+        fitter.names().iter().cloned().zip(w).collect()
     }
 }

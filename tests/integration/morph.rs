@@ -1,0 +1,182 @@
+//! Morph targets on the shipped ICT rig: weights recovered from control displacements, the morph
+//! data file round trip, and `mimic replay --mode blendshapes` on a real recording.
+
+use crate::{mimic, repo, text};
+use glam::Vec3;
+use mimic_assets::{load_morph_targets, load_rig};
+use mimic_retarget::{BlendshapeFitter, BlendshapeSettings};
+use mimic_types::{MorphTarget, Rig};
+
+fn ict() -> (Rig, Vec<MorphTarget>) {
+    let path = repo().join("configs/rigs/ict-face.toml");
+    let rig = load_rig(&path).unwrap();
+    let targets = load_morph_targets(&path, &rig).unwrap();
+    (rig, targets)
+}
+
+/// The ICT mesh with `weights` of the targets applied, as a modelling tool would (truth).
+fn blend(rig: &Rig, targets: &[MorphTarget], weights: &[(&str, f32)]) -> Vec<Vec3> {
+    let mut p = rig.mesh.positions.clone();
+    for (name, w) in weights {
+        let t = targets.iter().find(|t| t.name == *name).unwrap();
+        for (p, d) in p.iter_mut().zip(&t.position_deltas) {
+            *p += *w * *d;
+        }
+    }
+    p
+}
+
+#[test]
+fn known_ict_combination_is_recovered_from_the_control_displacements() {
+    let (rig, targets) = ict();
+    assert_eq!(targets.len(), 8);
+    let truth = [("jawOpen", 0.6f32), ("mouthSmileLeft", 0.3)];
+    let shape = blend(&rig, &targets, &truth);
+    let d: Vec<Vec3> = rig
+        .controls
+        .iter()
+        .map(|c| shape[c.vertex as usize] - rig.mesh.positions[c.vertex as usize])
+        .collect();
+    let want = |name: &str| {
+        truth
+            .iter()
+            .find(|(n, _)| *n == name)
+            .map_or(0.0, |(_, w)| *w)
+    };
+    for (ridge, tol) in [
+        // No ridge: exact data, 114 equations for 8 unknowns of full rank; the error is f32
+        // rounding of the deltas amplified by the conditioning (measured 2e-7), below 1e-4.
+        (0.0, 1e-4),
+        // Default ridge, 0.01 |D_k|^2 per target: a lone weight shrinks by 1 %; correlated targets
+        // (jawOpen and mouthSmileLeft share the lip controls) by a few % (measured 0.594 and
+        // 0.292); 0.02 bounds that.
+        (BlendshapeSettings::default().ridge, 0.02),
+    ] {
+        let mut fitter = BlendshapeFitter::new(
+            &rig,
+            &targets,
+            &BlendshapeSettings {
+                ridge,
+                smoothing: None,
+            },
+        )
+        .unwrap();
+        let w = fitter.fit(&d, 0).to_vec();
+        eprintln!(
+            "ridge {ridge}: {:?}",
+            fitter.names().iter().zip(&w).collect::<Vec<_>>()
+        );
+        for (name, got) in fitter.names().iter().zip(&w) {
+            assert!(
+                (got - want(name)).abs() <= tol,
+                "ridge {ridge}: {name} = {got}, want {}",
+                want(name)
+            );
+        }
+        // The blended mesh then matches the truth up to the weight error times the deltas.
+        let mut p = vec![Vec3::ZERO; rig.mesh.vertex_count()];
+        fitter.evaluate(&w, &mut p, &mut []);
+        let max_err = p
+            .iter()
+            .zip(&shape)
+            .map(|(a, b)| a.distance(*b))
+            .fold(0f32, f32::max);
+        let max_delta = targets
+            .iter()
+            .flat_map(|t| t.position_deltas.iter())
+            .map(|v| v.length())
+            .fold(0f32, f32::max);
+        eprintln!("ridge {ridge}: max vertex error {max_err:.5} cm");
+        // |sum (w_k - w*_k) dP_k| <= 8 targets * tol * max |dP|.
+        assert!(max_err <= 8.0 * tol * max_delta, "{max_err}");
+    }
+}
+
+#[test]
+fn morph_data_file_round_trips_through_the_cli() {
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("ict.morph.txt");
+    let f = file.to_str().unwrap();
+    let out = mimic(&["morph", "export", "--rig", "ict-face", "-o", f]);
+    assert!(out.status.success(), "{}", text(&out).1);
+    let out = mimic(&["morph", "import", f, "--rig", "ict-face", "--json"]);
+    let (stdout, stderr) = text(&out);
+    assert!(out.status.success(), "{stderr}");
+    let report: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(report["round_trip_ok"], true);
+    assert_eq!(report["targets_in_file"], 8);
+    assert_eq!(report["vertices"], 26719);
+    for t in report["targets"].as_array().unwrap() {
+        // 6 decimals: half a unit of the last digit plus f32 rounding of values below 8.
+        assert!(t["max_position_difference"].as_f64().unwrap() <= 0.5e-6 + 8.0 * 1.2e-7);
+    }
+    // A damaged row is an error naming the file and line.
+    let body = std::fs::read_to_string(&file).unwrap();
+    let mut lines: Vec<&str> = body.lines().collect();
+    lines[9] = "0.1 0.2";
+    std::fs::write(&file, lines.join("\n")).unwrap();
+    let out = mimic(&["morph", "import", f, "--rig", "ict-face"]);
+    let (_, stderr) = text(&out);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("ict.morph.txt:10: expected 3 numbers (x y z), found 2"),
+        "{stderr}"
+    );
+}
+
+/// Median of a weights-CSV column over tracked frames with the given label.
+fn median_weight(csv: &str, column: &str, label: &str) -> f64 {
+    let mut lines = csv.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let at = |name: &str| header.iter().position(|h| *h == name).unwrap();
+    let (col, st, lb) = (at(column), at("status"), at("label"));
+    let mut v: Vec<f64> = lines
+        .map(|l| l.split(',').collect::<Vec<_>>())
+        .filter(|f| f[st] == "1" && f[lb] == label)
+        .map(|f| f[col].parse().unwrap())
+        .collect();
+    assert!(!v.is_empty());
+    v.sort_by(f64::total_cmp);
+    v[v.len() / 2]
+}
+
+#[test]
+fn blendshape_replay_of_a_real_question_opens_the_jaw_in_the_expressive_segments() {
+    // In the GFE yes/no question the mouth opens and the chin drops while the expression is
+    // labelled (control 2.1 moves about -1.2 cm, against -0.2 cm in the neutral frames); the fitted
+    // jawOpen weight must follow: its median over expressive frames clearly above the neutral one.
+    let dir = tempfile::tempdir().unwrap();
+    let weights = dir.path().join("w.csv");
+    let summary = crate::replay::replay_json(&[
+        "recordings/a_yn_question.jsonl",
+        "--rig",
+        "ict-face",
+        "--mode",
+        "blendshapes",
+        "--weights",
+        weights.to_str().unwrap(),
+    ]);
+    assert_eq!(summary["frames_with_non_finite_vertices"], 0);
+    let csv = std::fs::read_to_string(&weights).unwrap();
+    let header = csv.lines().next().unwrap();
+    assert!(
+        header.starts_with("frame,t_us,status,label,jawOpen,"),
+        "{header}"
+    );
+    let mut rows = 0;
+    for line in csv.lines().skip(1) {
+        rows += 1;
+        for w in line.split(',').skip(4) {
+            let w: f64 = w.parse().unwrap();
+            assert!((0.0..=1.0).contains(&w), "{line}");
+        }
+    }
+    assert_eq!(rows as u64, summary["frames_in"].as_u64().unwrap());
+    let expressive = median_weight(&csv, "jawOpen", "1");
+    let neutral = median_weight(&csv, "jawOpen", "0");
+    eprintln!("a_yn_question jawOpen median: expressive {expressive:.3}, neutral {neutral:.3}");
+    assert!(
+        expressive > neutral + 0.1,
+        "jawOpen {expressive:.3} vs {neutral:.3}"
+    );
+}
