@@ -16,12 +16,16 @@ pub(crate) struct MovingPatch {
     compact: Basis,
     /// Scratch for the compact product.
     u: Vec<Vec3>,
-    /// Vertices whose normal can change (corners of triangles with a moving vertex).
-    normal_vertices: Vec<u32>,
-    /// Per vertex: is it in `normal_vertices`?
-    in_normal_set: Vec<bool>,
-    /// Every triangle incident on a vertex of `normal_vertices`.
-    normal_triangles: Vec<[u32; 3]>,
+    /// Vertices the normal pass reads, by local index: first the ones whose normal can change
+    /// (corners of triangles with a moving vertex), then the other corners of their triangles.
+    local_vertices: Vec<u32>,
+    /// How many of `local_vertices` get their normal written back.
+    normal_count: usize,
+    /// Every triangle incident on a vertex whose normal can change, in local indices.
+    local_triangles: Vec<[u32; 3]>,
+    /// Scratch: positions and normal sums by local index.
+    local_positions: Vec<Vec3>,
+    local_normals: Vec<Vec3>,
 }
 
 impl MovingPatch {
@@ -42,32 +46,47 @@ impl MovingPatch {
         let mut moving = vec![false; n];
         rows.iter().for_each(|&i| moving[i as usize] = true);
         let mut in_normal_set = vec![false; n];
-        for t in triangles {
-            if t.iter()
-                .any(|&v| moving.get(v as usize).copied().unwrap_or(false))
-            {
-                t.iter()
-                    .filter(|&&v| (v as usize) < n)
-                    .for_each(|&v| in_normal_set[v as usize] = true);
+        let in_range = |t: &[u32; 3]| t.iter().all(|&v| (v as usize) < n);
+        for t in triangles.iter().filter(|t| in_range(t)) {
+            if t.iter().any(|&v| moving[v as usize]) {
+                t.iter().for_each(|&v| in_normal_set[v as usize] = true);
             }
         }
-        let normal_vertices: Vec<u32> = (0..n as u32)
+        let incident: Vec<[u32; 3]> = triangles
+            .iter()
+            .filter(|t| in_range(t) && t.iter().any(|&v| in_normal_set[v as usize]))
+            .copied()
+            .collect();
+        // Local numbering: the normal set first, then the remaining corners of incident triangles.
+        let mut local_of = vec![u32::MAX; n];
+        let mut local_vertices: Vec<u32> = (0..n as u32)
             .filter(|&v| in_normal_set[v as usize])
             .collect();
-        let normal_triangles: Vec<[u32; 3]> = triangles
+        let normal_count = local_vertices.len();
+        for (k, &v) in local_vertices.iter().enumerate() {
+            local_of[v as usize] = k as u32;
+        }
+        for t in &incident {
+            for &v in t {
+                if local_of[v as usize] == u32::MAX {
+                    local_of[v as usize] = local_vertices.len() as u32;
+                    local_vertices.push(v);
+                }
+            }
+        }
+        let local_triangles: Vec<[u32; 3]> = incident
             .iter()
-            .filter(|t| {
-                t.iter().all(|&v| (v as usize) < n) && t.iter().any(|&v| in_normal_set[v as usize])
-            })
-            .copied()
+            .map(|t| t.map(|v| local_of[v as usize]))
             .collect();
         Self {
             u: vec![Vec3::ZERO; rows.len()],
             rows,
             compact,
-            normal_vertices,
-            in_normal_set,
-            normal_triangles,
+            local_positions: vec![Vec3::ZERO; local_vertices.len()],
+            local_normals: vec![Vec3::ZERO; local_vertices.len()],
+            local_vertices,
+            normal_count,
+            local_triangles,
         }
     }
 
@@ -85,25 +104,24 @@ impl MovingPatch {
     }
 
     /// Recomputes the area-weighted normals of the vertices the moving rows can affect.
-    pub(crate) fn normals(&self, positions: &[Vec3], normals: &mut [Vec3]) {
-        for &v in &self.normal_vertices {
-            normals[v as usize] = Vec3::ZERO;
+    ///
+    /// Works on a compact copy of the affected neighbourhood, so the triangle loop reads and
+    /// writes contiguous memory and needs no per-corner test.
+    pub(crate) fn normals(&mut self, positions: &[Vec3], normals: &mut [Vec3]) {
+        for (p, &v) in self.local_positions.iter_mut().zip(&self.local_vertices) {
+            *p = positions[v as usize];
         }
-        for t in &self.normal_triangles {
-            let (a, b, c) = (
-                positions[t[0] as usize],
-                positions[t[1] as usize],
-                positions[t[2] as usize],
-            );
+        self.local_normals.fill(Vec3::ZERO);
+        let (pos, acc) = (&self.local_positions, &mut self.local_normals);
+        for t in &self.local_triangles {
+            let (a, b, c) = (pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]);
             let n = (b - a).cross(c - a);
-            for &v in t {
-                if self.in_normal_set[v as usize] {
-                    normals[v as usize] += n;
-                }
-            }
+            acc[t[0] as usize] += n;
+            acc[t[1] as usize] += n;
+            acc[t[2] as usize] += n;
         }
-        for &v in &self.normal_vertices {
-            normals[v as usize] = normals[v as usize].normalize_or_zero();
+        for (n, &v) in acc[..self.normal_count].iter().zip(&self.local_vertices) {
+            normals[v as usize] = n.normalize_or_zero();
         }
     }
 }
