@@ -2,6 +2,7 @@
 
 mod import;
 mod info;
+mod morph;
 mod replay;
 
 use std::path::PathBuf;
