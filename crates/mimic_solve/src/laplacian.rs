@@ -179,6 +179,11 @@ pub fn laplacian_columns(
     }
     let n = rows.offsets.len() - 1;
     let k = controls.len();
+    if let Some(&c) = controls.iter().find(|&&c| c >= n) {
+        return Err(SolveError::InvalidSetting(format!(
+            "{system}: control vertex {c} outside the {n} vertices"
+        )));
+    }
     let mut fixed: Vec<bool> = (0..n)
         .map(|i| frozen.get(i).copied().unwrap_or(false))
         .collect();

@@ -89,6 +89,25 @@ pub fn rbf_columns(
     if k == 0 {
         return Ok(vec![0.0; n * k]);
     }
+    if fdps.len() != k {
+        return Err(SolveError::InvalidSetting(format!(
+            "{system}: {} FDP names for {k} centres",
+            fdps.len()
+        )));
+    }
+    if let Metric::Table {
+        to_vertex,
+        centre_vertices,
+    } = metric
+    {
+        let bad_table = to_vertex.len() != k || to_vertex.iter().any(|t| t.len() != n);
+        let bad_vertices = centre_vertices.len() != k || centre_vertices.iter().any(|&v| v >= n);
+        if bad_table || bad_vertices {
+            return Err(SolveError::InvalidSetting(format!(
+                "{system}: distance table does not match {k} centres on {n} vertices"
+            )));
+        }
+    }
     let c: Vec<DVec3> = centres.iter().map(|p| p.as_dvec3()).collect();
     let extent = c
         .iter()
