@@ -1,6 +1,6 @@
 //! Errors of the solver setup (the per-frame steps cannot fail).
 
-use mimic_types::{Fdp, RigError};
+use mimic_types::RigError;
 
 /// Why a deformation basis or a morph fit could not be built.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
@@ -11,18 +11,6 @@ pub enum SolveError {
     /// The rig has no control points, so nothing can drive it.
     #[error("the rig has no control points")]
     NoControls,
-    /// Two controls sit at the same rest position, so the RBF system is singular.
-    #[error(
-        "controls {first} and {second} share the rest position (distance {distance}), the RBF system is singular"
-    )]
-    CoincidentControls {
-        /// First control.
-        first: Fdp,
-        /// Second control.
-        second: Fdp,
-        /// Their distance in rig units.
-        distance: f64,
-    },
     /// A setting is out of range (e.g. a non-positive kernel radius).
     #[error("invalid solver setting: {0}")]
     InvalidSetting(String),

@@ -72,6 +72,12 @@ pub enum Metric<'a> {
 /// Basis columns of an RBF through `centres` (rest positions of the controls, named by `fdps` for
 /// errors): returns `n x k` values, row-major, for the `positions` (frozen rows are left zero).
 /// `system` names the solve in errors (e.g. `RBF of region top`).
+///
+/// Centres that coincide under the metric (e.g. the inner-lip midpoints 2.2 and 2.3 of a closed
+/// mouth on two vertices at one position, with Euclidean distances) cannot be interpolated
+/// separately: they are merged into one centre driven by the **mean** of their displacements (the
+/// least-squares compromise), each keeping `1 / count` of the merged column. Every other control
+/// is still reproduced exactly. (With geodesic distances such vertices are usually far apart.)
 #[allow(clippy::too_many_arguments)]
 pub fn rbf_columns(
     positions: &[Vec3],
@@ -83,12 +89,8 @@ pub fn rbf_columns(
     metric: Metric<'_>,
     system: &str,
 ) -> Result<Vec<f64>, SolveError> {
-    check_kernel(kernel, affine)?;
     let k = centres.len();
     let n = positions.len();
-    if k == 0 {
-        return Ok(vec![0.0; n * k]);
-    }
     if fdps.len() != k {
         return Err(SolveError::InvalidSetting(format!(
             "{system}: {} FDP names for {k} centres",
@@ -109,22 +111,91 @@ pub fn rbf_columns(
         }
     }
     let c: Vec<DVec3> = centres.iter().map(|p| p.as_dvec3()).collect();
+    let between = |a: usize, b: usize| match metric {
+        Metric::Euclidean => (c[a] - c[b]).length(),
+        Metric::Table {
+            to_vertex,
+            centre_vertices,
+        } => 0.5 * (to_vertex[a][centre_vertices[b]] + to_vertex[b][centre_vertices[a]]),
+    };
     let extent = c
         .iter()
         .fold(0f64, |a, p| a.max((*p - c[0]).length()))
         .max(f64::MIN_POSITIVE);
+    // cluster[a]: index (into `unique`) of the merged centre that centre a belongs to.
+    let mut unique: Vec<usize> = Vec::new();
+    let mut cluster = vec![0usize; k];
     for a in 0..k {
-        for b in a + 1..k {
-            let distance = (c[a] - c[b]).length();
-            if distance <= COINCIDENT * extent {
-                return Err(SolveError::CoincidentControls {
-                    first: fdps[a],
-                    second: fdps[b],
-                    distance,
-                });
+        match unique
+            .iter()
+            .position(|&u| between(u, a) <= COINCIDENT * extent)
+        {
+            Some(u) => {
+                tracing::warn!(system, first = %fdps[unique[u]], second = %fdps[a], "controls coincide; merged into one RBF centre driven by their mean");
+                cluster[a] = u;
+            }
+            None => {
+                cluster[a] = unique.len();
+                unique.push(a);
             }
         }
     }
+    if unique.len() == k {
+        return rbf_columns_distinct(positions, frozen, centres, kernel, affine, metric, system);
+    }
+    let u_centres: Vec<Vec3> = unique.iter().map(|&a| centres[a]).collect();
+    let (u_table, u_vertices): (Vec<Vec<f64>>, Vec<usize>) = match metric {
+        Metric::Euclidean => (Vec::new(), Vec::new()),
+        Metric::Table {
+            to_vertex,
+            centre_vertices,
+        } => (
+            unique.iter().map(|&a| to_vertex[a].clone()).collect(),
+            unique.iter().map(|&a| centre_vertices[a]).collect(),
+        ),
+    };
+    let u_metric = match metric {
+        Metric::Euclidean => Metric::Euclidean,
+        Metric::Table { .. } => Metric::Table {
+            to_vertex: &u_table,
+            centre_vertices: &u_vertices,
+        },
+    };
+    let merged = rbf_columns_distinct(
+        positions, frozen, &u_centres, kernel, affine, u_metric, system,
+    )?;
+    let ku = unique.len();
+    let mut sizes = vec![0f64; ku];
+    for &u in &cluster {
+        sizes[u] += 1.0;
+    }
+    let mut cols = vec![0.0; n * k];
+    for (row, src) in cols.chunks_exact_mut(k).zip(merged.chunks_exact(ku)) {
+        for (a, out) in row.iter_mut().enumerate() {
+            *out = src[cluster[a]] / sizes[cluster[a]];
+        }
+    }
+    Ok(cols)
+}
+
+/// [`rbf_columns`] for centres that are pairwise distinct under the metric.
+#[allow(clippy::too_many_arguments)]
+fn rbf_columns_distinct(
+    positions: &[Vec3],
+    frozen: &[bool],
+    centres: &[Vec3],
+    kernel: RbfKernel,
+    affine: bool,
+    metric: Metric<'_>,
+    system: &str,
+) -> Result<Vec<f64>, SolveError> {
+    check_kernel(kernel, affine)?;
+    let k = centres.len();
+    let n = positions.len();
+    if k == 0 {
+        return Ok(vec![0.0; n * k]);
+    }
+    let c: Vec<DVec3> = centres.iter().map(|p| p.as_dvec3()).collect();
     let phi = |r: f64| {
         if r.is_finite() {
             kernel_value(kernel, r)
@@ -388,8 +459,10 @@ mod tests {
             "t",
         );
         assert!(matches!(r, Err(SolveError::Singular { .. })), "{r:?}");
+        // Coincident centres merge: both columns are half the merged one, so each of the pair
+        // follows the mean of the two displacements while every other control stays exact.
         centres[3] = centres[5];
-        let r = rbf_columns(
+        let cols = rbf_columns(
             &centres,
             &[],
             &centres,
@@ -398,10 +471,23 @@ mod tests {
             false,
             Metric::Euclidean,
             "t",
-        );
-        assert!(
-            matches!(r, Err(SolveError::CoincidentControls { .. })),
-            "{r:?}"
-        );
+        )
+        .unwrap();
+        let k = centres.len();
+        for a in 0..k {
+            for b in 0..k {
+                let want = match (a, b) {
+                    (3 | 5, 3 | 5) => 0.5,
+                    _ if a == b => 1.0,
+                    _ => 0.0,
+                };
+                // Well-conditioned 15 x 15 solve: 1e-8.
+                assert!(
+                    (cols[a * k + b] - want).abs() < 1e-8,
+                    "({a}, {b}) = {}",
+                    cols[a * k + b]
+                );
+            }
+        }
     }
 }
