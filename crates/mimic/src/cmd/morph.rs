@@ -220,6 +220,8 @@ pub struct Blend {
     sum: Vec<f64>,
     max: Vec<f32>,
     frames: usize,
+    /// Nanoseconds of fit + blend per tracked frame.
+    ns: Vec<u32>,
 }
 
 impl BlendshapeArgs {
@@ -262,6 +264,7 @@ impl BlendshapeArgs {
             sum: vec![0.0; k],
             max: vec![0.0; k],
             frames: 0,
+            ns: Vec::new(),
         }))
     }
 }
@@ -276,8 +279,11 @@ impl Blend {
         out: &mut FrameOutput,
     ) -> anyhow::Result<()> {
         let tracked = out.status == FrameStatus::Tracked;
+        let started = std::time::Instant::now();
         let w = self.fitter.apply(out);
         if tracked {
+            self.ns
+                .push(u32::try_from(started.elapsed().as_nanos()).unwrap_or(u32::MAX));
             self.frames += 1;
             for ((s, m), x) in self.sum.iter_mut().zip(&mut self.max).zip(w) {
                 *s += f64::from(*x);
@@ -297,14 +303,16 @@ impl Blend {
     }
 
     /// Flushes the CSV; returns a summary (per target: mean and max weight over tracked frames).
-    pub fn finish(self) -> anyhow::Result<serde_json::Value> {
+    pub fn finish(mut self) -> anyhow::Result<serde_json::Value> {
         if let Some((path, csv)) = self.csv {
             csv.into_inner()
                 .map_err(|e| e.into_error())
                 .with_context(|| path.display().to_string())?;
         }
         let n = self.frames.max(1) as f64;
+        let (median_us, p99_us) = crate::cmd::replay::median_p99_us(&mut self.ns);
         Ok(json!({
+            "fit_and_blend": {"median_us": median_us, "p99_us": p99_us},
             "ridge_per_target": self.fitter.ridges(),
             "targets": self.fitter.names().iter().zip(&self.sum).zip(&self.max).map(|((name, s), m)| {
                 json!({"target": name, "mean_weight": s / n, "max_weight": m})
