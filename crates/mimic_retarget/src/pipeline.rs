@@ -5,6 +5,7 @@ use crate::{Neutral, OneEuro, RetargetSettings, SourceToTarget};
 use glam::{Quat, Vec3};
 use mimic_solve::{Basis, kabsch::fit_similarity, vertex_normals};
 use mimic_types::{Fdp, HeadPose, LandmarkFrame, Layout, Rig};
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Why a retargeter cannot be set up.
@@ -154,7 +155,7 @@ struct Accumulator {
 pub struct Retargeter {
     layout: Layout,
     settings: RetargetSettings,
-    basis: Basis,
+    basis: Arc<Basis>,
     patch: MovingPatch,
     rest: Vec<Vec3>,
     triangles: Vec<[u32; 3]>,
@@ -187,13 +188,15 @@ pub struct Retargeter {
 }
 
 impl Retargeter {
-    /// Sets up the pipeline for `layout` frames driving `rig` through `basis` (built for `rig`).
+    /// Sets up the pipeline for `layout` frames driving `rig` through `basis` (built for `rig`;
+    /// pass an `Arc<Basis>` to share one basis between many retargeters).
     pub fn new(
         rig: &Rig,
         layout: &Layout,
-        basis: Basis,
+        basis: impl Into<Arc<Basis>>,
         settings: RetargetSettings,
     ) -> Result<Self, RetargetError> {
+        let basis: Arc<Basis> = basis.into();
         let n = rig.mesh.vertex_count();
         let m = rig.controls.len();
         if basis.vertex_count() != n || basis.control_count() != m {
@@ -219,7 +222,14 @@ impl Retargeter {
         let p = layout.point_count;
         let mut r = Retargeter {
             layout: layout.clone(),
-            patch: MovingPatch::new(&basis, &rig.mesh.triangles),
+            patch: if settings.positions {
+                MovingPatch::new(&basis, &rig.mesh.triangles)
+            } else {
+                // No positions: an empty patch, so no per-retargeter copy of the moving rows.
+                let empty = Basis::from_row_major(0, m, Vec::new())
+                    .unwrap_or_else(|| unreachable!("0 x m from no values"));
+                MovingPatch::new(&empty, &[])
+            },
             basis,
             rest: rig.mesh.positions.clone(),
             triangles: rig.mesh.triangles.clone(),
@@ -433,6 +443,10 @@ impl Retargeter {
 
     /// `positions = rest + B d` and normals, over the moving part only; returns the instants after each.
     fn deform(&mut self, out: &mut FrameOutput) -> (Instant, Instant) {
+        if !self.settings.positions {
+            let t = Instant::now();
+            return (t, t);
+        }
         self.patch
             .deform(&out.displacements, &self.rest, &mut out.positions);
         let t4 = Instant::now();
@@ -442,7 +456,7 @@ impl Retargeter {
         (t4, Instant::now())
     }
 
-    /// Number of vertices that can move (non-zero rows of `B`).
+    /// Number of vertices that can move (non-zero rows of `B`); 0 when positions are off.
     pub fn moving_vertex_count(&self) -> usize {
         self.patch.moving_count()
     }

@@ -29,6 +29,10 @@ pub struct RetargetSettings {
     pub lost_ease_secs: f32,
     /// Compute vertex normals of the deformed mesh.
     pub normals: bool,
+    /// Compute deformed positions (`rest + B d`). Off: `step` produces only the pose and the
+    /// control displacements `d` (for viewers that evaluate the morph themselves); `positions`
+    /// keep the rest mesh and normals are not updated.
+    pub positions: bool,
     /// A control whose displacement, scaled to the target, exceeds this fraction of the RMS radius
     /// of the rig's controls is an outlier (e.g. a depth sample that hit the background): it is
     /// held like a missing control.
@@ -48,6 +52,7 @@ impl Default for RetargetSettings {
             lost_hold_secs: 0.25,
             lost_ease_secs: 0.5,
             normals: true,
+            positions: true,
             outlier_fraction: 0.8,
             stable_trim: 3.0,
         }

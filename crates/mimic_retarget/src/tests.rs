@@ -340,3 +340,31 @@ fn step_output_is_allocation_stable() {
         )
     );
 }
+
+#[test]
+fn positions_off_gives_the_same_displacements_and_keeps_the_rest_mesh() {
+    let (mut on, neutral) = setup(plain());
+    let (mut off, _) = setup(RetargetSettings {
+        positions: false,
+        ..plain()
+    });
+    let (mut out_on, mut out_off) = (on.new_output(), off.new_output());
+    let rest = out_off.positions.clone();
+    for k in 0..10i64 {
+        let rot = Quat::from_rotation_y(0.02 * k as f32);
+        let mut moved: Vec<Vec3> = neutral.iter().map(|p| rot * *p).collect();
+        // The chin (last point) drops by k mm.
+        if let Some(p) = moved.last_mut() {
+            *p += rot * Vec3::new(0.0, -0.001 * k as f32, 0.0);
+        }
+        let a = on.step(&frame(k * 33_000, moved.clone()), &mut out_on);
+        let b = off.step(&frame(k * 33_000, moved), &mut out_off);
+        assert_eq!(a, b);
+        // Same arithmetic on the same inputs: bit-identical displacements and pose.
+        assert_eq!(out_on.displacements, out_off.displacements);
+        assert_eq!(out_on.pose, out_off.pose);
+        assert_eq!(out_off.positions, rest);
+    }
+    assert!(out_on.displacements.iter().any(|d| d.length() > 0.01));
+    assert_eq!(off.moving_vertex_count(), 0);
+}
