@@ -241,6 +241,11 @@ fn bench_small(c: &mut Criterion) {
         .map(|j| targets.iter().zip(&truth).map(|(t, w)| t[j] * *w).sum())
         .collect();
     let mut weights = vec![0f32; 50];
+    let mut warm = fit.scratch();
+    fit.fit(&d, &mut warm, &mut weights);
+    c.bench_function("morph_fit_50x38_warm", |b| {
+        b.iter(|| fit.fit(black_box(&d), &mut warm, &mut weights))
+    });
     c.bench_function("morph_fit_50x38_cold", |b| {
         b.iter(|| {
             let mut scratch = fit.scratch();
