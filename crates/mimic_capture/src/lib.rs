@@ -14,8 +14,8 @@ pub mod replay;
 pub use imported::Imported;
 pub use recording::{
     FrameError, FrameProblem, ReadStats, RecordedFrame, RecordingError, RecordingHeader,
-    RecordingReader, RecordingSummary, RecordingWriter, RejectCounts, WriteError, summarize,
-    summarize_lenient,
+    RecordingReader, RecordingSummary, RecordingWriter, RejectCounts, WriteError, parse_frame_line,
+    summarize, summarize_lenient,
 };
 pub use replay::{
     FileSource, FrameSource, MemorySource, Pace, Replay, ReplayError, ReplayFrame, ReplayOptions,

@@ -265,61 +265,84 @@ impl<R: BufRead> RecordingReader<R> {
     }
 
     fn check(&mut self, rec: FrameRecord) -> Result<RecordedFrame, FrameProblem> {
-        let count = rec.points.len();
-        if rec.tracked || count > 0 {
-            match self.expected_points {
-                Some(expected) if expected != count => {
-                    return Err(FrameProblem::PointCount {
-                        found: count,
-                        expected,
-                        layout: self.header.layout.clone(),
-                    });
-                }
-                _ => {}
-            }
-        }
-        let mut valid = vec![true; count];
-        for &i in &rec.invalid {
-            match valid.get_mut(i) {
-                Some(v) => *v = false,
-                None => return Err(FrameProblem::InvalidIndexOutOfRange { index: i, count }),
-            }
-        }
-        let mut points = Vec::with_capacity(count);
-        for (i, (p, ok)) in rec.points.iter().zip(&valid).enumerate() {
-            if !ok {
-                points.push(Vec3::NAN);
-                continue;
-            }
-            let coords = p.and_then(|[x, y, z]| Some([x?, y?, z?]));
-            let v = coords.map(|[x, y, z]| Vec3::new(x as f32, y as f32, z as f32));
-            match v {
-                Some(v) if v.is_finite() => points.push(v),
-                _ => return Err(FrameProblem::BadCoordinate { point: i }),
-            }
-        }
+        let t_us = rec.t_us;
+        let f = check_frame(rec, self.expected_points, &self.header.layout)?;
         if let Some(previous_us) = self.last_t_us
-            && rec.t_us <= previous_us
+            && t_us <= previous_us
         {
-            return Err(FrameProblem::TimeNotIncreasing {
-                t_us: rec.t_us,
-                previous_us,
-            });
+            return Err(FrameProblem::TimeNotIncreasing { t_us, previous_us });
         }
-        if rec.tracked && count > 0 && self.expected_points.is_none() {
-            self.expected_points = Some(count);
+        if f.frame.tracked && !f.frame.points.is_empty() && self.expected_points.is_none() {
+            self.expected_points = Some(f.frame.points.len());
         }
-        let frame = LandmarkFrame {
-            timestamp_us: rec.t_us,
-            points,
-            valid,
-            tracked: rec.tracked,
-        };
-        Ok(RecordedFrame {
-            frame,
-            label: rec.label,
-        })
+        Ok(f)
     }
+}
+
+/// Parses one frame line (without its newline) as the reader does, except for the timestamp
+/// order, which is the caller's to check: `expected_points` is the layout's point count (if
+/// known) and `layout` only names it in messages. `complete` says whether the line ended with a
+/// newline (a line that does not parse without one is [`FrameProblem::Truncated`]).
+pub fn parse_frame_line(
+    line: &[u8],
+    complete: bool,
+    expected_points: Option<usize>,
+    layout: &str,
+) -> Result<RecordedFrame, FrameProblem> {
+    let rec = serde_json::from_slice::<FrameRecord>(trim_line_end(line))
+        .map_err(|e| json_problem(&e, complete))?;
+    check_frame(rec, expected_points, layout)
+}
+
+/// Point count, `invalid` indices and coordinates of a parsed frame line.
+fn check_frame(
+    rec: FrameRecord,
+    expected_points: Option<usize>,
+    layout: &str,
+) -> Result<RecordedFrame, FrameProblem> {
+    let count = rec.points.len();
+    if rec.tracked || count > 0 {
+        match expected_points {
+            Some(expected) if expected != count => {
+                return Err(FrameProblem::PointCount {
+                    found: count,
+                    expected,
+                    layout: layout.to_string(),
+                });
+            }
+            _ => {}
+        }
+    }
+    let mut valid = vec![true; count];
+    for &i in &rec.invalid {
+        match valid.get_mut(i) {
+            Some(v) => *v = false,
+            None => return Err(FrameProblem::InvalidIndexOutOfRange { index: i, count }),
+        }
+    }
+    let mut points = Vec::with_capacity(count);
+    for (i, (p, ok)) in rec.points.iter().zip(&valid).enumerate() {
+        if !ok {
+            points.push(Vec3::NAN);
+            continue;
+        }
+        let coords = p.and_then(|[x, y, z]| Some([x?, y?, z?]));
+        let v = coords.map(|[x, y, z]| Vec3::new(x as f32, y as f32, z as f32));
+        match v {
+            Some(v) if v.is_finite() => points.push(v),
+            _ => return Err(FrameProblem::BadCoordinate { point: i }),
+        }
+    }
+    let frame = LandmarkFrame {
+        timestamp_us: rec.t_us,
+        points,
+        valid,
+        tracked: rec.tracked,
+    };
+    Ok(RecordedFrame {
+        frame,
+        label: rec.label,
+    })
 }
 
 impl<R: BufRead> Iterator for RecordingReader<R> {
