@@ -6,12 +6,12 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum AssetError {
     /// The file could not be opened or read.
-    #[error("{}: {source}", path.display())]
+    #[error("{}: {cause}", path.display())]
     Io {
         /// The file.
         path: PathBuf,
         /// What the OS said.
-        source: std::io::Error,
+        cause: std::io::Error,
     },
     /// A TOML file that does not parse or lacks a field.
     #[error("{}:{line}: {message}", path.display())]
@@ -34,32 +34,32 @@ pub enum AssetError {
         message: String,
     },
     /// A layout whose controls or stable points do not fit its points.
-    #[error("{}:{line}: {source}", path.display())]
+    #[error("{}:{line}: {cause}", path.display())]
     Layout {
         /// The file.
         path: PathBuf,
         /// 1-based line of the offending entry.
         line: usize,
         /// What was wrong.
-        source: mimic_types::LayoutError,
+        cause: mimic_types::LayoutError,
     },
     /// A rig whose controls or mask do not fit its mesh.
-    #[error("{}:{line}: {source}", path.display())]
+    #[error("{}:{line}: {cause}", path.display())]
     Rig {
         /// The file.
         path: PathBuf,
         /// 1-based line of the offending entry.
         line: usize,
         /// What was wrong.
-        source: mimic_types::RigError,
+        cause: mimic_types::RigError,
     },
     /// A rig's mesh could not be loaded.
-    #[error("{}: mesh: {source}", path.display())]
+    #[error("{}: mesh: {cause}", path.display())]
     RigMesh {
         /// The rig file.
         path: PathBuf,
         /// The mesh's own error.
-        source: Box<AssetError>,
+        cause: Box<AssetError>,
     },
     /// A morph target mesh whose topology is not the neutral's.
     #[error("{}: {message}", path.display())]
@@ -70,7 +70,7 @@ pub enum AssetError {
         message: String,
     },
     /// A rig's morph target could not be loaded.
-    #[error("{}:{line}: morph target `{name}`: {source}", path.display())]
+    #[error("{}:{line}: morph target `{name}`: {cause}", path.display())]
     MorphTarget {
         /// The rig file.
         path: PathBuf,
@@ -79,7 +79,7 @@ pub enum AssetError {
         /// The target's name.
         name: String,
         /// The target's own error.
-        source: Box<AssetError>,
+        cause: Box<AssetError>,
     },
     /// A morph data file with a bad line or wrong counts.
     #[error("{}:{line}: {message}", path.display())]
@@ -103,10 +103,10 @@ pub enum AssetError {
 
 impl AssetError {
     /// Wraps an I/O error with its path.
-    pub(crate) fn io(path: &std::path::Path, source: std::io::Error) -> Self {
+    pub(crate) fn io(path: &std::path::Path, cause: std::io::Error) -> Self {
         AssetError::Io {
             path: path.to_path_buf(),
-            source,
+            cause,
         }
     }
 }

@@ -2,7 +2,7 @@
 
 use crate::AssetError;
 use crate::span::{line_of, toml_error};
-use mimic_types::{Layout, LayoutControl, LayoutError};
+use mimic_types::{Layout, LayoutControl, LayoutError, ModelCorrespondence};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use toml::Spanned;
@@ -21,6 +21,8 @@ struct LayoutFile {
     undocumented: Vec<usize>,
     #[serde(default)]
     point_names: Vec<String>,
+    #[serde(default)]
+    candide_correspondences: Vec<ModelCorrespondence>,
 }
 
 /// Loads and validates a layout file; errors name the file and the offending line.
@@ -48,6 +50,7 @@ pub(crate) fn parse_layout(path: &Path, text: &str) -> Result<Layout, AssetError
         stable: file.stable.get_ref().clone(),
         undocumented: file.undocumented.clone(),
         point_names: file.point_names.clone(),
+        candide_correspondences: file.candide_correspondences.clone(),
     };
     if let Err(source) = layout.validate() {
         let line = match &source {
@@ -61,7 +64,7 @@ pub(crate) fn parse_layout(path: &Path, text: &str) -> Result<Layout, AssetError
         return Err(AssetError::Layout {
             path: path.to_path_buf(),
             line,
-            source,
+            cause: source,
         });
     }
     Ok(layout)

@@ -94,7 +94,7 @@ pub fn load_morph_targets(rig_path: &Path, rig: &Rig) -> Result<Vec<MorphTarget>
             path: rig_path.to_path_buf(),
             line,
             name: e.name.clone(),
-            source: Box::new(source),
+            cause: Box::new(source),
         };
         if e.name.is_empty() || e.name.chars().any(char::is_whitespace) {
             return Err(AssetError::Toml {

@@ -45,13 +45,13 @@ pub fn load_rig(path: &Path) -> Result<Rig, AssetError> {
         .join(file.mesh.get_ref());
     let mesh = crate::load_obj(&mesh_path).map_err(|e| AssetError::RigMesh {
         path: path.to_path_buf(),
-        source: Box::new(e),
+        cause: Box::new(e),
     })?;
     let n = mesh.vertex_count();
-    let rig_err = |line: usize, source: RigError| AssetError::Rig {
+    let rig_err = |line: usize, cause: RigError| AssetError::Rig {
         path: path.to_path_buf(),
         line,
-        source,
+        cause,
     };
 
     let mut frozen = vec![false; n];
