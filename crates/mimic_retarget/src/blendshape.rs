@@ -304,6 +304,79 @@ impl BlendshapeFitter {
     }
 }
 
+/// Maps named weights, as face-capture apps send them (ARKit names, values in [0, 1]), onto a
+/// rig's targets.
+///
+/// Besides each target's own name it accepts the other side convention (`mouthSmile_L` <->
+/// `mouthSmileLeft`), and a name whose `_L` and `_R` halves are both targets drives both
+/// (ARKit's single `browInnerUp` -> ICT's `browInnerUp_L` and `browInnerUp_R`).
+#[derive(Clone, Debug)]
+pub struct WeightMap {
+    targets: usize,
+    index: std::collections::HashMap<String, Vec<usize>>,
+}
+
+impl WeightMap {
+    /// The map for targets named `names`, in weight order.
+    pub fn new(names: &[String]) -> Self {
+        let mut index: std::collections::HashMap<String, Vec<usize>> = Default::default();
+        let mut add = |key: String, k: usize| {
+            let slot = index.entry(key).or_default();
+            if !slot.contains(&k) {
+                slot.push(k);
+            }
+        };
+        for (k, name) in names.iter().enumerate() {
+            add(name.clone(), k);
+            for (short, long) in [("_L", "Left"), ("_R", "Right")] {
+                if let Some(base) = name.strip_suffix(short) {
+                    add(format!("{base}{long}"), k);
+                    add(base.to_string(), k);
+                } else if let Some(base) = name.strip_suffix(long) {
+                    add(format!("{base}{short}"), k);
+                    add(base.to_string(), k);
+                }
+            }
+        }
+        // A base name stands for both halves only where no target carries it exactly.
+        for (k, name) in names.iter().enumerate() {
+            index.insert(name.clone(), vec![k]);
+        }
+        Self {
+            targets: names.len(),
+            index,
+        }
+    }
+
+    /// Writes `pairs` into `out` in target order: known names get their value clamped to [0, 1]
+    /// (non-finite values count as 0), targets not named get 0. Returns how many pairs named no
+    /// target. Allocates nothing.
+    ///
+    /// # Panics
+    /// If `out` is not one weight per target.
+    pub fn apply<'a>(
+        &self,
+        pairs: impl IntoIterator<Item = (&'a str, f32)>,
+        out: &mut [f32],
+    ) -> usize {
+        assert_eq!(out.len(), self.targets, "one weight per target");
+        out.fill(0.0);
+        let mut unknown = 0;
+        for (name, value) in pairs {
+            let v = if value.is_finite() {
+                value.clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            match self.index.get(name) {
+                Some(ks) => ks.iter().for_each(|&k| out[k] = v),
+                None => unknown += 1,
+            }
+        }
+        unknown
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -536,5 +609,34 @@ mod tests {
             BlendshapeFitter::new(&rig, &t, &s),
             Err(BlendshapeError::NonFinite { vertex: 7, .. })
         ));
+    }
+
+    #[test]
+    fn weight_map_takes_arkit_and_ict_names() {
+        let names: Vec<String> = [
+            "jawOpen",
+            "mouthSmileLeft",
+            "browInnerUp_L",
+            "browInnerUp_R",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        let map = WeightMap::new(&names);
+        let mut w = [9.0f32; 4];
+        let unknown = map.apply(
+            [
+                ("jawOpen", 0.5),
+                ("mouthSmile_L", 1.5),
+                ("browInnerUp", 0.25),
+                ("cheekPuff", 0.7),
+            ],
+            &mut w,
+        );
+        assert_eq!(w, [0.5, 1.0, 0.25, 0.25]);
+        assert_eq!(unknown, 1);
+        // An exact name wins over the shared base; NaN counts as 0; unnamed targets are 0.
+        let unknown = map.apply([("browInnerUp_R", 0.75), ("jawOpen", f32::NAN)], &mut w);
+        assert_eq!((w, unknown), ([0.0, 0.0, 0.0, 0.75], 0));
     }
 }

@@ -17,7 +17,7 @@ mod pipeline;
 mod scale;
 mod settings;
 
-pub use blendshape::{BlendshapeError, BlendshapeFitter, BlendshapeSettings};
+pub use blendshape::{BlendshapeError, BlendshapeFitter, BlendshapeSettings, WeightMap};
 pub use filter::{OneEuro, OneEuroSettings};
 pub use pipeline::{FrameOutput, FrameStatus, RetargetError, Retargeter, Stage, StageTimes, Stats};
 pub use scale::SourceToTarget;
