@@ -180,3 +180,58 @@ fn blendshape_replay_of_a_real_question_opens_the_jaw_in_the_expressive_segments
         "jawOpen {expressive:.3} vs {neutral:.3}"
     );
 }
+
+#[test]
+fn blendshape_replay_meshes_are_the_neutral_plus_the_weighted_targets() {
+    // The OBJ frames of --mode blendshapes must be P0 + sum w_k dP_k with the weights of the CSV.
+    let dir = tempfile::tempdir().unwrap();
+    let weights = dir.path().join("w.csv");
+    let out = dir.path().join("obj");
+    crate::replay::replay_json(&[
+        "recordings/a_yn_question.jsonl",
+        "--rig",
+        "ict-face",
+        "--mode",
+        "blendshapes",
+        "--weights",
+        weights.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+        "--every",
+        "150",
+        "--max-frames",
+        "451",
+    ]);
+    let (rig, targets) = ict();
+    let csv = std::fs::read_to_string(&weights).unwrap();
+    let max_delta = targets
+        .iter()
+        .flat_map(|t| t.position_deltas.iter())
+        .map(|v| v.length())
+        .fold(0f32, f32::max);
+    let mut checked = 0;
+    for frame in [150usize, 300, 450] {
+        let row: Vec<&str> = csv.lines().nth(frame + 1).unwrap().split(',').collect();
+        assert_eq!(row[0], frame.to_string());
+        let w: Vec<(&str, f32)> = targets
+            .iter()
+            .zip(&row[4..])
+            .map(|(t, x)| (t.name.as_str(), x.parse().unwrap()))
+            .collect();
+        let want = blend(&rig, &targets, &w);
+        let mesh = mimic_assets::load_obj(&out.join(format!("frame_{frame:06}.obj"))).unwrap();
+        let err = mesh
+            .positions
+            .iter()
+            .zip(&want)
+            .map(|(a, b)| a.distance(*b))
+            .fold(0f32, f32::max);
+        // The CSV rounds each weight to 4 decimals: 8 targets x 0.5e-4 x max |dP|, plus f32 sums.
+        let tol = 8.0 * 0.5e-4 * max_delta + 1e-4;
+        assert!(err <= tol, "frame {frame}: {err} > {tol}");
+        if w.iter().any(|(_, x)| *x > 0.05) {
+            checked += 1;
+        }
+    }
+    assert!(checked >= 1, "no frame with a visible expression checked");
+}
