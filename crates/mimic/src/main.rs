@@ -32,6 +32,10 @@ enum Command {
     /// Export a rig's morph targets as a morph data file, or check one against the rig.
     #[command(subcommand)]
     Morph(cmd::morph::MorphCommand),
+    /// Serve live sessions: trackers in over TCP/UDP, viewers out (docs/protocol.md).
+    Serve(cmd::serve::Args),
+    /// Replay a recording into `mimic serve` at its recorded pace, as a tracker would.
+    Send(cmd::send::Args),
 }
 
 fn main() -> ExitCode {
@@ -48,6 +52,8 @@ fn main() -> ExitCode {
         Command::Import(c) => cmd::import::run(c),
         Command::Morph(c) => cmd::morph::run(c),
         Command::Eval(a) => cmd::eval::run(a),
+        Command::Serve(a) => cmd::serve::run(a),
+        Command::Send(a) => cmd::send::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -7,4 +7,6 @@ pub mod info;
 pub mod morph;
 pub mod recording_info;
 pub mod replay;
+pub mod send;
+pub mod serve;
 pub mod setup;

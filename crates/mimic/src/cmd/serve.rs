@@ -1,0 +1,156 @@
+//! `mimic serve`: live sessions over sockets (see docs/protocol.md).
+
+use crate::cmd::setup::{PipelineArgs, RigArgs};
+use anyhow::Context;
+use mimic_assets::load_rig;
+use mimic_stream::{Catalog, DEFAULT_LISTEN, RigEntry, Server, ServerSettings};
+use std::io::Write;
+use std::net::SocketAddr;
+use std::path::PathBuf;
+use std::sync::Arc;
+use std::time::Duration;
+
+/// Arguments of `mimic serve`.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    #[command(flatten)]
+    pub rig: RigArgs,
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
+    /// Further rigs a tracker's hello may name (`"rig": NAME`); `--rig` is the default.
+    #[arg(long = "also-rig")]
+    pub also_rig: Vec<String>,
+    /// TCP address for trackers, viewers and stats (loopback unless another address is given).
+    #[arg(long, default_value = DEFAULT_LISTEN)]
+    pub listen: SocketAddr,
+    /// UDP address for binary tracker frames (default: the TCP address and port).
+    #[arg(long)]
+    pub udp: Option<SocketAddr>,
+    /// Do not listen for UDP frames.
+    #[arg(long)]
+    pub no_udp: bool,
+    /// Maximum tracker sessions at once.
+    #[arg(long, default_value_t = ServerSettings::default().max_sessions)]
+    pub max_sessions: usize,
+    /// Maximum viewers at once.
+    #[arg(long, default_value_t = ServerSettings::default().max_viewers)]
+    pub max_viewers: usize,
+    /// Maximum message (line) size in bytes.
+    #[arg(long, default_value_t = ServerSettings::default().max_message_bytes)]
+    pub max_message_bytes: usize,
+    /// Seconds of silence after which a tracker connection is closed.
+    #[arg(long, default_value_t = ServerSettings::default().idle_timeout.as_secs_f64())]
+    pub idle_timeout: f64,
+    /// Frames each viewer's queue holds before the oldest is dropped.
+    #[arg(long, default_value_t = ServerSettings::default().viewer_queue_frames)]
+    pub viewer_queue: usize,
+    /// Malformed messages in a row after which a tracker connection is closed.
+    #[arg(long, default_value_t = ServerSettings::default().max_errors_in_a_row)]
+    pub max_errors: u32,
+    /// Seconds viewers get after Ctrl-C to receive what was accepted.
+    #[arg(long, default_value_t = ServerSettings::default().shutdown_grace.as_secs_f64())]
+    pub shutdown_grace: f64,
+    /// Print the final counters as JSON on exit.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn seconds(s: f64, what: &str) -> anyhow::Result<Duration> {
+    Duration::try_from_secs_f64(s).with_context(|| format!("{what}: {s} is not a duration"))
+}
+
+/// Runs `mimic serve` until Ctrl-C.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let dirs = args.rig.config_dirs();
+    let mut entries = Vec::new();
+    for name in std::iter::once(&args.rig.rig).chain(&args.also_rig) {
+        let rig = load_rig(&dirs.rig_path(name))?;
+        let (basis, _, took) = args.rig.build_basis(&rig)?;
+        tracing::info!(rig = %rig.name, ms = took.as_secs_f64() * 1e3, "basis built");
+        entries.push(RigEntry::new(rig, basis)?);
+    }
+    let mut entries = entries.into_iter();
+    let first = entries.next().context("no rig")?;
+    let mut catalog = Catalog::new(first);
+    entries.for_each(|e| catalog.add_rig(e));
+    for layout in layout_names(&dirs.root)? {
+        catalog.add_layout(dirs.load_layout_named(&layout)?);
+    }
+    let settings = ServerSettings {
+        max_sessions: args.max_sessions,
+        max_viewers: args.max_viewers,
+        max_message_bytes: args.max_message_bytes,
+        idle_timeout: seconds(args.idle_timeout, "--idle-timeout")?,
+        viewer_queue_frames: args.viewer_queue,
+        max_errors_in_a_row: args.max_errors.max(1),
+        shutdown_grace: seconds(args.shutdown_grace, "--shutdown-grace")?,
+        retarget: args.pipeline.settings(),
+        ..ServerSettings::default()
+    };
+    if !args.listen.ip().is_loopback() {
+        tracing::warn!(addr = %args.listen, "listening beyond loopback, as asked: anyone who can reach it can open sessions");
+    }
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?;
+    let stats = runtime.block_on(async {
+        let listener = tokio::net::TcpListener::bind(args.listen)
+            .await
+            .with_context(|| format!("binding {}", args.listen))?;
+        let tcp = listener.local_addr()?;
+        let udp = if args.no_udp {
+            None
+        } else {
+            let addr = args.udp.unwrap_or(tcp);
+            Some(
+                tokio::net::UdpSocket::bind(addr)
+                    .await
+                    .with_context(|| format!("binding UDP {addr}"))?,
+            )
+        };
+        let udp_addr = match &udp {
+            Some(u) => u.local_addr()?.to_string(),
+            None => "off".to_string(),
+        };
+        // The first stdout line says where to connect (tests and scripts read it).
+        println!(
+            "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}",
+            catalog.rig_names()
+        );
+        std::io::stdout().flush()?;
+        let server = Server::new(Arc::new(catalog), settings);
+        let shutdown = async {
+            let _ = tokio::signal::ctrl_c().await;
+        };
+        anyhow::Ok(server.run(listener, udp, shutdown).await)
+    })?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&stats)?);
+    } else {
+        println!(
+            "mimic serve: {} connections, {} sessions; latency p50 {} us, p99 {} us; {} frames dropped for slow viewers",
+            stats.connections,
+            stats.sessions.len(),
+            stats.latency.p50_us,
+            stats.latency.p99_us,
+            stats.viewer_frames_dropped
+        );
+    }
+    Ok(())
+}
+
+/// Names of the layouts in `configs/layouts/`.
+fn layout_names(root: &std::path::Path) -> anyhow::Result<Vec<String>> {
+    let dir: PathBuf = root.join("layouts");
+    let mut names = Vec::new();
+    for e in std::fs::read_dir(&dir).with_context(|| dir.display().to_string())? {
+        let path = e?.path();
+        if path.extension().is_some_and(|x| x == "toml")
+            && let Some(stem) = path.file_stem()
+        {
+            names.push(stem.to_string_lossy().into_owned());
+        }
+    }
+    names.sort();
+    Ok(names)
+}

@@ -1,0 +1,144 @@
+//! The rigs and layouts a server offers; each rig's basis is built once and shared by its sessions.
+
+use crate::queue::Message;
+use crate::wire::encode_rig;
+use glam::Vec3;
+use mimic_solve::Basis;
+use mimic_types::{Layout, Rig};
+use std::collections::BTreeMap;
+use std::sync::Arc;
+
+/// Why a rig cannot be offered.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum CatalogError {
+    /// The basis was built for another mesh or control set.
+    #[error(
+        "rig `{rig}`: basis is {rows} x {cols}, the rig has {vertices} vertices and {controls} controls"
+    )]
+    BasisShape {
+        /// Rig name.
+        rig: String,
+        /// Basis rows.
+        rows: usize,
+        /// Basis columns.
+        cols: usize,
+        /// Rig vertices.
+        vertices: usize,
+        /// Rig controls.
+        controls: usize,
+    },
+}
+
+/// A rig ready for sessions: the rig, its shared basis, the moving rows and the encoded rig message.
+#[derive(Debug)]
+pub struct RigEntry {
+    /// The rig.
+    pub rig: Rig,
+    /// `B` (n x m), shared by every session on this rig.
+    pub basis: Arc<Basis>,
+    /// Vertices with a non-zero row of `B`.
+    moving: Vec<u32>,
+    /// `B` restricted to `moving`.
+    moving_basis: Basis,
+    /// The rig message viewers get once.
+    pub message: Message,
+}
+
+impl RigEntry {
+    /// Prepares `rig` with its basis.
+    pub fn new(rig: Rig, basis: Basis) -> Result<Self, CatalogError> {
+        let (n, m) = (rig.mesh.vertex_count(), rig.controls.len());
+        if basis.vertex_count() != n || basis.control_count() != m {
+            return Err(CatalogError::BasisShape {
+                rig: rig.name.clone(),
+                rows: basis.vertex_count(),
+                cols: basis.control_count(),
+                vertices: n,
+                controls: m,
+            });
+        }
+        let moving: Vec<u32> = (0..n)
+            .filter(|&i| basis.row(i).iter().any(|w| *w != 0.0))
+            .map(|i| i as u32)
+            .collect();
+        let mut data = Vec::with_capacity(moving.len() * m);
+        for &i in &moving {
+            data.extend_from_slice(basis.row(i as usize));
+        }
+        let moving_basis = Basis::from_row_major(moving.len(), m, data)
+            .unwrap_or_else(|| unreachable!("moving.len() * m values were copied"));
+        let message = Arc::new(encode_rig(&rig, &basis));
+        Ok(Self {
+            rig,
+            basis: Arc::new(basis),
+            moving,
+            moving_basis,
+            message,
+        })
+    }
+
+    /// Rig name.
+    pub fn name(&self) -> &str {
+        &self.rig.name
+    }
+
+    /// `positions = rest + B d`, over the moving rows only (`positions` starts as the rest mesh
+    /// and frozen vertices are never written).
+    pub fn deform(&self, d: &[Vec3], scratch: &mut Vec<Vec3>, positions: &mut [Vec3]) {
+        scratch.resize(self.moving.len(), Vec3::ZERO);
+        self.moving_basis.apply(d, scratch);
+        for (&v, u) in self.moving.iter().zip(scratch.iter()) {
+            let v = v as usize;
+            if let (Some(p), Some(r)) = (positions.get_mut(v), self.rig.mesh.positions.get(v)) {
+                *p = *r + *u;
+            }
+        }
+    }
+}
+
+/// Rigs (by name, one of them the default) and layouts (by name) a server offers.
+#[derive(Debug)]
+pub struct Catalog {
+    rigs: BTreeMap<String, Arc<RigEntry>>,
+    layouts: BTreeMap<String, Layout>,
+    default_rig: String,
+}
+
+impl Catalog {
+    /// A catalog whose default rig is `rig`.
+    pub fn new(rig: RigEntry) -> Self {
+        let default_rig = rig.name().to_string();
+        let mut rigs = BTreeMap::new();
+        rigs.insert(default_rig.clone(), Arc::new(rig));
+        Self {
+            rigs,
+            layouts: BTreeMap::new(),
+            default_rig,
+        }
+    }
+
+    /// Adds another rig a hello may name.
+    pub fn add_rig(&mut self, rig: RigEntry) {
+        self.rigs.insert(rig.name().to_string(), Arc::new(rig));
+    }
+
+    /// Adds a layout trackers may send.
+    pub fn add_layout(&mut self, layout: Layout) {
+        self.layouts.insert(layout.name.clone(), layout);
+    }
+
+    /// The named rig, or the default one for `None`.
+    pub fn rig(&self, name: Option<&str>) -> Option<&Arc<RigEntry>> {
+        self.rigs.get(name.unwrap_or(&self.default_rig))
+    }
+
+    /// The named layout.
+    pub fn layout(&self, name: &str) -> Option<&Layout> {
+        self.layouts.get(name)
+    }
+
+    /// Names of the rigs offered.
+    pub fn rig_names(&self) -> Vec<String> {
+        self.rigs.keys().cloned().collect()
+    }
+}

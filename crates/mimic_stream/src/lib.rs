@@ -1,0 +1,28 @@
+//! mimic's live service: tracker sessions in, viewers out.
+//!
+//! [`Server::run`] takes a bound `TcpListener` (and optionally a `UdpSocket`) and a shutdown
+//! future, in the shape of tokio's mini-redis. The first line of each TCP connection says what
+//! it is (`docs/protocol.md`): a recording header opens a tracker session whose following lines
+//! are recording frame lines (so `cat rec.jsonl | nc` feeds one), a viewer hello joins a session
+//! by name and then receives the rig once and every frame's pose and control displacements `d`
+//! (or full positions) as length-prefixed binary messages, and a stats hello (or `GET /stats`)
+//! gets the counters as JSON. Trackers may also send compact binary frames over UDP.
+//!
+//! Every session has its own [`Retargeter`](mimic_retarget::Retargeter); each rig's basis is
+//! built once ([`RigEntry`]) and shared. Everything is bounded: sessions, viewers, message size,
+//! idle time, reply and UDP queues, and viewer queues, which drop their oldest frame (counted per
+//! viewer) so a slow viewer never slows a session. Wire encoding lives in [`wire`].
+//! Depends on mimic_types, mimic_solve, mimic_retarget, mimic_capture and tokio; no renderer.
+
+mod catalog;
+mod lines;
+mod queue;
+mod server;
+mod settings;
+mod stats;
+pub mod wire;
+
+pub use catalog::{Catalog, CatalogError, RigEntry};
+pub use server::Server;
+pub use settings::{DEFAULT_LISTEN, ServerSettings};
+pub use stats::{LatencyHistogram, LatencySummary, ServerStats, SessionSnapshot, ViewerSnapshot};

@@ -1,0 +1,53 @@
+//! Limits and knobs of a server.
+
+use mimic_retarget::RetargetSettings;
+use std::time::Duration;
+
+/// The address `mimic serve` listens on unless told otherwise: loopback only.
+pub const DEFAULT_LISTEN: &str = "127.0.0.1:7878";
+
+/// Limits and pipeline settings of a [`Server`](crate::Server).
+#[derive(Clone, Debug)]
+pub struct ServerSettings {
+    /// Tracker sessions at once; more are refused with `too_many_sessions`.
+    pub max_sessions: usize,
+    /// Viewers at once; more are refused with `too_many_viewers`.
+    pub max_viewers: usize,
+    /// Longest message (tracker line, hello) in bytes; longer lines are answered `too_long`.
+    pub max_message_bytes: usize,
+    /// A tracker (or a connection that has not said hello) silent this long is closed.
+    pub idle_timeout: Duration,
+    /// Frames a viewer's queue holds before the oldest is dropped.
+    pub viewer_queue_frames: usize,
+    /// A viewer whose socket takes longer than this to accept one message is disconnected.
+    pub viewer_write_timeout: Duration,
+    /// Malformed messages in a row after which a tracker connection is closed.
+    pub max_errors_in_a_row: u32,
+    /// UDP frames queued per session before new ones are dropped.
+    pub udp_queue_frames: usize,
+    /// After shutdown is asked for, how long to wait for viewers to receive what was accepted.
+    pub shutdown_grace: Duration,
+    /// Ended sessions kept in the stats.
+    pub ended_sessions_kept: usize,
+    /// Pipeline settings of every session (`positions` and `normals` are forced off: the
+    /// server computes positions itself, only for viewers that ask for them).
+    pub retarget: RetargetSettings,
+}
+
+impl Default for ServerSettings {
+    fn default() -> Self {
+        Self {
+            max_sessions: 128,
+            max_viewers: 256,
+            max_message_bytes: 1 << 20,
+            idle_timeout: Duration::from_secs(30),
+            viewer_queue_frames: 8,
+            viewer_write_timeout: Duration::from_secs(10),
+            max_errors_in_a_row: 16,
+            udp_queue_frames: 8,
+            shutdown_grace: Duration::from_secs(3),
+            ended_sessions_kept: 256,
+            retarget: RetargetSettings::default(),
+        }
+    }
+}

@@ -1,0 +1,215 @@
+//! Counters of sessions and viewers, and a fixed-bucket latency histogram.
+
+use serde::Serialize;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+/// Width of a latency bucket (µs).
+pub const LATENCY_BUCKET_US: u64 = 5;
+/// Buckets; latencies past the last one (20 ms) land in it.
+const BUCKETS: usize = 4000;
+
+/// Latencies in 5 µs buckets up to 20 ms (anything longer counts as 20 ms).
+#[derive(Clone, Debug)]
+pub struct LatencyHistogram {
+    counts: Vec<u64>,
+    total: u64,
+    max_us: u64,
+}
+
+impl Default for LatencyHistogram {
+    fn default() -> Self {
+        Self {
+            counts: vec![0; BUCKETS],
+            total: 0,
+            max_us: 0,
+        }
+    }
+}
+
+impl LatencyHistogram {
+    /// Adds one sample (µs).
+    pub fn record(&mut self, us: u64) {
+        let b = ((us / LATENCY_BUCKET_US) as usize).min(BUCKETS - 1);
+        if let Some(c) = self.counts.get_mut(b) {
+            *c += 1;
+        }
+        self.total += 1;
+        self.max_us = self.max_us.max(us);
+    }
+
+    /// Adds another histogram's samples.
+    pub fn merge(&mut self, other: &LatencyHistogram) {
+        for (a, b) in self.counts.iter_mut().zip(&other.counts) {
+            *a += *b;
+        }
+        self.total += other.total;
+        self.max_us = self.max_us.max(other.max_us);
+    }
+
+    /// Samples recorded.
+    pub fn count(&self) -> u64 {
+        self.total
+    }
+
+    /// Upper edge (µs) of the bucket holding the `q` quantile (0 when empty).
+    pub fn quantile_us(&self, q: f64) -> u64 {
+        if self.total == 0 {
+            return 0;
+        }
+        let rank = ((self.total as f64 * q).ceil() as u64).clamp(1, self.total);
+        let mut seen = 0;
+        for (b, c) in self.counts.iter().enumerate() {
+            seen += c;
+            if seen >= rank {
+                return (b as u64 + 1) * LATENCY_BUCKET_US;
+            }
+        }
+        self.max_us
+    }
+
+    /// p50, p99 and max as a summary.
+    pub fn summary(&self) -> LatencySummary {
+        LatencySummary {
+            count: self.total,
+            p50_us: self.quantile_us(0.5),
+            p99_us: self.quantile_us(0.99),
+            max_us: self.max_us,
+        }
+    }
+}
+
+/// Latency quantiles (bucket upper edges, µs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct LatencySummary {
+    /// Samples.
+    pub count: u64,
+    /// Median.
+    pub p50_us: u64,
+    /// 99th percentile.
+    pub p99_us: u64,
+    /// Largest sample.
+    pub max_us: u64,
+}
+
+/// A counter that many tasks may bump.
+#[derive(Debug, Default)]
+pub struct Counter(AtomicU64);
+
+impl Counter {
+    /// Adds one.
+    pub fn bump(&self) {
+        self.0.fetch_add(1, Ordering::Relaxed);
+    }
+    /// Adds `k`.
+    pub fn add(&self, k: u64) {
+        self.0.fetch_add(k, Ordering::Relaxed);
+    }
+    /// Current value.
+    pub fn get(&self) -> u64 {
+        self.0.load(Ordering::Relaxed)
+    }
+}
+
+/// Counters of one viewer, as served by the stats request.
+#[derive(Clone, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct ViewerSnapshot {
+    /// Viewer id (connection order).
+    pub id: u64,
+    /// Session it watches.
+    pub session: String,
+    /// Whether it asked for positions.
+    pub positions: bool,
+    /// Frames written to it.
+    pub frames_sent: u64,
+    /// Frames dropped from its queue (oldest first) because it did not keep up.
+    pub frames_dropped: u64,
+    /// Frames waiting in its queue now.
+    pub queued: u64,
+    /// Still connected.
+    pub connected: bool,
+}
+
+/// Counters of one tracker session, as served by the stats request.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct SessionSnapshot {
+    /// Session id (also the UDP session id).
+    pub id: u32,
+    /// Session name.
+    pub name: String,
+    /// Rig driven.
+    pub rig: String,
+    /// Landmark layout of the tracker.
+    pub layout: String,
+    /// Tracker still connected.
+    pub active: bool,
+    /// Why it ended, once it has.
+    pub end_reason: Option<String>,
+    /// Frames accepted and retargeted (TCP and UDP).
+    pub frames: u64,
+    /// Of those, frames that came over UDP.
+    pub udp_frames: u64,
+    /// Frames retargeted as tracked / calibrating / lost.
+    pub tracked: u64,
+    /// Frames used to build the neutral.
+    pub calibrating: u64,
+    /// Frames with lost tracking.
+    pub lost: u64,
+    /// Frames dropped because their timestamp was not after the last accepted one (late or out of order).
+    pub late: u64,
+    /// Malformed messages (answered with an error on TCP).
+    pub malformed: u64,
+    /// UDP frames dropped because the session's queue was full.
+    pub udp_queue_dropped: u64,
+    /// Error replies not sent because the tracker did not read them.
+    pub replies_dropped: u64,
+    /// Arrival (line or packet read) to broadcast (pushed to every viewer queue).
+    pub latency: LatencySummary,
+    /// Viewers that watched this session.
+    pub viewers: Vec<ViewerSnapshot>,
+}
+
+/// Counters of the whole server, as served by the stats request.
+#[derive(Clone, Debug, Default, PartialEq, Serialize)]
+pub struct ServerStats {
+    /// Seconds since the server started.
+    pub uptime_s: f64,
+    /// Connections accepted.
+    pub connections: u64,
+    /// Connections refused (hello errors, limits).
+    pub refused: u64,
+    /// Tracker sessions connected now.
+    pub sessions_active: u64,
+    /// Viewers connected now.
+    pub viewers_active: u64,
+    /// UDP packets that were not valid frame packets for a live session.
+    pub udp_bad_packets: u64,
+    /// Latency over every session listed.
+    pub latency: LatencySummary,
+    /// Frames dropped from viewer queues, over every session listed.
+    pub viewer_frames_dropped: u64,
+    /// Live sessions and the most recent ended ones.
+    pub sessions: Vec<SessionSnapshot>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn quantiles_of_a_uniform_spread() {
+        let mut h = LatencyHistogram::default();
+        // 1..=1000 µs: the q quantile is q * 1000 µs, reported as its 5 µs bucket's upper edge.
+        for us in 1..=1000 {
+            h.record(us);
+        }
+        assert_eq!(h.count(), 1000);
+        assert_eq!(h.quantile_us(0.5), 500 + LATENCY_BUCKET_US);
+        assert_eq!(h.quantile_us(0.99), 990 + LATENCY_BUCKET_US);
+        assert_eq!(h.summary().max_us, 1000);
+        let mut g = LatencyHistogram::default();
+        g.record(1_000_000);
+        h.merge(&g);
+        assert_eq!(h.quantile_us(1.0), 20_000);
+        assert_eq!(h.summary().max_us, 1_000_000);
+    }
+}
