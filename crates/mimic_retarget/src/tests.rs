@@ -88,6 +88,7 @@ fn rig_and_layout() -> (Rig, Layout) {
             .iter()
             .map(|v| format!("vertex {v}"))
             .collect(),
+        candide_correspondences: vec![],
     };
     (rig, layout)
 }

@@ -1,6 +1,6 @@
 //! Landmark layouts: what each tracked point is, and which points make the MPEG-4 controls.
 
-use crate::{Fdp, LandmarkFrame, Region};
+use crate::{Fdp, LandmarkFrame, ModelCorrespondence, Region};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
 
@@ -24,6 +24,9 @@ pub struct Layout {
     /// Optional names of the points, by index.
     #[serde(default)]
     pub point_names: Vec<String>,
+    /// Which CANDIDE-3 vertex or edge point each tracked point corresponds to (for the model fitter).
+    #[serde(default)]
+    pub candide_correspondences: Vec<ModelCorrespondence>,
 }
 
 /// One MPEG-4 control point of a layout.
@@ -170,6 +173,7 @@ mod tests {
             stable: vec![0, 1, 3],
             undocumented: vec![],
             point_names: vec![],
+            candide_correspondences: vec![],
         }
     }
 

@@ -4,6 +4,7 @@
 //! This crate does no I/O and depends on nothing but glam, serde and thiserror; loading these
 //! values from files is `mimic_assets`' job, producing frames is `mimic_capture`'s.
 
+pub mod correspondence;
 pub mod fdp;
 pub mod frame;
 pub mod layout;
@@ -13,6 +14,7 @@ pub mod pose;
 pub mod region;
 pub mod rig;
 
+pub use correspondence::ModelCorrespondence;
 pub use fdp::{Fdp, FdpError};
 pub use frame::LandmarkFrame;
 pub use layout::{Layout, LayoutControl, LayoutError};

@@ -1,0 +1,230 @@
+//! The fitter on a synthetic CANDIDE-3 performance with known pose, shape and AU curves,
+//! observed through the `kinect-gfe100` correspondences as a Kinect would: pixels with noise,
+//! depth with noise, and depth missing at random.
+
+use glam::{DQuat, DVec2, DVec3};
+use mimic_fit::{AUV_COUNT, Camera, Candide3, FitSettings, Fitter, PointObservation, Pose};
+use mimic_types::ModelCorrespondence;
+use std::path::PathBuf;
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+fn model() -> Candide3 {
+    let bytes = std::fs::read(repo().join("configs/models/candide3/candide3.wfm")).unwrap();
+    Candide3::parse(&String::from_utf8_lossy(&bytes)).unwrap()
+}
+
+fn correspondences() -> (Vec<ModelCorrespondence>, usize) {
+    let l = mimic_assets::load_layout(&repo().join("configs/layouts/kinect-gfe100.toml")).unwrap();
+    (l.candide_correspondences, l.point_count)
+}
+
+/// xorshift64* and Box-Muller: a reproducible noise source without a dependency.
+struct Rng(u64);
+
+impl Rng {
+    fn uniform(&mut self) -> f64 {
+        self.0 ^= self.0 >> 12;
+        self.0 ^= self.0 << 25;
+        self.0 ^= self.0 >> 27;
+        ((self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
+    }
+    fn normal(&mut self) -> f64 {
+        let (u, v) = (self.uniform(), self.uniform());
+        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
+    }
+}
+
+const FRAMES: usize = 150;
+const NEUTRAL_FRAMES: usize = 10;
+const PIXEL_NOISE: f64 = 0.5;
+const DEPTH_NOISE_M: f64 = 0.002;
+const MISSING_DEPTH: f64 = 0.3;
+
+fn true_pose(i: usize) -> Pose {
+    let t = i as f64 / 15.0;
+    let yaw = 0.25 * (0.7 * t).sin();
+    let pitch = 0.15 * (0.45 * t + 0.3).sin();
+    let roll = 0.08 * (0.3 * t).cos();
+    Pose {
+        rotation: DQuat::from_euler(glam::EulerRot::YXZ, yaw, pitch, roll),
+        translation: DVec3::new(
+            0.05 * (0.2 * t).sin(),
+            0.03 * (0.25 * t).cos(),
+            -1.2 + 0.1 * (0.15 * t).sin(),
+        ),
+        scale: 0.095,
+    }
+}
+
+fn true_au(i: usize) -> Vec<f64> {
+    if i < NEUTRAL_FRAMES {
+        return vec![0.0; AUV_COUNT];
+    }
+    let t = (i - NEUTRAL_FRAMES) as f64 / 15.0;
+    let fitted = FitSettings::default().units;
+    (0..AUV_COUNT)
+        .map(|k| {
+            if !fitted.contains(&k) {
+                return 0.0;
+            }
+            let w = 0.6 + 0.17 * k as f64;
+            let a = (w * t + k as f64).sin();
+            // Half of the units only ever rise (like a jaw drop), half swing both ways.
+            if k % 2 == 0 {
+                0.7 * a.max(0.0)
+            } else {
+                0.5 * a
+            }
+        })
+        .collect()
+}
+
+struct Sequence {
+    obs: Vec<Vec<PointObservation>>,
+    shape: Vec<f64>,
+}
+
+fn sequence(model: &Candide3, corr: &[ModelCorrespondence], point_count: usize) -> Sequence {
+    let camera = Camera::KINECT_V1_COLOUR;
+    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+    let shape: Vec<f64> = (0..model.shape_units.len())
+        .map(|_| 0.3 * (2.0 * rng.uniform() - 1.0))
+        .collect();
+    // A fitter only used to pose the model: its `vertices` is the model's forward map.
+    let mut forward = Fitter::new(
+        model.clone(),
+        corr,
+        point_count,
+        camera,
+        FitSettings::default(),
+    )
+    .unwrap();
+    forward.set_shape(&shape);
+    let mut verts = Vec::new();
+    let obs = (0..FRAMES)
+        .map(|i| {
+            forward.vertices(&true_pose(i), &true_au(i), &mut verts);
+            let mut frame = vec![PointObservation::default(); point_count];
+            for c in corr {
+                let x: DVec3 = c
+                    .blend()
+                    .unwrap()
+                    .iter()
+                    .map(|&(v, w)| verts[v] * f64::from(w))
+                    .sum();
+                let pixel =
+                    camera.project(x) + DVec2::new(rng.normal(), rng.normal()) * PIXEL_NOISE;
+                let position = (rng.uniform() >= MISSING_DEPTH)
+                    .then(|| camera.back_project(pixel, -x.z + DEPTH_NOISE_M * rng.normal()));
+                frame[c.point] = PointObservation {
+                    pixel: Some(pixel),
+                    position,
+                };
+            }
+            frame
+        })
+        .collect();
+    Sequence { obs, shape }
+}
+
+#[test]
+fn recovers_pose_and_au_curves_of_a_synthetic_performance() {
+    let model = model();
+    let (corr, point_count) = correspondences();
+    let seq = sequence(&model, &corr, point_count);
+    let mut fitter = Fitter::new(
+        model,
+        &corr,
+        point_count,
+        Camera::KINECT_V1_COLOUR,
+        FitSettings::default(),
+    )
+    .unwrap();
+    let first: Vec<&[PointObservation]> = seq.obs[..NEUTRAL_FRAMES]
+        .iter()
+        .map(|f| f.as_slice())
+        .collect();
+    assert_eq!(fitter.estimate_shape(&first), NEUTRAL_FRAMES);
+    // Shape units the correspondences see (not: 6 cheeks z, 9 nose pointing up, 13 chin width, which
+    // move only unobserved vertices or contour points): 10 frames of ~70 points at 0.5 px pin each to
+    // ~0.5 / (5 px per unit * sqrt(700)) ~ 0.004, plus the 2 px ridge's pull (<= 4 / (25 * 70) of the
+    // value, 0.3 at most): 0.05 is ample.
+    let observable = [0, 1, 2, 3, 4, 5, 7, 8, 10, 11, 12];
+    let shape_err = observable
+        .iter()
+        .map(|&j| (fitter.shape()[j] - seq.shape[j]).abs())
+        .fold(0.0, f64::max);
+    assert!(
+        shape_err < 0.05,
+        "shape error {shape_err}: {:?} vs {:?}",
+        fitter.shape(),
+        seq.shape
+    );
+    let mut au_sq = [0.0f64; AUV_COUNT];
+    let (mut rot_max, mut trans_max, mut res_max) = (0.0f64, 0.0f64, 0.0f64);
+    for (i, obs) in seq.obs.iter().enumerate() {
+        let r = fitter.fit(obs);
+        assert!(r.tracked, "frame {i} lost: {r:?}");
+        let truth = true_pose(i);
+        rot_max = rot_max.max(r.pose.rotation.angle_between(truth.rotation).to_degrees());
+        trans_max = trans_max.max((r.pose.translation - truth.translation).length());
+        res_max = res_max.max(r.residual_px);
+        for (k, (a, b)) in r.au.iter().zip(true_au(i)).enumerate() {
+            au_sq[k] += (a - b) * (a - b);
+        }
+    }
+    let au_rms: Vec<f64> = au_sq.iter().map(|s| (s / FRAMES as f64).sqrt()).collect();
+    eprintln!(
+        "shape max err {shape_err:.3}, rotation max {rot_max:.2} deg, translation max {:.1} mm, residual max {res_max:.2} px, AU rms {au_rms:.3?}",
+        trans_max * 1e3
+    );
+    // Tolerances. A unit AU moves its vertices by ~0.1-0.26 model units = 0.1 * 0.095 m * 531 px / 1.2 m
+    // ~ 4-11 px; with 0.5 px pixel noise on the ~4-12 points an AU moves, its standard error is about
+    // 0.5 / (4 px * sqrt(4)) ~ 0.06 for the weakest unit, and the priors (1 px ridge, 0.5 px smoothing
+    // against ~10-40 px^2 of data information) bias it by at most ~10 %. So RMS <= 0.15 (about 2.5 sigma
+    // of the weakest unit plus the bias) per unit.
+    for (k, e) in au_rms.iter().enumerate() {
+        assert!(*e < 0.15, "AU {k} RMS error {e}");
+    }
+    // Pose: ~70 points at 0.5 px on a ~45 px face give rotation to ~0.5 / 45 / sqrt(70) rad ~ 0.1 deg per
+    // axis and depth to ~1.2 m * 0.5 / 45 / sqrt(70) ~ 2 mm. Pitch is coupled to the vertical AUs and the
+    // unobservable shape units (cheeks z moves depth only): an error of 0.05 in a unit that moves ~8
+    // points by 0.1 units, on a face ~0.4 units deep, tilts it by up to 0.05 * 0.1 / 0.4 rad ~ 0.7 deg.
+    // Bound: 2 deg (measured max 1.5 deg) and 10 mm.
+    assert!(rot_max < 2.0, "rotation error {rot_max} deg");
+    assert!(trans_max < 0.010, "translation error {trans_max} m");
+    // The residual is the pixel noise: RMS of a 2D N(0, 0.5 px) offset is 0.5 * sqrt(2) = 0.71 px; allow 1.5x.
+    assert!(
+        res_max < 1.5 * PIXEL_NOISE * 2f64.sqrt(),
+        "residual {res_max}"
+    );
+}
+
+#[test]
+fn frames_with_too_few_points_are_lost_not_invented() {
+    let model = model();
+    let (corr, point_count) = correspondences();
+    let seq = sequence(&model, &corr, point_count);
+    let mut fitter = Fitter::new(
+        model,
+        &corr,
+        point_count,
+        Camera::KINECT_V1_COLOUR,
+        FitSettings::default(),
+    )
+    .unwrap();
+    assert!(fitter.fit(&seq.obs[0]).tracked);
+    // Keep only 8 correspondences (fewer than min_points = 12).
+    let mut sparse = seq.obs[1].clone();
+    for c in corr.iter().skip(8) {
+        sparse[c.point] = PointObservation::default();
+    }
+    let r = fitter.fit(&sparse);
+    assert!(!r.tracked);
+    assert_eq!(r.points_used, 8);
+    // The next full frame is fitted again from a cold start.
+    assert!(fitter.fit(&seq.obs[2]).tracked);
+}
