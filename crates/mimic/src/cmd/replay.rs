@@ -111,6 +111,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Normals are only written by the binary format; OBJ readers recompute their own.
     let settings = mimic_retarget::RetargetSettings {
         normals: args.format == OutFormat::Bin && args.out.is_some(),
+        // Blendshape mode blends the mesh itself: skip `B d`.
+        positions: args.blend.mode == crate::cmd::morph::Mode::Freeform,
         ..args.pipeline.settings()
     };
     let mut prepared = prepare_with(&args.rig, settings, &header.layout)?;
