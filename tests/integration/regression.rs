@@ -1,5 +1,6 @@
 //! Regression tests on recorded sequences: every shipped recording onto every shipped rig with
-//! both solvers, compared with golden per-frame metrics in `tests/golden/`.
+//! both solvers, checked for NaN and lost frames, and compared with golden per-frame metrics in
+//! `tests/golden/`.
 //!
 //! After an intended change, re-bless with
 //! `MIMIC_BLESS=1 cargo test -p mimic --test integration regression` and review the diff.
@@ -64,6 +65,19 @@ fn regression_against_golden_metrics() {
                     "--metrics",
                     metrics.to_str().unwrap(),
                 ]);
+                // Sanity before comparison: no NaN anywhere, every accepted frame accounted for,
+                // and nearly all of them tracked.
+                let frames_in = s["frames_in"].as_u64().unwrap();
+                assert!(frames_in >= 100, "{name}: {frames_in} frames");
+                assert_eq!(s["frames_with_non_finite_vertices"], 0, "{name}");
+                let tracked = s["tracked"].as_u64().unwrap();
+                let sum =
+                    tracked + s["lost"].as_u64().unwrap() + s["calibrating"].as_u64().unwrap();
+                assert_eq!(sum, frames_in, "{name}");
+                assert!(
+                    tracked * 10 >= frames_in * 9,
+                    "{name}: only {tracked} of {frames_in} tracked"
+                );
                 let now = json!({
                     "recording": rec, "rig": rig, "solver": solver,
                     "counts": {
