@@ -1,0 +1,704 @@
+//! The headless renderer: device, offscreen targets, pipelines, and the per-rig GPU buffers.
+
+use crate::{Camera, Image, RenderError};
+use glam::{Mat4, Quat, Vec3};
+use mimic_solve::Basis;
+use std::sync::mpsc;
+use wgpu::util::DeviceExt;
+
+/// Most controls a rig may have: the per-frame uniform holds this many displacements.
+pub const MAX_CONTROLS: usize = 64;
+
+/// Colour format of the offscreen target (and of the bytes read back): sRGB-encoded RGBA8.
+const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+/// Depth format.
+const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
+/// Samples per pixel of the multisampled target.
+const SAMPLES: u32 = 4;
+/// Threads per workgroup of the compute passes (matches `@workgroup_size` in compute.wgsl).
+const WORKGROUP: u32 = 64;
+
+/// How the surface is coloured.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Shading {
+    /// Skin albedo with per-pixel diffuse plus ambient light.
+    Lit,
+    /// Heat map of the displacement magnitude `|P_i - P0_i|`, computed in the shader; `full_scale`
+    /// (rig units) maps to the top of the ramp.
+    Displacement {
+        /// Displacement shown as the hottest colour.
+        full_scale: f32,
+    },
+    /// Heat map of one control's weight `B[i, control]` (0 cold, 1 hot).
+    ControlWeight {
+        /// Column of the basis.
+        control: usize,
+    },
+}
+
+/// What deforms the rig this frame.
+#[derive(Clone, Copy, Debug)]
+pub enum Deform<'a> {
+    /// The rest shape.
+    Rest,
+    /// Control displacements `d` (one per basis column): the GPU computes `P = P0 + B d` and normals.
+    Controls(&'a [Vec3]),
+    /// Full vertex positions; normals too, or `None` to recompute them on the GPU.
+    Positions {
+        /// One position per vertex.
+        positions: &'a [Vec3],
+        /// One normal per vertex, or `None`.
+        normals: Option<&'a [Vec3]>,
+    },
+}
+
+/// Camera, head transform, shading and light of a frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct View {
+    /// The camera.
+    pub camera: Camera,
+    /// Rig space to world (e.g. the head pose); identity for none.
+    pub model: Mat4,
+    /// How the surface is coloured.
+    pub shading: Shading,
+    /// Direction towards the light, in camera axes (x right, y up, z towards the viewer).
+    pub light: Vec3,
+    /// Ambient share of the light, 0..=1.
+    pub ambient: f32,
+    /// Background colour, linear RGBA.
+    pub background: [f64; 4],
+}
+
+impl View {
+    /// A lit view from `camera`, no head motion, light from the upper left of the camera.
+    pub fn lit(camera: Camera) -> Self {
+        Self {
+            camera,
+            model: Mat4::IDENTITY,
+            shading: Shading::Lit,
+            light: Vec3::new(-0.4, 0.5, 1.0),
+            ambient: 0.25,
+            background: [0.02, 0.025, 0.035, 1.0],
+        }
+    }
+
+    /// The transform that turns the head by `rotation` about `pivot` (e.g. the rig's centre).
+    pub fn head_rotation(rotation: Quat, pivot: Vec3) -> Mat4 {
+        Mat4::from_translation(pivot) * Mat4::from_quat(rotation) * Mat4::from_translation(-pivot)
+    }
+}
+
+/// The per-frame uniform, laid out as `Frame` in the shaders.
+#[repr(C)]
+#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
+struct FrameUniform {
+    view_proj: [[f32; 4]; 4],
+    model: [[f32; 4]; 4],
+    light: [f32; 4],
+    params: [f32; 4],
+    modes: [u32; 4],
+    d: [[f32; 4]; MAX_CONTROLS],
+}
+
+/// A rig uploaded once: rest positions, the basis, triangles with their per-vertex incidence
+/// lists, and the buffers the compute passes write (morphed positions, normals).
+pub struct RigGpu {
+    vertex_count: u32,
+    control_count: u32,
+    index_count: u32,
+    uniform: wgpu::Buffer,
+    positions: wgpu::Buffer,
+    normals: wgpu::Buffer,
+    morph_group: wgpu::BindGroup,
+    normals_group: wgpu::BindGroup,
+    draw_group: wgpu::BindGroup,
+    indices: wgpu::Buffer,
+}
+
+impl RigGpu {
+    /// Number of vertices.
+    pub fn vertex_count(&self) -> usize {
+        self.vertex_count as usize
+    }
+
+    /// Number of controls (basis columns).
+    pub fn control_count(&self) -> usize {
+        self.control_count as usize
+    }
+}
+
+/// Headless renderer: its own device and an offscreen multisampled colour + depth target.
+pub struct Renderer {
+    device: wgpu::Device,
+    queue: wgpu::Queue,
+    adapter: String,
+    width: u32,
+    height: u32,
+    color: wgpu::TextureView,
+    resolve: wgpu::Texture,
+    resolve_view: wgpu::TextureView,
+    depth: wgpu::TextureView,
+    readback: wgpu::Buffer,
+    padded_row: u32,
+    morph: wgpu::ComputePipeline,
+    normals: wgpu::ComputePipeline,
+    draw: wgpu::RenderPipeline,
+}
+
+fn vec4s(v: &[Vec3], w: f32) -> Vec<[f32; 4]> {
+    v.iter().map(|p| [p.x, p.y, p.z, w]).collect()
+}
+
+impl Renderer {
+    /// Creates a device on the first adapter wgpu finds (a GPU, or Mesa's lavapipe) and a
+    /// `width x height` target.
+    pub fn new(width: u32, height: u32) -> Result<Self, RenderError> {
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
+        let adapter = pollster::block_on(
+            instance.request_adapter(&wgpu::RequestAdapterOptions::default()),
+        )
+        .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
+        let info = adapter.get_info();
+        let max = adapter.limits().max_texture_dimension_2d;
+        if width == 0 || height == 0 || width > max || height > max {
+            return Err(RenderError::BadSize { width, height, max });
+        }
+        let limits = wgpu::Limits {
+            max_storage_buffer_binding_size: adapter.limits().max_storage_buffer_binding_size,
+            max_buffer_size: adapter.limits().max_buffer_size,
+            max_texture_dimension_2d: max,
+            ..wgpu::Limits::default()
+        };
+        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
+            label: Some("mimic_render"),
+            required_limits: limits,
+            ..Default::default()
+        }))
+        .map_err(|e| RenderError::NoDevice(e.to_string()))?;
+
+        let compute_src = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("compute.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("shaders/compute.wgsl").into()),
+        });
+        let render_src = device.create_shader_module(wgpu::ShaderModuleDescriptor {
+            label: Some("render.wgsl"),
+            source: wgpu::ShaderSource::Wgsl(include_str!("shaders/render.wgsl").into()),
+        });
+        let compute = |entry: &str| {
+            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
+                label: Some(entry),
+                layout: None,
+                module: &compute_src,
+                entry_point: Some(entry),
+                compilation_options: Default::default(),
+                cache: None,
+            })
+        };
+        let morph = compute("morph");
+        let normals = compute("vertex_normals");
+        let draw = device.create_render_pipeline(&wgpu::RenderPipelineDescriptor {
+            label: Some("draw"),
+            layout: None,
+            vertex: wgpu::VertexState {
+                module: &render_src,
+                entry_point: Some("vs_main"),
+                compilation_options: Default::default(),
+                buffers: &[],
+            },
+            primitive: wgpu::PrimitiveState {
+                topology: wgpu::PrimitiveTopology::TriangleList,
+                front_face: wgpu::FrontFace::Ccw,
+                // Inner surfaces (mouth, eye sockets) are seen from behind: two-sided lighting.
+                cull_mode: None,
+                ..Default::default()
+            },
+            depth_stencil: Some(wgpu::DepthStencilState {
+                format: DEPTH_FORMAT,
+                depth_write_enabled: Some(true),
+                depth_compare: Some(wgpu::CompareFunction::Less),
+                stencil: Default::default(),
+                bias: Default::default(),
+            }),
+            multisample: wgpu::MultisampleState {
+                count: SAMPLES,
+                ..Default::default()
+            },
+            fragment: Some(wgpu::FragmentState {
+                module: &render_src,
+                entry_point: Some("fs_main"),
+                compilation_options: Default::default(),
+                targets: &[Some(wgpu::ColorTargetState {
+                    format: COLOR_FORMAT,
+                    blend: None,
+                    write_mask: wgpu::ColorWrites::ALL,
+                })],
+            }),
+            multiview_mask: None,
+            cache: None,
+        });
+
+        let target = |label, format, samples, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: samples,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let color = target(
+            "color",
+            COLOR_FORMAT,
+            SAMPLES,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        )
+        .create_view(&Default::default());
+        let resolve = target(
+            "resolve",
+            COLOR_FORMAT,
+            1,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
+        let resolve_view = resolve.create_view(&Default::default());
+        let depth = target(
+            "depth",
+            DEPTH_FORMAT,
+            SAMPLES,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        )
+        .create_view(&Default::default());
+        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let padded_row = (width * 4).div_ceil(align) * align;
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: u64::from(padded_row) * u64::from(height),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        Ok(Self {
+            device,
+            queue,
+            adapter: format!("{} ({:?}, {:?})", info.name, info.device_type, info.backend),
+            width,
+            height,
+            color,
+            resolve,
+            resolve_view,
+            depth,
+            readback,
+            padded_row,
+            morph,
+            normals,
+            draw,
+        })
+    }
+
+    /// Name, type and backend of the adapter in use, e.g. `llvmpipe (LLVM 19.1.1, 256 bits) (Cpu, Vulkan)`.
+    pub fn adapter(&self) -> &str {
+        &self.adapter
+    }
+
+    /// Image size `(width, height)`.
+    pub fn size(&self) -> (u32, u32) {
+        (self.width, self.height)
+    }
+
+    /// Uploads a rig: rest `positions`, the `triangles` to draw (counter-clockwise from outside;
+    /// normals are recomputed from these), and the basis (`None`: a rig that only takes full positions).
+    pub fn upload_rig(
+        &self,
+        positions: &[Vec3],
+        triangles: &[[u32; 3]],
+        basis: Option<&Basis>,
+    ) -> Result<RigGpu, RenderError> {
+        let n = positions.len();
+        if let Some(b) = basis
+            && b.vertex_count() != n
+        {
+            return Err(RenderError::SizeMismatch {
+                what: "basis rows vs mesh vertices",
+                got: b.vertex_count(),
+                expected: n,
+            });
+        }
+        let m = basis.map_or(0, Basis::control_count);
+        if m > MAX_CONTROLS {
+            return Err(RenderError::TooManyControls {
+                got: m,
+                max: MAX_CONTROLS,
+            });
+        }
+        // Triangles around each vertex, in triangle order (the order the CPU sums them in).
+        let mut count = vec![0u32; n + 1];
+        for (t, tri) in triangles.iter().enumerate() {
+            for &v in tri {
+                if v as usize >= n {
+                    return Err(RenderError::BadIndex {
+                        triangle: t,
+                        vertex: v,
+                        vertex_count: n,
+                    });
+                }
+                count[v as usize + 1] += 1;
+            }
+        }
+        for i in 0..n {
+            count[i + 1] += count[i];
+        }
+        let first = count;
+        let mut fill = first.clone();
+        let mut incident = vec![0u32; first[n] as usize];
+        for (t, tri) in triangles.iter().enumerate() {
+            for &v in tri {
+                let at = &mut fill[v as usize];
+                incident[*at as usize] = t as u32;
+                *at += 1;
+            }
+        }
+        let flat: Vec<u32> = triangles.iter().flatten().copied().collect();
+        let rest = vec4s(positions, 1.0);
+        let basis_data: &[f32] = basis.map_or(&[], Basis::as_slice);
+
+        let storage = wgpu::BufferUsages::STORAGE;
+        let init = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
+            // Zero-sized bindings are invalid: pad empty buffers to one word.
+            let padded;
+            let contents = if bytes.is_empty() {
+                padded = [0u8; 16];
+                &padded[..]
+            } else {
+                bytes
+            };
+            self.device
+                .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                    label: Some(label),
+                    contents,
+                    usage,
+                })
+        };
+        let uniform = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("frame"),
+            size: std::mem::size_of::<FrameUniform>() as u64,
+            usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
+        let rest_buf = init("rest", bytemuck::cast_slice(&rest), storage);
+        let basis_buf = init("basis", bytemuck::cast_slice(basis_data), storage);
+        let rw = storage | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC;
+        let positions_buf = init("positions", bytemuck::cast_slice(&rest), rw);
+        let normals_buf = init(
+            "normals",
+            bytemuck::cast_slice(&vec![[0f32; 4]; n]),
+            rw,
+        );
+        let indices = init(
+            "indices",
+            bytemuck::cast_slice(&flat),
+            storage | wgpu::BufferUsages::INDEX,
+        );
+        let first_buf = init("first", bytemuck::cast_slice(&first), storage);
+        let incident_buf = init("incident", bytemuck::cast_slice(&incident), storage);
+
+        let group = |layout: &wgpu::BindGroupLayout, entries: &[(u32, &wgpu::Buffer)]| {
+            let entries: Vec<wgpu::BindGroupEntry> = entries
+                .iter()
+                .map(|(binding, b)| wgpu::BindGroupEntry {
+                    binding: *binding,
+                    resource: b.as_entire_binding(),
+                })
+                .collect();
+            self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+                label: None,
+                layout,
+                entries: &entries,
+            })
+        };
+        let morph_group = group(
+            &self.morph.get_bind_group_layout(0),
+            &[
+                (0, &uniform),
+                (1, &rest_buf),
+                (2, &basis_buf),
+                (3, &positions_buf),
+            ],
+        );
+        let normals_group = group(
+            &self.normals.get_bind_group_layout(0),
+            &[
+                (4, &positions_buf),
+                (5, &indices),
+                (6, &first_buf),
+                (7, &incident_buf),
+                (8, &normals_buf),
+            ],
+        );
+        let draw_group = group(
+            &self.draw.get_bind_group_layout(0),
+            &[
+                (0, &uniform),
+                (1, &rest_buf),
+                (2, &basis_buf),
+                (3, &positions_buf),
+                (4, &normals_buf),
+            ],
+        );
+        Ok(RigGpu {
+            vertex_count: n as u32,
+            control_count: m as u32,
+            index_count: flat.len() as u32,
+            uniform,
+            positions: positions_buf,
+            normals: normals_buf,
+            morph_group,
+            normals_group,
+            draw_group,
+            indices,
+        })
+    }
+
+    fn uniform(&self, rig: &RigGpu, d: &[Vec3], view: Option<&View>) -> Result<FrameUniform, RenderError> {
+        let mut u = FrameUniform {
+            view_proj: Mat4::IDENTITY.to_cols_array_2d(),
+            model: Mat4::IDENTITY.to_cols_array_2d(),
+            light: [0.0, 0.0, 1.0, 0.25],
+            params: [1.0, 0.0, 0.0, 0.0],
+            modes: [0, 0, rig.vertex_count, rig.control_count],
+            d: [[0.0; 4]; MAX_CONTROLS],
+        };
+        for (slot, v) in u.d.iter_mut().zip(d) {
+            *slot = [v.x, v.y, v.z, 0.0];
+        }
+        if let Some(view) = view {
+            let aspect = self.width as f32 / self.height as f32;
+            u.view_proj = view.camera.view_proj(aspect).to_cols_array_2d();
+            u.model = view.model.to_cols_array_2d();
+            // Light given in camera axes: turn it into world axes with the inverse view rotation.
+            let look = Mat4::look_at_rh(view.camera.eye, view.camera.target, Vec3::Y);
+            let light = look.inverse().transform_vector3(view.light).normalize_or_zero();
+            u.light = [light.x, light.y, light.z, view.ambient.clamp(0.0, 1.0)];
+            match view.shading {
+                Shading::Lit => {}
+                Shading::Displacement { full_scale } => {
+                    u.modes[0] = 1;
+                    u.params[0] = full_scale;
+                }
+                Shading::ControlWeight { control } => {
+                    if control >= rig.control_count() {
+                        return Err(RenderError::NoSuchControl {
+                            control,
+                            count: rig.control_count(),
+                        });
+                    }
+                    u.modes[0] = 2;
+                    u.modes[1] = control as u32;
+                }
+            }
+        }
+        Ok(u)
+    }
+
+    /// Runs the deformation on the GPU (morph and/or normals passes, or uploads of full positions)
+    /// into the rig's position and normal buffers, with `view`'s uniform for a following draw.
+    fn deform_into(
+        &self,
+        rig: &RigGpu,
+        deform: Deform<'_>,
+        view: Option<&View>,
+        encoder: &mut wgpu::CommandEncoder,
+    ) -> Result<(), RenderError> {
+        let n = rig.vertex_count();
+        let check = |what, got: usize, expected: usize| {
+            if got == expected {
+                Ok(())
+            } else {
+                Err(RenderError::SizeMismatch {
+                    what,
+                    got,
+                    expected,
+                })
+            }
+        };
+        let (d, morph, normals): (&[Vec3], bool, bool) = match deform {
+            Deform::Rest => (&[], true, true),
+            Deform::Controls(d) => {
+                check("control displacements vs basis columns", d.len(), rig.control_count())?;
+                (d, true, true)
+            }
+            Deform::Positions { positions, normals } => {
+                check("positions vs vertices", positions.len(), n)?;
+                self.queue.write_buffer(
+                    &rig.positions,
+                    0,
+                    bytemuck::cast_slice(&vec4s(positions, 1.0)),
+                );
+                if let Some(nrm) = normals {
+                    check("normals vs vertices", nrm.len(), n)?;
+                    self.queue
+                        .write_buffer(&rig.normals, 0, bytemuck::cast_slice(&vec4s(nrm, 0.0)));
+                }
+                (&[], false, normals.is_none())
+            }
+        };
+        let u = self.uniform(rig, d, view)?;
+        self.queue
+            .write_buffer(&rig.uniform, 0, bytemuck::bytes_of(&u));
+        let groups = rig.vertex_count.div_ceil(WORKGROUP);
+        let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
+            label: Some("deform"),
+            timestamp_writes: None,
+        });
+        if morph {
+            pass.set_pipeline(&self.morph);
+            pass.set_bind_group(0, &rig.morph_group, &[]);
+            pass.dispatch_workgroups(groups, 1, 1);
+        }
+        if normals {
+            pass.set_pipeline(&self.normals);
+            pass.set_bind_group(0, &rig.normals_group, &[]);
+            pass.dispatch_workgroups(groups, 1, 1);
+        }
+        Ok(())
+    }
+
+    /// Deforms the rig on the GPU without drawing (its positions and normals can then be read back).
+    pub fn deform(&self, rig: &RigGpu, deform: Deform<'_>) -> Result<(), RenderError> {
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        self.deform_into(rig, deform, None, &mut encoder)?;
+        self.queue.submit([encoder.finish()]);
+        Ok(())
+    }
+
+    /// Deforms the rig and renders it; returns the image (sRGB RGBA8).
+    pub fn render(
+        &self,
+        rig: &RigGpu,
+        deform: Deform<'_>,
+        view: &View,
+    ) -> Result<Image, RenderError> {
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        self.deform_into(rig, deform, Some(view), &mut encoder)?;
+        {
+            let [r, g, b, a] = view.background;
+            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+                label: Some("draw"),
+                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                    view: &self.color,
+                    depth_slice: None,
+                    resolve_target: Some(&self.resolve_view),
+                    ops: wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a }),
+                        store: wgpu::StoreOp::Discard,
+                    },
+                })],
+                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                    view: &self.depth,
+                    depth_ops: Some(wgpu::Operations {
+                        load: wgpu::LoadOp::Clear(1.0),
+                        store: wgpu::StoreOp::Discard,
+                    }),
+                    stencil_ops: None,
+                }),
+                timestamp_writes: None,
+                occlusion_query_set: None,
+                multiview_mask: None,
+            });
+            pass.set_pipeline(&self.draw);
+            pass.set_bind_group(0, &rig.draw_group, &[]);
+            pass.set_index_buffer(rig.indices.slice(..), wgpu::IndexFormat::Uint32);
+            pass.draw_indexed(0..rig.index_count, 0, 0..1);
+        }
+        encoder.copy_texture_to_buffer(
+            wgpu::TexelCopyTextureInfo {
+                texture: &self.resolve,
+                mip_level: 0,
+                origin: wgpu::Origin3d::ZERO,
+                aspect: wgpu::TextureAspect::All,
+            },
+            wgpu::TexelCopyBufferInfo {
+                buffer: &self.readback,
+                layout: wgpu::TexelCopyBufferLayout {
+                    offset: 0,
+                    bytes_per_row: Some(self.padded_row),
+                    rows_per_image: Some(self.height),
+                },
+            },
+            wgpu::Extent3d {
+                width: self.width,
+                height: self.height,
+                depth_or_array_layers: 1,
+            },
+        );
+        self.queue.submit([encoder.finish()]);
+        let bytes = self.map_read(&self.readback)?;
+        let row = self.width as usize * 4;
+        let mut rgba = Vec::with_capacity(row * self.height as usize);
+        for r in bytes.chunks(self.padded_row as usize).take(self.height as usize) {
+            rgba.extend_from_slice(&r[..row]);
+        }
+        Ok(Image {
+            width: self.width,
+            height: self.height,
+            rgba,
+        })
+    }
+
+    /// The rig's current GPU positions (after [`Renderer::deform`] or [`Renderer::render`]).
+    pub fn read_positions(&self, rig: &RigGpu) -> Result<Vec<Vec3>, RenderError> {
+        self.read_vec4s(&rig.positions, rig.vertex_count())
+    }
+
+    /// The rig's current GPU normals (after [`Renderer::deform`] or [`Renderer::render`]).
+    pub fn read_normals(&self, rig: &RigGpu) -> Result<Vec<Vec3>, RenderError> {
+        self.read_vec4s(&rig.normals, rig.vertex_count())
+    }
+
+    fn read_vec4s(&self, src: &wgpu::Buffer, n: usize) -> Result<Vec<Vec3>, RenderError> {
+        let size = src.size();
+        let staging = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("staging"),
+            size,
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.copy_buffer_to_buffer(src, 0, &staging, 0, size);
+        self.queue.submit([encoder.finish()]);
+        let bytes = self.map_read(&staging)?;
+        let floats: &[f32] = bytemuck::try_cast_slice(&bytes)
+            .map_err(|e| RenderError::Readback(e.to_string()))?;
+        Ok(floats
+            .chunks_exact(4)
+            .take(n)
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect())
+    }
+
+    /// Waits for the queue, maps `buffer` and copies it out.
+    fn map_read(&self, buffer: &wgpu::Buffer) -> Result<Vec<u8>, RenderError> {
+        let (tx, rx) = mpsc::channel();
+        buffer.map_async(wgpu::MapMode::Read, .., move |r| {
+            // The receiver outlives the poll below; a failed send only means it is gone.
+            let _ = tx.send(r);
+        });
+        self.device
+            .poll(wgpu::PollType::wait_indefinitely())
+            .map_err(|e| RenderError::Readback(e.to_string()))?;
+        rx.recv()
+            .map_err(|e| RenderError::Readback(e.to_string()))?
+            .map_err(|e| RenderError::Readback(e.to_string()))?;
+        let bytes = buffer
+            .get_mapped_range(..)
+            .map_err(|e| RenderError::Readback(e.to_string()))?
+            .to_vec();
+        buffer.unmap();
+        Ok(bytes)
+    }
+}

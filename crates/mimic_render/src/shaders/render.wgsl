@@ -1,0 +1,80 @@
+// Draws the morphed rig: fetches vertex i of the morphed positions and normals by index, applies the
+// head pose and the camera, and shades with diffuse + ambient light or a heat map.
+
+struct Frame {
+    view_proj: mat4x4<f32>,
+    model: mat4x4<f32>,
+    light: vec4<f32>,
+    params: vec4<f32>,
+    modes: vec4<u32>,
+    d: array<vec4<f32>, 64>,
+}
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<storage, read> rest: array<vec4<f32>>;
+@group(0) @binding(2) var<storage, read> basis: array<f32>;
+@group(0) @binding(3) var<storage, read> positions: array<vec4<f32>>;
+@group(0) @binding(4) var<storage, read> normals: array<vec4<f32>>;
+
+const MODE_LIT: u32 = 0u;
+const MODE_HEAT_DISPLACEMENT: u32 = 1u;
+const MODE_HEAT_CONTROL: u32 = 2u;
+
+struct VsOut {
+    @builtin(position) clip: vec4<f32>,
+    @location(0) normal: vec3<f32>,
+    @location(1) heat: f32,
+}
+
+@vertex
+fn vs_main(@builtin(vertex_index) i: u32) -> VsOut {
+    let p = positions[i].xyz;
+    let world = frame.model * vec4<f32>(p, 1.0);
+    var out: VsOut;
+    out.clip = frame.view_proj * world;
+    out.normal = (frame.model * vec4<f32>(normals[i].xyz, 0.0)).xyz;
+    var heat = 0.0;
+    if (frame.modes.x == MODE_HEAT_DISPLACEMENT) {
+        heat = length(p - rest[i].xyz) / max(frame.params.x, 1e-12);
+    } else if (frame.modes.x == MODE_HEAT_CONTROL) {
+        heat = basis[i * frame.modes.w + frame.modes.y];
+    }
+    out.heat = heat;
+    return out;
+}
+
+// Piecewise-linear blue -> cyan -> green -> yellow -> red ramp over [0, 1].
+fn ramp(t: f32) -> vec3<f32> {
+    let x = clamp(t, 0.0, 1.0) * 4.0;
+    let k = min(floor(x), 3.0);
+    let f = x - k;
+    var stops = array<vec3<f32>, 5>(
+        vec3<f32>(0.05, 0.10, 0.60),
+        vec3<f32>(0.00, 0.65, 0.90),
+        vec3<f32>(0.15, 0.80, 0.25),
+        vec3<f32>(0.98, 0.85, 0.10),
+        vec3<f32>(0.85, 0.08, 0.05),
+    );
+    let ki = u32(k);
+    return mix(stops[ki], stops[ki + 1u], f);
+}
+
+@fragment
+fn fs_main(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f32> {
+    var n = in.normal;
+    let len = length(n);
+    if (len > 0.0) {
+        n = n / len;
+    }
+    if (!front) {
+        n = -n;
+    }
+    let diffuse = max(dot(n, normalize(frame.light.xyz)), 0.0);
+    let ambient = frame.light.w;
+    var albedo = vec3<f32>(0.80, 0.66, 0.58);
+    if (frame.modes.x != MODE_LIT) {
+        albedo = ramp(in.heat);
+    }
+    let c = albedo * (ambient + (1.0 - ambient) * diffuse);
+    return vec4<f32>(c, 1.0);
+}
