@@ -235,3 +235,71 @@ fn blendshape_replay_meshes_are_the_neutral_plus_the_weighted_targets() {
     }
     assert!(checked >= 1, "no frame with a visible expression checked");
 }
+
+#[test]
+fn morph_apply_turns_named_arkit_weights_into_meshes() {
+    // A capture app's CSV (Live Link Face style: capitalised ARKit names, extra columns). ARKit's
+    // single BrowInnerUp drives both ICT halves; CheekPuff names no target and is ignored.
+    let dir = tempfile::tempdir().unwrap();
+    let csv = dir.path().join("arkit.csv");
+    std::fs::write(
+        &csv,
+        "Timecode,BlendShapeCount,JawOpen,MouthSmileLeft,BrowInnerUp,CheekPuff\n\
+         00:00:00:00.000,61,0,0,0,0\n\
+         00:00:00:01.000,61,0.6,0.3,0.2,0.9\n",
+    )
+    .unwrap();
+    let out = dir.path().join("obj");
+    let o = mimic(&[
+        "morph",
+        "apply",
+        csv.to_str().unwrap(),
+        "--rig",
+        "ict-face",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("2 frames, 2 written")
+            && stdout.contains("ignored: Timecode BlendShapeCount CheekPuff"),
+        "{stdout}"
+    );
+    let (rig, targets) = ict();
+    let want = blend(
+        &rig,
+        &targets,
+        &[
+            ("jawOpen", 0.6),
+            ("mouthSmileLeft", 0.3),
+            ("browInnerUp_L", 0.2),
+            ("browInnerUp_R", 0.2),
+        ],
+    );
+    let got = mimic_assets::load_obj(&out.join("frame_000001.obj")).unwrap();
+    // Same sums in f32 in another order; OBJ values print exactly: |error| < 1e-5 cm.
+    let err = got
+        .positions
+        .iter()
+        .zip(&want)
+        .map(|(a, b)| a.distance(*b))
+        .fold(0f32, f32::max);
+    assert!(err < 1e-5, "{err}");
+    let rest = mimic_assets::load_obj(&out.join("frame_000000.obj")).unwrap();
+    assert_eq!(rest.positions, rig.mesh.positions);
+    // A bad number names file, line and column.
+    std::fs::write(&csv, "JawOpen\n0.5\nx\n").unwrap();
+    let o = mimic(&[
+        "morph",
+        "apply",
+        csv.to_str().unwrap(),
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let (_, stderr) = text(&o);
+    assert!(
+        stderr.contains("arkit.csv:3: column `JawOpen`: `x` is not a number"),
+        "{stderr}"
+    );
+}

@@ -304,12 +304,16 @@ impl BlendshapeFitter {
     }
 }
 
+/// Longest weight name [`WeightMap::apply`] looks up.
+const MAX_NAME: usize = 64;
+
 /// Maps named weights, as face-capture apps send them (ARKit names, values in [0, 1]), onto a
 /// rig's targets.
 ///
 /// Besides each target's own name it accepts the other side convention (`mouthSmile_L` <->
 /// `mouthSmileLeft`), and a name whose `_L` and `_R` halves are both targets drives both
-/// (ARKit's single `browInnerUp` -> ICT's `browInnerUp_L` and `browInnerUp_R`).
+/// (ARKit's single `browInnerUp` -> ICT's `browInnerUp_L` and `browInnerUp_R`). Names match
+/// regardless of ASCII case.
 #[derive(Clone, Debug)]
 pub struct WeightMap {
     targets: usize,
@@ -321,7 +325,7 @@ impl WeightMap {
     pub fn new(names: &[String]) -> Self {
         let mut index: std::collections::HashMap<String, Vec<usize>> = Default::default();
         let mut add = |key: String, k: usize| {
-            let slot = index.entry(key).or_default();
+            let slot = index.entry(key.to_ascii_lowercase()).or_default();
             if !slot.contains(&k) {
                 slot.push(k);
             }
@@ -340,7 +344,7 @@ impl WeightMap {
         }
         // A base name stands for both halves only where no target carries it exactly.
         for (k, name) in names.iter().enumerate() {
-            index.insert(name.clone(), vec![k]);
+            index.insert(name.to_ascii_lowercase(), vec![k]);
         }
         Self {
             targets: names.len(),
@@ -368,7 +372,17 @@ impl WeightMap {
             } else {
                 0.0
             };
-            match self.index.get(name) {
+            // Case-insensitive (Live Link Face writes `JawOpen`), without allocating.
+            let mut buf = [0u8; MAX_NAME];
+            let key = buf
+                .get_mut(..name.len())
+                .map(|b| {
+                    b.copy_from_slice(name.as_bytes());
+                    b.make_ascii_lowercase();
+                    &*b
+                })
+                .and_then(|b| std::str::from_utf8(b).ok());
+            match key.and_then(|k| self.index.get(k)) {
                 Some(ks) => ks.iter().for_each(|&k| out[k] = v),
                 None => unknown += 1,
             }
@@ -627,7 +641,7 @@ mod tests {
         let unknown = map.apply(
             [
                 ("jawOpen", 0.5),
-                ("mouthSmile_L", 1.5),
+                ("MouthSmile_L", 1.5),
                 ("browInnerUp", 0.25),
                 ("cheekPuff", 0.7),
             ],

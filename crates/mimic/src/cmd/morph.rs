@@ -5,7 +5,7 @@ use clap::Subcommand;
 use mimic_assets::{
     ConfigDirs, MORPH_FILE_DECIMALS, load_morph_file, load_morph_targets, load_rig, save_morph_file,
 };
-use mimic_retarget::{BlendshapeFitter, BlendshapeSettings, FrameOutput, FrameStatus};
+use mimic_retarget::{BlendshapeFitter, BlendshapeSettings, FrameOutput, FrameStatus, WeightMap};
 use mimic_types::{MorphTarget, Rig};
 use serde_json::json;
 use std::fs::File;
@@ -40,6 +40,24 @@ pub enum MorphCommand {
         /// Print the report as JSON.
         #[arg(long)]
         json: bool,
+    },
+    /// Turn named weights per frame (CSV, e.g. an ARKit capture app's export) into meshes.
+    Apply {
+        /// CSV with a header row of names (ARKit or the rig's target names; case does not
+        /// matter) and one row per frame; columns that name no target are ignored.
+        weights: PathBuf,
+        /// Rig: a name in configs/rigs/ or a path to a rig .toml.
+        #[arg(long, default_value = "ict-face")]
+        rig: String,
+        /// Config directory (default: ./configs or $MIMIC_CONFIGS).
+        #[arg(long)]
+        configs: Option<PathBuf>,
+        /// Directory for one OBJ per frame (frame_000000.obj ...).
+        #[arg(long)]
+        out: PathBuf,
+        /// Write only every N-th frame.
+        #[arg(long, default_value_t = 1)]
+        every: usize,
     },
 }
 
@@ -77,6 +95,13 @@ fn compare(a: &[glam::Vec3], b: &[glam::Vec3]) -> (f32, bool) {
 /// Runs `mimic morph`.
 pub fn run(command: MorphCommand) -> anyhow::Result<()> {
     match command {
+        MorphCommand::Apply {
+            weights,
+            rig,
+            configs,
+            out,
+            every,
+        } => apply(&weights, &rig, configs.as_deref(), &out, every),
         MorphCommand::Export {
             rig,
             output,
@@ -384,4 +409,99 @@ impl EvalBlend {
         }
         fitter.names().iter().cloned().zip(w).collect()
     }
+}
+
+/// `mimic morph apply`: meshes from a CSV of named weights.
+fn apply(
+    weights: &Path,
+    rig: &str,
+    configs: Option<&Path>,
+    out: &Path,
+    every: usize,
+) -> anyhow::Result<()> {
+    let (rig, targets) = load_rig_with_targets(rig, configs)?;
+    let fitter = BlendshapeFitter::new(&rig, &targets, &BlendshapeSettings::default())
+        .with_context(|| format!("blendshapes of rig `{}`", rig.name))?;
+    let map = WeightMap::new(fitter.names());
+    let text = std::fs::read_to_string(weights).with_context(|| weights.display().to_string())?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines
+        .next()
+        .with_context(|| format!("{}: empty file", weights.display()))?
+        .split(',')
+        .map(str::trim)
+        .collect();
+    // Columns that drive at least one target (checked one by one against the map).
+    let mut probe = vec![0f32; fitter.target_count()];
+    let used: Vec<usize> = (0..header.len())
+        .filter(|&c| map.apply([(header[c], 1.0)], &mut probe) == 0)
+        .collect();
+    if used.is_empty() {
+        bail!(
+            "{}: no column names a target of rig `{}` ({})",
+            weights.display(),
+            rig.name,
+            fitter.names().join(", ")
+        );
+    }
+    std::fs::create_dir_all(out).with_context(|| out.display().to_string())?;
+    let mut w = vec![0f32; fitter.target_count()];
+    let mut pairs: Vec<(&str, f32)> = Vec::with_capacity(used.len());
+    let mut positions = rig.mesh.positions.clone();
+    let (mut frames, mut written) = (0usize, 0usize);
+    for (i, line) in lines.enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        pairs.clear();
+        for &c in &used {
+            let field = fields.get(c).copied().unwrap_or("");
+            let v: f32 = field.parse().with_context(|| {
+                format!(
+                    "{}:{}: column `{}`: `{field}` is not a number",
+                    weights.display(),
+                    i + 2,
+                    header[c]
+                )
+            })?;
+            pairs.push((header[c], v));
+        }
+        map.apply(pairs.iter().copied(), &mut w);
+        if frames.is_multiple_of(every.max(1)) {
+            fitter.evaluate(&w, &mut positions, &mut []);
+            let path = crate::cmd::replay::obj_frame_path(out, frames);
+            let file = File::create(&path).with_context(|| path.display().to_string())?;
+            let mut f = BufWriter::new(file);
+            mimic_assets::write_obj(
+                &mut f,
+                &format!("mimic morph apply onto rig {}: frame {frames}", rig.name),
+                &positions,
+                None,
+                &rig.mesh.triangles,
+            )?;
+            f.flush().with_context(|| path.display().to_string())?;
+            written += 1;
+        }
+        frames += 1;
+    }
+    let ignored: Vec<&str> = (0..header.len())
+        .filter(|c| !used.contains(c))
+        .map(|c| header[c])
+        .collect();
+    println!(
+        "{}: {frames} frames, {written} written to {}; columns used: {}; ignored: {}",
+        weights.display(),
+        out.display(),
+        used.iter()
+            .map(|&c| header[c])
+            .collect::<Vec<_>>()
+            .join(" "),
+        if ignored.is_empty() {
+            "none".to_string()
+        } else {
+            ignored.join(" ")
+        }
+    );
+    Ok(())
 }
