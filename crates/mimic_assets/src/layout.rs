@@ -31,7 +31,8 @@ pub fn load_layout(path: &Path) -> Result<Layout, AssetError> {
     parse_layout(path, &text)
 }
 
-pub(crate) fn parse_layout(path: &Path, text: &str) -> Result<Layout, AssetError> {
+/// Parses and validates layout TOML text; `path` only names the file in errors.
+pub fn parse_layout(path: &Path, text: &str) -> Result<Layout, AssetError> {
     let file: LayoutFile = toml::from_str(text).map_err(|e| toml_error(path, text, e))?;
     let control_line = |fdp, nth: usize| {
         file.controls

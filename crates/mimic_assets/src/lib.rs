@@ -14,10 +14,10 @@ mod span;
 
 pub use error::AssetError;
 pub use frames::{FRAMES_MAGIC, FRAMES_VERSION, FrameRecord, FramesReader, FramesWriter};
-pub use layout::{ConfigDirs, load_layout};
+pub use layout::{ConfigDirs, load_layout, parse_layout};
 pub use morph::{
     MORPH_FILE_DECIMALS, MorphTargetEntry, load_morph_file, load_morph_targets, morph_target,
     read_morph_file, save_morph_file, write_morph_file,
 };
-pub use obj::{load_obj, write_obj};
-pub use rig::{RigFile, load_rig};
+pub use obj::{load_obj, parse_obj, write_obj};
+pub use rig::{RigFile, load_rig, parse_rig};

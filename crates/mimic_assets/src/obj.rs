@@ -57,7 +57,7 @@ fn obj_err(path: &Path, line: usize, message: impl Into<String>) -> AssetError {
 }
 
 /// Parses OBJ text; `path` only names the file in errors.
-pub(crate) fn parse_obj(path: &Path, text: &str) -> Result<Mesh, AssetError> {
+pub fn parse_obj(path: &Path, text: &str) -> Result<Mesh, AssetError> {
     let mut vertex_lines = String::new();
     let mut face_lines = String::new();
     let (mut nv, mut nvt, mut nvn) = (0usize, 0usize, 0usize);

@@ -38,7 +38,12 @@ pub struct RigFile {
 /// Loads a rig file and its mesh, and validates them; errors name the file and line.
 pub fn load_rig(path: &Path) -> Result<Rig, AssetError> {
     let text = std::fs::read_to_string(path).map_err(|e| AssetError::io(path, e))?;
-    let file: RigFile = toml::from_str(&text).map_err(|e| toml_error(path, &text, e))?;
+    parse_rig(path, &text)
+}
+
+/// Parses and validates rig TOML text as if read from `path`; its mesh is loaded relative to `path`.
+pub fn parse_rig(path: &Path, text: &str) -> Result<Rig, AssetError> {
+    let file: RigFile = toml::from_str(text).map_err(|e| toml_error(path, text, e))?;
     let mesh_path = path
         .parent()
         .unwrap_or(Path::new("."))
@@ -57,7 +62,7 @@ pub fn load_rig(path: &Path) -> Result<Rig, AssetError> {
     let mut frozen = vec![false; n];
     for range in &file.frozen {
         let [a, b] = *range.get_ref();
-        let line = line_of(&text, range.span().start);
+        let line = line_of(text, range.span().start);
         if a > b || b as usize >= n {
             return Err(AssetError::Toml {
                 path: path.to_path_buf(),
@@ -85,7 +90,7 @@ pub fn load_rig(path: &Path) -> Result<Rig, AssetError> {
                 .iter()
                 .filter(|c| c.get_ref().fdp == fdp)
                 .nth(nth)
-                .map(|c| line_of(&text, c.span().start))
+                .map(|c| line_of(text, c.span().start))
                 .unwrap_or(1)
         };
         let line = match &source {
@@ -94,7 +99,7 @@ pub fn load_rig(path: &Path) -> Result<Rig, AssetError> {
             }
             RigError::DuplicateControl(fdp) => control_line(*fdp, 1),
             RigError::Mesh(_) | RigError::FrozenMaskLength { .. } => {
-                line_of(&text, file.mesh.span().start)
+                line_of(text, file.mesh.span().start)
             }
         };
         return Err(rig_err(line, source));
