@@ -447,6 +447,7 @@ struct Pipeline {
     scratch: Vec<Vec3>,
     last_t_us: Option<i64>,
     point_count: usize,
+    multi_thread: bool,
 }
 
 impl Pipeline {
@@ -460,7 +461,13 @@ impl Pipeline {
             return;
         }
         self.last_t_us = Some(frame.timestamp_us);
-        let status = self.retargeter.step(frame, &mut self.out);
+        let status = if self.retargeter.source_to_target().is_none() && self.multi_thread {
+            // Finishing the neutral fits the source-to-target map (a consensus search of up to
+            // tens of milliseconds): let the runtime move other sessions off this worker meanwhile.
+            tokio::task::block_in_place(|| self.retargeter.step(frame, &mut self.out))
+        } else {
+            self.retargeter.step(frame, &mut self.out)
+        };
         match status {
             FrameStatus::Tracked => r.tracked.bump(),
             FrameStatus::Calibrating => r.calibrating.bump(),
@@ -505,6 +512,7 @@ impl Pipeline {
             }
         }
         let us = u64::try_from(arrival.elapsed().as_micros()).unwrap_or(u64::MAX);
+        tracing::trace!(session = %r.name, seq, us, "broadcast");
         lock(&r.latency).record(us);
     }
 
@@ -719,6 +727,8 @@ async fn tracker(
         record: record.clone(),
         last_t_us: None,
         point_count: layout.point_count,
+        multi_thread: tokio::runtime::Handle::current().runtime_flavor()
+            == tokio::runtime::RuntimeFlavor::MultiThread,
     };
     let layout_name = layout.name.clone();
     let mut errors_in_a_row = 0u32;

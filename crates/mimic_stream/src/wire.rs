@@ -455,8 +455,19 @@ impl<'a> Cursor<'a> {
             self.f32()?,
         ))
     }
+    fn f32s(&mut self, k: usize) -> Result<Vec<f32>, DecodeError> {
+        let bytes = self.take(k.checked_mul(4).ok_or(DecodeError::Short { len: k })?)?;
+        Ok(bytes
+            .chunks_exact(4)
+            .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+            .collect())
+    }
     fn vec3s(&mut self, k: usize) -> Result<Vec<Vec3>, DecodeError> {
-        (0..k).map(|_| self.vec3()).collect()
+        let flat = self.f32s(k.checked_mul(3).ok_or(DecodeError::Short { len: k })?)?;
+        Ok(flat
+            .chunks_exact(3)
+            .map(|c| Vec3::new(c[0], c[1], c[2]))
+            .collect())
     }
 }
 
@@ -476,12 +487,15 @@ pub fn decode_viewer_message(kind: u8, payload: &[u8]) -> Result<ViewerMessage, 
             let meta = json_of(c.take(meta_len)?)?;
             let (n, t, m) = (c.count()?, c.count()?, c.count()?);
             let rest = c.vec3s(n)?;
-            let triangles = (0..t)
-                .map(|_| Ok([c.u32()?, c.u32()?, c.u32()?]))
-                .collect::<Result<Vec<_>, DecodeError>>()?;
-            let basis = (0..n.saturating_mul(m))
-                .map(|_| c.f32())
-                .collect::<Result<Vec<_>, _>>()?;
+            let tri_bytes = c.take(t.checked_mul(12).ok_or(DecodeError::Short { len: t })?)?;
+            let triangles = tri_bytes
+                .chunks_exact(12)
+                .map(|b| {
+                    let u = |k: usize| u32::from_le_bytes([b[k], b[k + 1], b[k + 2], b[k + 3]]);
+                    [u(0), u(4), u(8)]
+                })
+                .collect();
+            let basis = c.f32s(n.checked_mul(m).ok_or(DecodeError::Short { len: n })?)?;
             Ok(ViewerMessage::Rig(RigMessage {
                 meta,
                 rest,
