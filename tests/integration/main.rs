@@ -4,6 +4,7 @@ mod import;
 mod info;
 mod morph;
 mod replay;
+mod serve;
 
 use std::path::PathBuf;
 use std::process::{Command, Output};
