@@ -36,6 +36,8 @@ enum Command {
     Serve(cmd::serve::Args),
     /// Replay a recording into `mimic serve` at its recorded pace, as a tracker would.
     Send(cmd::send::Args),
+    /// Render frames of a recording on a rig to PNG (headless wgpu), or a contact sheet.
+    Render(cmd::render::Args),
 }
 
 fn main() -> ExitCode {
@@ -61,6 +63,7 @@ fn main() -> ExitCode {
         Command::Eval(a) => cmd::eval::run(a),
         Command::Serve(a) => cmd::serve::run(a),
         Command::Send(a) => cmd::send::run(a),
+        Command::Render(a) => cmd::render::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -25,7 +25,11 @@ impl Camera {
         let radius = ((hi - lo).length() * 0.5).max(1e-6);
         let fov_y = 30f32.to_radians();
         let (yaw, pitch) = (yaw_deg.to_radians(), pitch_deg.to_radians());
-        let dir = Vec3::new(yaw.sin() * pitch.cos(), pitch.sin(), yaw.cos() * pitch.cos());
+        let dir = Vec3::new(
+            yaw.sin() * pitch.cos(),
+            pitch.sin(),
+            yaw.cos() * pitch.cos(),
+        );
         // The bounding sphere touches the view cone at distance radius / sin(fov / 2).
         let distance = radius / (fov_y * 0.5).sin();
         Self {

@@ -116,19 +116,24 @@ impl Image {
         }
     }
 
-    /// Plots points `(x, y)` (y up) as dots, scaled uniformly so their bounding box fits the image
-    /// with a `margin` fraction left free on each side, centred.
-    pub fn plot_points(&mut self, points: &[[f32; 2]], margin: f32, radius: f32, rgba: [u8; 4]) {
-        let finite: Vec<[f32; 2]> = points
-            .iter()
-            .copied()
-            .filter(|p| p[0].is_finite() && p[1].is_finite())
-            .collect();
-        let Some(first) = finite.first() else {
+    /// Plots points `(x, y)` (y up) as dots (non-finite ones skipped), scaled uniformly so the
+    /// bounding box of `extent` (e.g. all points of the frame, of which `points` may be a subset)
+    /// fits the image with a `margin` fraction left free on each side, centred.
+    pub fn plot_points(
+        &mut self,
+        points: &[[f32; 2]],
+        extent: &[[f32; 2]],
+        margin: f32,
+        radius: f32,
+        rgba: [u8; 4],
+    ) {
+        let finite = |p: &&[f32; 2]| p[0].is_finite() && p[1].is_finite();
+        let mut it = extent.iter().filter(finite);
+        let Some(first) = it.next() else {
             return;
         };
         let (mut lo, mut hi) = (*first, *first);
-        for p in &finite {
+        for p in it {
             lo = [lo[0].min(p[0]), lo[1].min(p[1])];
             hi = [hi[0].max(p[0]), hi[1].max(p[1])];
         }
@@ -136,7 +141,7 @@ impl Image {
         let span = ((hi[0] - lo[0]) / w).max((hi[1] - lo[1]) / h).max(1e-12);
         let scale = (1.0 - 2.0 * margin) / span;
         let (mx, my) = ((lo[0] + hi[0]) * 0.5, (lo[1] + hi[1]) * 0.5);
-        for p in &finite {
+        for p in points.iter().filter(finite) {
             let x = w * 0.5 + (p[0] - mx) * scale;
             let y = h * 0.5 - (p[1] - my) * scale;
             self.dot(x, y, radius, rgba);
@@ -189,11 +194,21 @@ mod tests {
         }
         let mut img = Image::filled(10, 10, [0, 0, 0, 255]);
         // Two points span the image: the y-up point lands at the top.
-        img.plot_points(&[[0.0, 0.0], [1.0, 1.0]], 0.1, 1.0, [255, 0, 0, 255]);
+        let pts = [[0.0, 0.0], [1.0, 1.0]];
+        img.plot_points(&pts, &pts, 0.1, 1.0, [255, 0, 0, 255]);
         // Scale (1 - 2 * 0.1) * 10 = 8 px per unit, centred: (0, 0) -> (1, 9) and (1, 1) -> (9, 1) in
         // pixel-corner coordinates; a radius-1 disc covers the 4 pixels whose centres are 0.707 away.
         let red = |x: usize, y: usize| img.rgba[(y * 10 + x) * 4] == 255;
-        for (x, y) in [(0, 8), (1, 8), (0, 9), (1, 9), (8, 0), (9, 0), (8, 1), (9, 1)] {
+        for (x, y) in [
+            (0, 8),
+            (1, 8),
+            (0, 9),
+            (1, 9),
+            (8, 0),
+            (9, 0),
+            (8, 1),
+            (9, 1),
+        ] {
             assert!(red(x, y), "({x}, {y})");
         }
         let reds = img.rgba.chunks(4).filter(|p| p[0] == 255).count();

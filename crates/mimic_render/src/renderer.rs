@@ -155,10 +155,9 @@ impl Renderer {
     pub fn new(width: u32, height: u32) -> Result<Self, RenderError> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapter = pollster::block_on(
-            instance.request_adapter(&wgpu::RequestAdapterOptions::default()),
-        )
-        .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
+        let adapter =
+            pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default()))
+                .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
         let info = adapter.get_info();
         let max = adapter.limits().max_texture_dimension_2d;
         if width == 0 || height == 0 || width > max || height > max {
@@ -394,11 +393,7 @@ impl Renderer {
         let basis_buf = init("basis", bytemuck::cast_slice(basis_data), storage);
         let rw = storage | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC;
         let positions_buf = init("positions", bytemuck::cast_slice(&rest), rw);
-        let normals_buf = init(
-            "normals",
-            bytemuck::cast_slice(&vec![[0f32; 4]; n]),
-            rw,
-        );
+        let normals_buf = init("normals", bytemuck::cast_slice(&vec![[0f32; 4]; n]), rw);
         let indices = init(
             "indices",
             bytemuck::cast_slice(&flat),
@@ -464,7 +459,12 @@ impl Renderer {
         })
     }
 
-    fn uniform(&self, rig: &RigGpu, d: &[Vec3], view: Option<&View>) -> Result<FrameUniform, RenderError> {
+    fn uniform(
+        &self,
+        rig: &RigGpu,
+        d: &[Vec3],
+        view: Option<&View>,
+    ) -> Result<FrameUniform, RenderError> {
         let mut u = FrameUniform {
             view_proj: Mat4::IDENTITY.to_cols_array_2d(),
             model: Mat4::IDENTITY.to_cols_array_2d(),
@@ -482,7 +482,10 @@ impl Renderer {
             u.model = view.model.to_cols_array_2d();
             // Light given in camera axes: turn it into world axes with the inverse view rotation.
             let look = Mat4::look_at_rh(view.camera.eye, view.camera.target, Vec3::Y);
-            let light = look.inverse().transform_vector3(view.light).normalize_or_zero();
+            let light = look
+                .inverse()
+                .transform_vector3(view.light)
+                .normalize_or_zero();
             u.light = [light.x, light.y, light.z, view.ambient.clamp(0.0, 1.0)];
             match view.shading {
                 Shading::Lit => {}
@@ -529,7 +532,11 @@ impl Renderer {
         let (d, morph, normals): (&[Vec3], bool, bool) = match deform {
             Deform::Rest => (&[], true, true),
             Deform::Controls(d) => {
-                check("control displacements vs basis columns", d.len(), rig.control_count())?;
+                check(
+                    "control displacements vs basis columns",
+                    d.len(),
+                    rig.control_count(),
+                )?;
                 (d, true, true)
             }
             Deform::Positions { positions, normals } => {
@@ -541,8 +548,11 @@ impl Renderer {
                 );
                 if let Some(nrm) = normals {
                     check("normals vs vertices", nrm.len(), n)?;
-                    self.queue
-                        .write_buffer(&rig.normals, 0, bytemuck::cast_slice(&vec4s(nrm, 0.0)));
+                    self.queue.write_buffer(
+                        &rig.normals,
+                        0,
+                        bytemuck::cast_slice(&vec4s(nrm, 0.0)),
+                    );
                 }
                 (&[], false, normals.is_none())
             }
@@ -640,7 +650,10 @@ impl Renderer {
         let bytes = self.map_read(&self.readback)?;
         let row = self.width as usize * 4;
         let mut rgba = Vec::with_capacity(row * self.height as usize);
-        for r in bytes.chunks(self.padded_row as usize).take(self.height as usize) {
+        for r in bytes
+            .chunks(self.padded_row as usize)
+            .take(self.height as usize)
+        {
             rgba.extend_from_slice(&r[..row]);
         }
         Ok(Image {
@@ -672,8 +685,8 @@ impl Renderer {
         encoder.copy_buffer_to_buffer(src, 0, &staging, 0, size);
         self.queue.submit([encoder.finish()]);
         let bytes = self.map_read(&staging)?;
-        let floats: &[f32] = bytemuck::try_cast_slice(&bytes)
-            .map_err(|e| RenderError::Readback(e.to_string()))?;
+        let floats: &[f32] =
+            bytemuck::try_cast_slice(&bytes).map_err(|e| RenderError::Readback(e.to_string()))?;
         Ok(floats
             .chunks_exact(4)
             .take(n)

@@ -55,13 +55,22 @@ fn gpu_morph_and_normals_equal_the_cpu() {
 
     let mut u = vec![Vec3::ZERO; n];
     basis.apply(&d, &mut u);
-    let want: Vec<Vec3> = rig.mesh.positions.iter().zip(&u).map(|(p, u)| *p + *u).collect();
+    let want: Vec<Vec3> = rig
+        .mesh
+        .positions
+        .iter()
+        .zip(&u)
+        .map(|(p, u)| *p + *u)
+        .collect();
     // Both sides sum m = 38 products |B d| <= 2 in f32 in possibly different orders / with FMA:
     // the error is bounded by about m * eps * (|P0| + sum_j |B_ij| |d_j|) <= 38 * 1.2e-7 * (|P0| + 38 * 2 * sqrt 3).
     for (i, (g, w)) in got.iter().zip(&want).enumerate() {
         let scale = rig.mesh.positions[i].length() + 38.0 * 2.0 * 3f32.sqrt();
         let tol = 38.0 * f32::EPSILON * scale * 2.0;
-        assert!((*g - *w).length() <= tol, "vertex {i}: gpu {g} cpu {w} (tol {tol})");
+        assert!(
+            (*g - *w).length() <= tol,
+            "vertex {i}: gpu {g} cpu {w} (tol {tol})"
+        );
     }
 
     // Normals: the CPU's area-weighted normals of the same morphed positions.
@@ -81,11 +90,14 @@ fn gpu_morph_and_normals_equal_the_cpu() {
 fn scratch_render() {
     let Some(r) = renderer(512, 512) else { return };
     let rig = ict();
-    let gpu = r.upload_rig(&rig.mesh.positions, &rig.mesh.triangles, None).unwrap();
+    let gpu = r
+        .upload_rig(&rig.mesh.positions, &rig.mesh.triangles, None)
+        .unwrap();
     let (lo, hi) = rig.mesh.bounds().unwrap();
     let view = View::lit(Camera::front(lo, hi));
     let img = r.render(&gpu, Deform::Rest, &view).unwrap();
-    img.save_png(std::path::Path::new("/tmp/ict_rest.png")).unwrap();
+    img.save_png(std::path::Path::new("/tmp/ict_rest.png"))
+        .unwrap();
     let _ = (Image::filled(1, 1, [0; 4]), Shading::Lit);
     eprintln!("{}", r.adapter());
 }

@@ -6,6 +6,7 @@ pub mod import;
 pub mod info;
 pub mod morph;
 pub mod recording_info;
+pub mod render;
 pub mod replay;
 pub mod send;
 pub mod serve;
