@@ -12,6 +12,7 @@ pub mod error;
 pub mod geodesic;
 pub mod kabsch;
 pub mod laplacian;
+pub mod morph_basis;
 pub mod morph_fit;
 pub mod normals;
 pub mod rbf;
