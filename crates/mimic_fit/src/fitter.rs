@@ -81,6 +81,9 @@ pub struct FitSettings {
     pub shape_bounds: (f64, f64),
     /// Weight of the depth axis of a 3D residual (Kinect depth is noisier than the image).
     pub depth_weight: f64,
+    /// Residuals (pixels) beyond which the loss grows linearly (Huber), so a stray depth or a
+    /// mislabelled point cannot drag the whole fit.
+    pub huber_px: f64,
     /// LM iterations of a warm-started frame.
     pub iterations: usize,
     /// LM iterations of a cold start.
@@ -108,6 +111,7 @@ impl Default for FitSettings {
             au_bounds: (-1.0, 1.5),
             shape_bounds: (-1.5, 1.5),
             depth_weight: 0.5,
+            huber_px: 2.0,
             iterations: 8,
             cold_iterations: 60,
             nominal_scale_m: 0.1,
@@ -575,6 +579,7 @@ impl Fitter {
         let r = state.rotation;
         let f = self.camera.focal_px;
         let wz = self.settings.depth_weight;
+        let huber = self.settings.huber_px;
         let mut cost = 0.0;
         let units = std::mem::take(&mut self.settings.units);
         let nu = units.len();
@@ -610,7 +615,15 @@ impl Fitter {
                 }
             }
             let mut add = |res: f64, coef: DVec3, cost: &mut f64| {
-                *cost += res * res;
+                // Huber loss, by iteratively reweighted least squares: quadratic up to `huber`, then linear.
+                let a = res.abs();
+                let w = if a <= huber { 1.0 } else { huber / a };
+                *cost += if a <= huber {
+                    res * res
+                } else {
+                    huber * (2.0 * a - huber)
+                };
+                let res = res * w;
                 if jacobian {
                     for c in 0..n {
                         row[c] = coef.dot(jx[c]);
@@ -622,7 +635,7 @@ impl Fitter {
                         }
                         jtr[i] += ri * res;
                         for j in 0..=i {
-                            jtj[i * n + j] += ri * row[j];
+                            jtj[i * n + j] += w * ri * row[j];
                         }
                     }
                 }

@@ -23,6 +23,9 @@ pub enum ImportCommand {
         /// Text for the header's `source` field (default: names the dataset and file).
         #[arg(long)]
         source: Option<String>,
+        /// Fit a face model and write its `kinect121` recording instead (docs/fitter.md).
+        #[arg(long, value_enum)]
+        fit: Option<crate::cmd::import_fit::FitModel>,
     },
     /// OpenFace 2.x CSV (3D landmarks X_i, Y_i, Z_i) to an `ibug68` recording.
     Openface {
@@ -40,27 +43,37 @@ pub enum ImportCommand {
         /// Text for the header's `source` field (default: names the tool and file).
         #[arg(long)]
         source: Option<String>,
+        /// Fit a face model and write its `kinect121` recording instead (docs/fitter.md).
+        #[arg(long, value_enum)]
+        fit: Option<crate::cmd::import_fit::FitModel>,
     },
 }
 
 /// Runs an import subcommand.
 pub fn run(c: ImportCommand) -> anyhow::Result<()> {
-    let (imported, output) = match c {
+    let (imported, output, fit) = match c {
         ImportCommand::Gfe {
             datapoints,
             targets,
             output,
             source,
-        } => (
-            mimic_capture::gfe::import_gfe(&datapoints, targets.as_deref(), source.as_deref())?,
-            output,
-        ),
+            fit,
+        } => {
+            let imported =
+                mimic_capture::gfe::import_gfe(&datapoints, targets.as_deref(), source.as_deref())?;
+            let fit = match fit {
+                Some(m) => Some((m, Some(crate::cmd::import_fit::gfe_pixels(&datapoints)?))),
+                None => None,
+            };
+            (imported, output, fit)
+        }
         ImportCommand::Openface {
             csv,
             output,
             rate,
             keep_timestamps,
             source,
+            fit,
         } => {
             let timing = if keep_timestamps {
                 OpenFaceTiming::FileTimestamps
@@ -70,9 +83,13 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             (
                 mimic_capture::openface::import_openface(&csv, timing, source.as_deref())?,
                 output,
+                fit.map(|m| (m, None)),
             )
         }
     };
+    if let Some((model, pixels)) = fit {
+        return crate::cmd::import_fit::run_fit(&imported, pixels.as_deref(), model, &output);
+    }
     write(&imported, &output)?;
     println!("{}", summary_line(&imported, &output));
     Ok(())

@@ -3,6 +3,7 @@
 pub mod bench;
 pub mod eval;
 pub mod import;
+pub mod import_fit;
 pub mod info;
 pub mod morph;
 pub mod recording_info;

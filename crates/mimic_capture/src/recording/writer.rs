@@ -71,6 +71,17 @@ impl<W: Write> RecordingWriter<W> {
         frame: &LandmarkFrame,
         label: Option<i64>,
     ) -> Result<(), WriteError> {
+        self.write_frame_with_fields(frame, label, &serde_json::Map::new())
+    }
+
+    /// Writes one frame with further top-level fields (e.g. a fitter's `"fit"`), which readers ignore.
+    /// Fields named like the format's own (`t_us`, `points`, `invalid`, `tracked`, `label`) are skipped.
+    pub fn write_frame_with_fields(
+        &mut self,
+        frame: &LandmarkFrame,
+        label: Option<i64>,
+        fields: &serde_json::Map<String, serde_json::Value>,
+    ) -> Result<(), WriteError> {
         let t_us = frame.timestamp_us;
         if frame.valid.len() != frame.points.len() {
             return Err(WriteError::ValidityLength {
@@ -134,6 +145,20 @@ impl<W: Write> RecordingWriter<W> {
         let _ = write!(line, ",\"tracked\":{}", frame.tracked);
         if let Some(l) = label {
             let _ = write!(line, ",\"label\":{l}");
+        }
+        for (key, value) in fields {
+            if matches!(
+                key.as_str(),
+                "t_us" | "points" | "invalid" | "tracked" | "label"
+            ) {
+                continue;
+            }
+            let _ = write!(
+                line,
+                ",{}:{}",
+                serde_json::Value::String(key.clone()),
+                value
+            );
         }
         line.push_str("}\n");
         self.out.write_all(line.as_bytes())?;
