@@ -176,6 +176,13 @@ impl Server {
         self.shared.stats()
     }
 
+    /// Clears every session's latency histogram (e.g. after a warm-up), keeping the counters.
+    pub fn reset_latency(&self) {
+        for s in lock(&self.shared.sessions).iter() {
+            *lock(&s.latency) = LatencyHistogram::default();
+        }
+    }
+
     /// Serves until `shutdown` completes; then stops accepting, ends every session (frames
     /// already read are retargeted and broadcast), lets viewers drain their queues for up to
     /// `shutdown_grace`, and returns the final counters.
