@@ -1,0 +1,147 @@
+//! `mimic render` on lavapipe (or any Vulkan adapter): golden images of the ICT head, neutral and
+//! mid-expression, kept in `tests/golden_images/`.
+//!
+//! After an intended change, re-bless with
+//! `MIMIC_BLESS=1 cargo test -p mimic --test integration render` and look at the PNGs.
+//! With no adapter the tests fail with the renderer's message, unless MIMIC_SKIP_GPU_TESTS is set.
+
+use crate::{mimic, repo, text};
+use mimic_render::Image;
+use std::path::Path;
+
+/// Mean absolute error per RGBA byte (0..=255) allowed against a golden image. The same adapter
+/// reproduces its images exactly (0); another rasteriser differs at silhouette and crease pixels
+/// (MSAA coverage, shading rounding): at most the ~8% of pixels on edges, each off by up to ~25,
+/// gives 0.08 * 25 = 2.0. A visible change is far above it: the expression frame differs from
+/// the neutral one by more than this (checked below).
+const MEAN_ABS_BOUND: f64 = 2.0;
+
+fn skip() -> bool {
+    let skip = std::env::var_os("MIMIC_SKIP_GPU_TESTS").is_some();
+    if skip {
+        eprintln!("MIMIC_SKIP_GPU_TESTS is set: skipping a GPU test");
+    }
+    skip
+}
+
+/// Compares `got` with the golden PNG `name` (or writes it under MIMIC_BLESS); returns the error.
+fn check_golden(got: &Image, name: &str) -> f64 {
+    let path = repo().join("tests/golden_images").join(name);
+    if std::env::var_os("MIMIC_BLESS").is_some() {
+        got.save_png(&path).unwrap();
+        return 0.0;
+    }
+    let golden = Image::load_png(&path)
+        .unwrap_or_else(|e| panic!("{e} (bless with MIMIC_BLESS=1 and review the PNG)"));
+    let err = got
+        .mean_abs_error(&golden)
+        .unwrap_or_else(|| panic!("{name}: size differs from the golden image"));
+    assert!(
+        err <= MEAN_ABS_BOUND,
+        "{name}: mean absolute pixel error {err:.3} > {MEAN_ABS_BOUND}"
+    );
+    err
+}
+
+#[test]
+fn ict_neutral_and_expression_match_the_golden_images() {
+    if skip() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    // Frame 0 is still calibrating (the neutral is the mean of the first 5 frames): the rest shape.
+    // Frame 300 is mid-question: brows raised, mouth moving.
+    let o = mimic(&[
+        "render",
+        "recordings/a_yn_question.jsonl",
+        "--rig",
+        "ict-face",
+        "--frames",
+        "0,300",
+        "--size",
+        "256x256",
+        "-o",
+        out,
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "mimic render failed:\n{stderr}");
+    assert!(stdout.contains("frame_000300.png"), "{stdout}");
+    let neutral = Image::load_png(&dir.path().join("frame_000000.png")).unwrap();
+    let expression = Image::load_png(&dir.path().join("frame_000300.png")).unwrap();
+    assert_eq!((neutral.width, neutral.height), (256, 256));
+    check_golden(&neutral, "ict_neutral_256.png");
+    check_golden(&expression, "ict_a_yn_question_300_256.png");
+    // The bound separates a real change: neutral vs expression differ by more than it.
+    let change = neutral.mean_abs_error(&expression).unwrap();
+    assert!(
+        change > MEAN_ABS_BOUND / 4.0 && neutral != expression,
+        "expression frame barely differs from the neutral: {change}"
+    );
+    // The head fills part of the image and is lit: some pixels are far brighter than the background.
+    let bright = neutral
+        .rgba
+        .chunks(4)
+        .filter(|p| p[0] > 150 && p[1] > 120)
+        .count();
+    assert!(bright > 256 * 256 / 10, "only {bright} bright pixels");
+}
+
+#[test]
+fn contact_sheet_has_a_tile_pair_per_frame() {
+    if skip() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let o = mimic(&[
+        "render",
+        "recordings/a_affirmative.jsonl",
+        "--sheet",
+        "4",
+        "--columns",
+        "2",
+        "--size",
+        "64x64",
+        "-o",
+        out,
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "mimic render --sheet failed:\n{stderr}");
+    // 4 frames spread over 1062 accepted frames: k * 1061 / 3.
+    assert!(stdout.contains("(frames 0,353,707,1061)"), "{stdout}");
+    let sheet = Image::load_png(Path::new(&dir.path().join("sheet.png"))).unwrap();
+    // 2 columns of (head, landmarks) tiles, 2 rows.
+    assert_eq!((sheet.width, sheet.height), (2 * 2 * 64, 2 * 64));
+    // Control landmarks are drawn in orange on each plot tile.
+    let orange = |x0: u32, y0: u32| {
+        (y0..y0 + 64).any(|y| {
+            (x0..x0 + 64).any(|x| {
+                let i = ((y * sheet.width + x) * 4) as usize;
+                sheet.rgba[i..i + 3] == [230, 110, 20]
+            })
+        })
+    };
+    for (x, y) in [(64, 0), (192, 0), (64, 64), (192, 64)] {
+        assert!(orange(x, y), "no landmarks in the plot tile at ({x}, {y})");
+    }
+}
+
+#[test]
+fn bad_arguments_are_explained() {
+    let o = mimic(&[
+        "render",
+        "recordings/a_affirmative.jsonl",
+        "--heat",
+        "control:10.1",
+        "--frames",
+        "0",
+        "-o",
+        "/nonexistent-mimic-out",
+    ]);
+    let (_, stderr) = text(&o);
+    assert!(!o.status.success());
+    assert!(stderr.contains("has no control 10.1"), "{stderr}");
+    let o = mimic(&["render", "recordings/a_affirmative.jsonl", "-o", "x"]);
+    assert!(text(&o).1.contains("nothing to render"), "{}", text(&o).1);
+}
