@@ -544,3 +544,53 @@ fn ctrl_c_ends_live_sessions_and_flushes_them_to_viewers() {
         (Some("shutdown"), Some(30))
     );
 }
+
+#[test]
+fn limits_idle_timeout_and_http_stats() {
+    let rec = "recordings/openface_test.jsonl";
+    let server = Serve::start(&[
+        "--rig",
+        "candide3",
+        "--max-sessions",
+        "1",
+        "--max-viewers",
+        "1",
+        "--idle-timeout",
+        "0.5",
+    ]);
+    // The one allowed session; a second tracker is refused, as is a second viewer.
+    let mut first = connect(&server.tcp);
+    first
+        .write_all(header_with_session(rec, "one").as_bytes())
+        .unwrap();
+    let mut r1 = BufReader::new(first.try_clone().unwrap());
+    assert_eq!(read_json_line(&mut r1)["type"], "welcome");
+    let mut second = connect(&server.tcp);
+    second
+        .write_all(header_with_session(rec, "two").as_bytes())
+        .unwrap();
+    let mut r2 = BufReader::new(second);
+    assert_eq!(read_json_line(&mut r2)["code"], "too_many_sessions");
+    assert_closed(&mut r2);
+    let _v1 = viewer(&server.tcp, "one", false);
+    server.wait_for("the viewer", |s| s["viewers_active"] == 1);
+    let mut v2 = viewer(&server.tcp, "one", false);
+    match read_message(&mut v2) {
+        Some(ViewerMessage::Error(e)) => assert_eq!(e["code"], "too_many_viewers"),
+        other => panic!("{other:?}"),
+    }
+    // The silent tracker is closed after the idle timeout.
+    assert_eq!(read_json_line(&mut r1)["code"], "idle_timeout");
+    assert_eq!(read_json_line(&mut r1)["reason"], "idle_timeout");
+    // HTTP GET /stats.
+    let mut h = connect(&server.tcp);
+    h.write_all(b"GET /stats HTTP/1.0\r\n\r\n").unwrap();
+    let mut reply = String::new();
+    h.read_to_string(&mut reply).unwrap();
+    assert!(reply.starts_with("HTTP/1.0 200 OK\r\n"), "{reply}");
+    let body = reply.split("\r\n\r\n").nth(1).unwrap();
+    let stats: Value = serde_json::from_str(body).unwrap();
+    assert_eq!(stats["sessions"][0]["end_reason"], "idle_timeout");
+    assert!(stats["refused"].as_u64().unwrap() >= 2);
+    server.stop();
+}
