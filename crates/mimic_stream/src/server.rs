@@ -741,6 +741,12 @@ async fn tracker(
     let mut errors_in_a_row = 0u32;
     let mut line_no = 1u64;
     let mut last_activity = tokio::time::Instant::now();
+    let mut log_tick = tokio::time::interval_at(
+        tokio::time::Instant::now() + settings.log_every,
+        settings
+            .log_every
+            .max(std::time::Duration::from_millis(100)),
+    );
     let reason: String = loop {
         if *stop.borrow() {
             break "shutdown".into();
@@ -751,6 +757,14 @@ async fn tracker(
             Some((arrival, frame)) = udp_rx.recv() => {
                 last_activity = tokio::time::Instant::now();
                 p.accept_udp(&frame, arrival);
+            }
+            _ = log_tick.tick() => {
+                let s = record.snapshot();
+                tracing::info!(session = %s.name, frames = s.frames, tracked = s.tracked,
+                    lost = s.lost, late = s.late, malformed = s.malformed,
+                    udp_queue_dropped = s.udp_queue_dropped, viewers = s.viewers.len(),
+                    viewer_drops = s.viewers.iter().map(|v| v.frames_dropped).sum::<u64>(),
+                    p50_us = s.latency.p50_us, p99_us = s.latency.p99_us, "session counters");
             }
             _ = sleep_until(last_activity + settings.idle_timeout) => {
                 record.malformed.bump();

@@ -29,6 +29,8 @@ pub struct ServerSettings {
     pub shutdown_grace: Duration,
     /// Ended sessions kept in the stats.
     pub ended_sessions_kept: usize,
+    /// How often each live session logs its counters (tracing, info level).
+    pub log_every: Duration,
     /// Pipeline settings of every session (`positions` and `normals` are forced off: the
     /// server computes positions itself, only for viewers that ask for them).
     pub retarget: RetargetSettings,
@@ -47,6 +49,7 @@ impl Default for ServerSettings {
             udp_queue_frames: 8,
             shutdown_grace: Duration::from_secs(3),
             ended_sessions_kept: 256,
+            log_every: Duration::from_secs(10),
             retarget: RetargetSettings::default(),
         }
     }
