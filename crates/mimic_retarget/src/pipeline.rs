@@ -391,7 +391,7 @@ impl Retargeter {
         };
         let dt = self
             .last_time_us
-            .map(|t| (frame.timestamp_us - t) as f32 * 1e-6)
+            .map(|t| frame.timestamp_us.saturating_sub(t) as f32 * 1e-6)
             .unwrap_or(0.0);
         let mut filled = 0u32;
         for j in 0..self.controls_now.len() {
@@ -464,7 +464,7 @@ impl Retargeter {
     fn lost(&mut self, t_us: i64, out: &mut FrameOutput) -> FrameStatus {
         self.stats.lost += 1;
         let since = *self.lost_since_us.get_or_insert(t_us);
-        let elapsed = (t_us - since) as f32 * 1e-6;
+        let elapsed = t_us.saturating_sub(since) as f32 * 1e-6;
         let ease = self.settings.lost_ease_secs.max(1e-6);
         let k = 1.0 - ((elapsed - self.settings.lost_hold_secs) / ease).clamp(0.0, 1.0);
         for (o, d) in out.displacements.iter_mut().zip(&self.last_d) {
