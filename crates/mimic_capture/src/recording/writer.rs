@@ -243,6 +243,31 @@ mod tests {
     use super::*;
 
     #[test]
+    fn extra_fields_are_written_and_readers_skip_them() {
+        let header = RecordingHeader::new("t", "test", 30.0, Some(1));
+        let mut w = RecordingWriter::new(Vec::new(), &header).unwrap();
+        let mut fields = serde_json::Map::new();
+        fields.insert(
+            "fit".into(),
+            serde_json::json!({"au": [0.5, -1], "residual_px": 1.25}),
+        );
+        // A field named like the format's own is not written a second time.
+        fields.insert("label".into(), serde_json::json!(9));
+        let frame = LandmarkFrame::new(5, vec![glam::Vec3::new(0.1, 0.2, -1.0)]);
+        w.write_frame_with_fields(&frame, Some(1), &fields).unwrap();
+        let text = String::from_utf8(w.finish().unwrap()).unwrap();
+        let line = text.lines().nth(1).unwrap();
+        assert_eq!(
+            line,
+            r#"{"t_us":5,"points":[[0.1,0.2,-1]],"tracked":true,"label":1,"fit":{"au":[0.5,-1],"residual_px":1.25}}"#
+        );
+        let mut r = super::super::RecordingReader::new(text.as_bytes(), "mem", None).unwrap();
+        let f = r.next_frame().unwrap().unwrap();
+        assert_eq!(f.frame, frame);
+        assert_eq!(f.label, Some(1));
+    }
+
+    #[test]
     fn fast_coordinate_text_equals_exact_six_digit_rounding() {
         // Reference: Rust's exact decimal rounding to 6 significant digits ({:.5e}). The two may
         // differ only when v·10^d lies within f64 rounding (1e-9 relative) of a .5 tie.
