@@ -4,6 +4,7 @@ mod fit;
 mod import;
 mod info;
 mod morph;
+mod regression;
 mod render;
 mod replay;
 mod serve;
