@@ -7,7 +7,7 @@ use mimic_capture::RecordingReader;
 use mimic_render::{Camera, Deform, Image, Renderer, Shading, View};
 use mimic_retarget::RetargetSettings;
 use mimic_types::{Fdp, LandmarkFrame};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Vertex ranges hidden by default per rig: ICT-FaceKit's lacrimal fluid, eye blend and eye
 /// occlusion shells (24591-25350, configs/meshes/ict-facekit/SOURCE.md), which its own renderer
@@ -33,7 +33,7 @@ pub struct Args {
     /// Tiles (head + landmarks) per row of the contact sheet.
     #[arg(long, default_value_t = 3)]
     pub columns: usize,
-    /// Output directory.
+    /// Output directory (frames as frame_NNNNNN.png, the sheet as sheet.png), or with --sheet a .png path.
     #[arg(short, long)]
     pub out: PathBuf,
     /// Image (or sheet tile) size, WIDTHxHEIGHT.
@@ -188,8 +188,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             frames.len()
         );
     }
-    std::fs::create_dir_all(&args.out)
-        .with_context(|| format!("creating {}", args.out.display()))?;
+    let sheet_file = args.sheet.is_some() && args.out.extension().is_some_and(|e| e == "png");
+    let dir = if sheet_file {
+        args.out.parent().unwrap_or(Path::new(".")).to_path_buf()
+    } else {
+        args.out.clone()
+    };
+    if !dir.as_os_str().is_empty() {
+        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
 
     let last = wanted.iter().copied().max().unwrap_or(0);
     let mut out = prepared.retargeter.new_output();
@@ -243,7 +250,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             sheet.paste(image, x, y);
             sheet.paste(plot, x + width, y);
         }
-        let path = args.out.join("sheet.png");
+        let path = if sheet_file {
+            args.out.clone()
+        } else {
+            args.out.join("sheet.png")
+        };
         sheet.save_png(&path)?;
         let list: Vec<String> = tiles.iter().map(|(i, _, _)| i.to_string()).collect();
         println!("{} (frames {})", path.display(), list.join(","));
