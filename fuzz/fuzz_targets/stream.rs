@@ -17,7 +17,10 @@ fuzz_target!(|data: &[u8]| {
         assert_eq!(again.frame.tracked, f.frame.tracked);
         assert_eq!(again.frame.valid, f.frame.valid);
         for (i, (a, b)) in again.frame.points.iter().zip(&f.frame.points).enumerate() {
-            assert!(!f.frame.valid[i] || a == b, "point {i} changed in a round trip");
+            assert!(
+                !f.frame.valid[i] || a == b,
+                "point {i} changed in a round trip"
+            );
         }
     }
     if let Some((&kind, payload)) = data.split_first() {
