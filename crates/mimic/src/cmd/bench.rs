@@ -103,6 +103,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (bn, _) = median_p99_us(&mut base_normals);
     let deform_m = stages["deform"]["median_us"].as_f64().unwrap_or(0.0);
     let normals_m = stages["normals"]["median_us"].as_f64().unwrap_or(0.0);
+    let fit = crate::cmd::import_fit::fit_throughput(&args.recording)?;
     let report = json!({
         "rig": p.rig.name,
         "vertices": n,
@@ -121,6 +122,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "deform_speedup": if deform_m > 0.0 { ba / deform_m } else { 0.0 },
             "normals_speedup": if normals_m > 0.0 { bn / normals_m } else { 0.0 },
         },
+        "fit": fit.as_ref().map(|f| json!({"model": "candide3", "frames": f.frames, "lost": f.lost, "frames_per_second": f.frames_per_s, "median_residual_px": f.median_residual_px})),
         "build": if cfg!(debug_assertions) { "debug (not representative)" } else { "release" },
     });
     if args.json {
@@ -153,6 +155,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             1e6 / step_m.max(1e-9)
         );
         println!("  baseline: full apply {ba:.1} us, full normals {bn:.1} us");
+        if let Some(f) = &fit {
+            println!(
+                "  fit CANDIDE-3 to the recording: {:.0} frames/s ({} frames, median residual {:.2} px)",
+                f.frames_per_s, f.frames, f.median_residual_px
+            );
+        }
     }
     Ok(())
 }

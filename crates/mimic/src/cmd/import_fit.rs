@@ -295,3 +295,26 @@ pub fn run_fit(
     );
     Ok(())
 }
+
+/// CANDIDE-3 fitting speed on a recording whose layout lists correspondences (`None` otherwise), for
+/// `mimic bench`: its valid 3D points only (a recording keeps no pixels of depth-less points).
+pub fn fit_throughput(recording: &Path) -> anyhow::Result<Option<FitSummary>> {
+    let mut reader = mimic_capture::RecordingReader::open(recording, None)?;
+    let header = reader.header().clone();
+    let configs = ConfigDirs::locate(None);
+    let has_correspondences = configs
+        .load_layout_named(&header.layout)
+        .is_ok_and(|l| !l.candide_correspondences.is_empty());
+    if !has_correspondences {
+        return Ok(None);
+    }
+    let mut frames = Vec::new();
+    while let Some(item) = reader.next_frame() {
+        if let Ok(f) = item {
+            frames.push(f);
+        }
+    }
+    let imported = Imported { header, frames };
+    let (_, summary) = fit_capture(&imported, None, FitModel::Candide3)?;
+    Ok(Some(summary))
+}
