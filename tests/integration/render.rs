@@ -9,12 +9,13 @@ use crate::{mimic, repo, text};
 use mimic_render::Image;
 use std::path::Path;
 
-/// Mean absolute error per RGBA byte (0..=255) allowed against a golden image. The same adapter
-/// reproduces its images exactly (0); another rasteriser differs at silhouette and crease pixels
-/// (MSAA coverage, shading rounding): at most the ~8% of pixels on edges, each off by up to ~25,
-/// gives 0.08 * 25 = 2.0. A visible change is far above it: the expression frame differs from
-/// the neutral one by more than this (checked below).
-const MEAN_ABS_BOUND: f64 = 2.0;
+/// Mean absolute error per RGBA byte (0..=255) allowed against a golden image. lavapipe (what
+/// CI runs and what made the goldens) reproduces its images exactly (0); the bound leaves room
+/// for rounding at a few silhouette pixels under another LLVM/Mesa version. It must stay well below
+/// a real change: the frame-300 expression differs from the neutral by 0.72 (most of the image is
+/// unchanged background), so 0.25 is about a third of it (checked below: change > 2 * bound).
+/// A hardware GPU rasterises edges differently and may exceed it; the goldens are lavapipe's.
+const MEAN_ABS_BOUND: f64 = 0.25;
 
 fn skip() -> bool {
     let skip = std::env::var_os("MIMIC_SKIP_GPU_TESTS").is_some();
@@ -72,10 +73,10 @@ fn ict_neutral_and_expression_match_the_golden_images() {
     assert_eq!((neutral.width, neutral.height), (256, 256));
     check_golden(&neutral, "ict_neutral_256.png");
     check_golden(&expression, "ict_a_yn_question_300_256.png");
-    // The bound separates a real change: neutral vs expression differ by more than it.
+    // The bound separates a real change: neutral vs expression differ by more than twice it.
     let change = neutral.mean_abs_error(&expression).unwrap();
     assert!(
-        change > MEAN_ABS_BOUND / 4.0 && neutral != expression,
+        change > 2.0 * MEAN_ABS_BOUND,
         "expression frame barely differs from the neutral: {change}"
     );
     // The head fills part of the image and is lit: some pixels are far brighter than the background.

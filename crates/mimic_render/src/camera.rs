@@ -19,7 +19,8 @@ pub struct Camera {
 
 impl Camera {
     /// Frames the box `(lo, hi)` seen from the front (+z), turned `yaw_deg` about y (towards +x)
-    /// and raised `pitch_deg` above it, so the whole box fits in a 30 degree field of view.
+    /// and raised `pitch_deg` above it: the camera backs off until all eight corners lie inside a
+    /// 30 degree field of view (square image) with a 4% margin.
     pub fn framing(lo: Vec3, hi: Vec3, yaw_deg: f32, pitch_deg: f32) -> Self {
         let target = (lo + hi) * 0.5;
         let radius = ((hi - lo).length() * 0.5).max(1e-6);
@@ -30,14 +31,28 @@ impl Camera {
             pitch.sin(),
             yaw.cos() * pitch.cos(),
         );
-        // The bounding sphere touches the view cone at distance radius / sin(fov / 2).
-        let distance = radius / (fov_y * 0.5).sin();
+        let right = Vec3::Y.cross(dir).normalize_or(Vec3::X);
+        let up = dir.cross(right);
+        // A corner at offset c from the target, seen from target + dir * t, is inside the view when
+        // max(|c . right|, |c . up|) <= tan(fov / 2) * (t - c . dir).
+        let tan = (fov_y * 0.5).tan() / 1.04;
+        let mut distance = 0f32;
+        for k in 0..8 {
+            let c = Vec3::new(
+                if k & 1 == 0 { lo.x } else { hi.x },
+                if k & 2 == 0 { lo.y } else { hi.y },
+                if k & 4 == 0 { lo.z } else { hi.z },
+            ) - target;
+            let lateral = c.dot(right).abs().max(c.dot(up).abs());
+            distance = distance.max(c.dot(dir) + lateral / tan);
+        }
+        let distance = distance.max(radius * 1e-3);
         Self {
             eye: target + dir * distance,
             target,
             fov_y,
-            near: (distance - radius * 1.5).max(distance * 0.01),
-            far: distance + radius * 1.5,
+            near: (distance - radius * 1.01).max(distance * 0.01),
+            far: distance + radius * 1.01,
         }
     }
 
