@@ -738,3 +738,98 @@ fn pose_of(state: &State) -> Pose {
         scale: state.log_scale.exp(),
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::candide::tests::model;
+
+    fn vertex(point: usize, v: usize) -> ModelCorrespondence {
+        ModelCorrespondence {
+            point,
+            vertex: Some(v),
+            vertices: vec![],
+            t: None,
+            weight: 1.0,
+            contour: false,
+        }
+    }
+
+    fn eight() -> Vec<ModelCorrespondence> {
+        [5, 7, 8, 20, 23, 53, 56, 31, 64, 10]
+            .iter()
+            .enumerate()
+            .map(|(i, &v)| vertex(i, v))
+            .collect()
+    }
+
+    fn fitter(c: &[ModelCorrespondence], settings: FitSettings) -> Result<Fitter, FitError> {
+        Fitter::new(model(), c, 10, Camera::KINECT_V1_COLOUR, settings)
+    }
+
+    #[test]
+    fn bad_correspondences_and_units_are_refused() {
+        let mut c = eight();
+        c[2] = vertex(12, 8);
+        assert_eq!(
+            fitter(&c, FitSettings::default()).unwrap_err(),
+            FitError::PointOutOfRange {
+                point: 12,
+                count: 10
+            }
+        );
+        let mut c = eight();
+        c[2] = vertex(2, 113);
+        assert_eq!(
+            fitter(&c, FitSettings::default()).unwrap_err(),
+            FitError::VertexOutOfRange {
+                point: 2,
+                vertex: 113,
+                count: 113
+            }
+        );
+        let mut c = eight();
+        c[3].vertices = vec![1, 2];
+        assert_eq!(
+            fitter(&c, FitSettings::default()).unwrap_err(),
+            FitError::Malformed { point: 3 }
+        );
+        assert_eq!(
+            fitter(&eight()[..5], FitSettings::default()).unwrap_err(),
+            FitError::TooFew(5)
+        );
+        let settings = FitSettings {
+            units: vec![0, 11],
+            ..FitSettings::default()
+        };
+        assert_eq!(
+            fitter(&eight(), settings).unwrap_err(),
+            FitError::UnitOutOfRange(11)
+        );
+    }
+
+    #[test]
+    fn vertices_follow_the_model_equation() {
+        // X = s R (v0 + A alpha) + t, checked on vertex 8 (neutral (0, -0.526, 0.15), moved by AUV11 jaw
+        // drop by (0, -0.26, -0.05) per unit, both from the file) for a 90 deg yaw.
+        let f = fitter(&eight(), FitSettings::default()).unwrap();
+        let pose = Pose {
+            rotation: DQuat::from_rotation_y(std::f64::consts::FRAC_PI_2),
+            translation: DVec3::new(0.0, 0.0, -1.0),
+            scale: 0.1,
+        };
+        let mut au = vec![0.0; AUV_COUNT];
+        au[1] = 0.5;
+        let mut out = Vec::new();
+        f.vertices(&pose, &au, &mut out);
+        assert_eq!(out.len(), 113);
+        let m = DVec3::new(0.0, -0.526, 0.15) + 0.5 * DVec3::new(0.0, -0.26, -0.05);
+        // Yaw by +90 deg maps (x, y, z) to (z, y, -x).
+        let expected = 0.1 * DVec3::new(m.z, m.y, -m.x) + DVec3::new(0.0, 0.0, -1.0);
+        assert!(
+            (out[8] - expected).length() < 1e-12,
+            "{} vs {expected}",
+            out[8]
+        );
+    }
+}
