@@ -261,3 +261,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sheet_frames_spread_from_first_to_last() {
+        assert_eq!(spread(4, 1062), vec![0, 353, 707, 1061]);
+        assert_eq!(spread(1, 10), vec![5]);
+        // More frames asked than exist: each frame once.
+        assert_eq!(spread(5, 3), vec![0, 1, 2]);
+        assert!(spread(0, 10).is_empty() && spread(3, 0).is_empty());
+    }
+
+    #[test]
+    fn hidden_ranges_parse_and_default_per_rig() {
+        assert_eq!(
+            parse_hidden(Some("5-3,7"), "x").unwrap(),
+            vec![(3, 5), (7, 7)]
+        );
+        assert!(parse_hidden(Some("none"), "ict-face").unwrap().is_empty());
+        assert_eq!(
+            parse_hidden(None, "ict-face").unwrap(),
+            vec![(24591, 25350)]
+        );
+        assert!(parse_hidden(None, "candide3").unwrap().is_empty());
+        assert!(parse_hidden(Some("1-x"), "x").is_err());
+        assert_eq!(parse_size("640x480").unwrap(), (640, 480));
+        assert!(parse_size("640").is_err());
+    }
+}
