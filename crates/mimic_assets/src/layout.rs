@@ -1,7 +1,7 @@
 //! Landmark layouts from `configs/layouts/<name>.toml`, and where config files are found.
 
 use crate::AssetError;
-use crate::span::{line_of, toml_error};
+use crate::span::{line_of, line_of_nth, toml_error};
 use mimic_types::{Layout, LayoutControl, LayoutError, ModelCorrespondence};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -34,14 +34,7 @@ pub fn load_layout(path: &Path) -> Result<Layout, AssetError> {
 /// Parses and validates layout TOML text; `path` only names the file in errors.
 pub fn parse_layout(path: &Path, text: &str) -> Result<Layout, AssetError> {
     let file: LayoutFile = toml::from_str(text).map_err(|e| toml_error(path, text, e))?;
-    let control_line = |fdp, nth: usize| {
-        file.controls
-            .iter()
-            .filter(|c| c.get_ref().fdp == fdp)
-            .nth(nth)
-            .map(|c| line_of(text, c.span().start))
-            .unwrap_or(1)
-    };
+    let control_line = |fdp, nth: usize| line_of_nth(text, &file.controls, |c| c.fdp == fdp, nth);
     let stable_line = line_of(text, file.stable.span().start);
     let layout = Layout {
         name: file.name.clone(),

@@ -1,7 +1,7 @@
 //! Target rigs from `configs/rigs/<name>.toml`: mesh, control vertices, regions, frozen vertices, solver.
 
 use crate::AssetError;
-use crate::span::{line_of, toml_error};
+use crate::span::{line_of, line_of_nth, toml_error};
 use mimic_types::{RegionBands, Rig, RigControl, RigError, SolverSettings};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
@@ -85,14 +85,8 @@ pub fn parse_rig(path: &Path, text: &str) -> Result<Rig, AssetError> {
         solver: file.solver,
     };
     if let Err(source) = rig.validate() {
-        let control_line = |fdp, nth: usize| {
-            file.controls
-                .iter()
-                .filter(|c| c.get_ref().fdp == fdp)
-                .nth(nth)
-                .map(|c| line_of(text, c.span().start))
-                .unwrap_or(1)
-        };
+        let control_line =
+            |fdp, nth: usize| line_of_nth(text, &file.controls, |c| c.fdp == fdp, nth);
         let line = match &source {
             RigError::ControlVertexOutOfRange { fdp, .. } | RigError::FrozenControl { fdp, .. } => {
                 control_line(*fdp, 0)

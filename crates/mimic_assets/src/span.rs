@@ -10,6 +10,21 @@ pub(crate) fn line_of(text: &str, offset: usize) -> usize {
         + 1
 }
 
+/// 1-based line of the `nth` spanned entry (0-based) for which `matches` holds; 1 if there is none.
+pub(crate) fn line_of_nth<T>(
+    text: &str,
+    entries: &[toml::Spanned<T>],
+    matches: impl Fn(&T) -> bool,
+    nth: usize,
+) -> usize {
+    entries
+        .iter()
+        .filter(|e| matches(e.get_ref()))
+        .nth(nth)
+        .map(|e| line_of(text, e.span().start))
+        .unwrap_or(1)
+}
+
 /// Converts a TOML parse error into its line and message.
 pub(crate) fn toml_error(
     path: &std::path::Path,

@@ -140,15 +140,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             p.basis_time.as_secs_f64() * 1e3,
             step_ns.len()
         );
-        for s in Stage::ALL {
-            let v = &report["stages"][s.name()];
-            println!(
-                "  {:<10} median {:>8.1} us  p99 {:>8.1} us",
-                s.name(),
-                v["median_us"].as_f64().unwrap_or(0.0),
-                v["p99_us"].as_f64().unwrap_or(0.0)
-            );
-        }
+        crate::cmd::replay::print_stages(&report["stages"]);
         println!(
             "  {:<10} median {step_m:>8.1} us  p99 {step_p99:>8.1} us  ({:.0} frames/s)",
             "step",

@@ -93,6 +93,19 @@ fn status_code(s: FrameStatus) -> u32 {
     }
 }
 
+/// Prints one `median / p99` line per pipeline stage from a `{stage: {median_us, p99_us}}` object.
+pub fn print_stages(stages: &serde_json::Value) {
+    for s in Stage::ALL {
+        let v = &stages[s.name()];
+        println!(
+            "  {:<10} median {:>8.1} us   p99 {:>8.1} us",
+            s.name(),
+            v["median_us"].as_f64().unwrap_or(0.0),
+            v["p99_us"].as_f64().unwrap_or(0.0)
+        );
+    }
+}
+
 /// Median and 99th percentile of nanosecond samples, in microseconds.
 pub fn median_p99_us(samples: &mut [u32]) -> (f64, f64) {
     if samples.is_empty() {
@@ -333,15 +346,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             prepared.retargeter.moving_vertex_count(),
             prepared.basis_time.as_secs_f64() * 1e3
         );
-        for s in Stage::ALL {
-            let v = &stages[s.name()];
-            println!(
-                "  {:<10} median {:>8.1} us   p99 {:>8.1} us",
-                s.name(),
-                v["median_us"].as_f64().unwrap_or(0.0),
-                v["p99_us"].as_f64().unwrap_or(0.0)
-            );
-        }
+        print_stages(&summary["stages"]);
         println!(
             "  {:<10} median {step_median:>8.1} us   p99 {step_p99:>8.1} us   ({:.0} frames/s of processing)",
             "step",
