@@ -1,10 +1,11 @@
 //! The rigs and layouts a server offers; each rig's basis is built once and shared by its sessions.
 
 use crate::queue::Message;
-use crate::wire::encode_rig;
+use crate::wire::{encode_morph_rig, encode_rig};
 use glam::Vec3;
+use mimic_retarget::WeightMap;
 use mimic_solve::Basis;
-use mimic_types::{Layout, Rig};
+use mimic_types::{Layout, MorphTarget, Rig};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
@@ -27,6 +28,60 @@ pub enum CatalogError {
         /// Rig controls.
         controls: usize,
     },
+    /// A morph target that does not cover the rig's vertices.
+    #[error("rig `{rig}`: morph target `{target}` has {got} vertex deltas, the mesh has {vertices}")]
+    MorphTarget {
+        /// Rig name.
+        rig: String,
+        /// Target name.
+        target: String,
+        /// Deltas the target has.
+        got: usize,
+        /// Rig vertices.
+        vertices: usize,
+    },
+}
+
+/// A rig's morph targets, for weights sessions: names, the name map, deltas and the rig message.
+#[derive(Debug)]
+pub struct MorphSet {
+    /// Target names, in weight order.
+    pub names: Vec<String>,
+    /// ARKit-style names -> targets.
+    pub map: WeightMap,
+    /// Position deltas, target-major: target `k` is `deltas[k * n..(k + 1) * n]`.
+    deltas: Vec<Vec3>,
+    /// The rig message weights-session viewers get (morph basis, three columns per target).
+    pub message: Message,
+}
+
+impl MorphSet {
+    /// Number of targets.
+    pub fn len(&self) -> usize {
+        self.names.len()
+    }
+
+    /// True without targets (never, for a set attached to a rig).
+    pub fn is_empty(&self) -> bool {
+        self.names.is_empty()
+    }
+
+    /// `positions = rest + sum_k w_k dP_k` (`positions` and `rest` one per vertex, `weights` one
+    /// per target); allocates nothing.
+    pub fn blend(&self, rest: &[Vec3], weights: &[f32], positions: &mut [Vec3]) {
+        positions.copy_from_slice(rest);
+        let n = rest.len();
+        for (k, &w) in weights.iter().enumerate() {
+            if w == 0.0 {
+                continue;
+            }
+            if let Some(dp) = self.deltas.get(k * n..(k + 1) * n) {
+                for (p, d) in positions.iter_mut().zip(dp) {
+                    *p += w * *d;
+                }
+            }
+        }
+    }
 }
 
 /// A rig ready for sessions: the rig, its shared basis, the moving rows and the encoded rig message.
@@ -42,6 +97,8 @@ pub struct RigEntry {
     moving_basis: Basis,
     /// The rig message viewers get once.
     pub message: Message,
+    /// Morph targets, when the rig has `[[morph_targets]]` (weights sessions need them).
+    pub morph: Option<MorphSet>,
 }
 
 impl RigEntry {
@@ -74,7 +131,42 @@ impl RigEntry {
             moving,
             moving_basis,
             message,
+            morph: None,
         })
+    }
+
+    /// Attaches the rig's morph targets (e.g. `mimic_assets::load_morph_targets`) so weights
+    /// sessions can drive it; an empty list leaves the rig without targets.
+    pub fn with_morph_targets(mut self, targets: Vec<MorphTarget>) -> Result<Self, CatalogError> {
+        if targets.is_empty() {
+            self.morph = None;
+            return Ok(self);
+        }
+        let n = self.rig.mesh.vertex_count();
+        let bad = |t: &MorphTarget| CatalogError::MorphTarget {
+            rig: self.rig.name.clone(),
+            target: t.name.clone(),
+            got: t.position_deltas.len(),
+            vertices: n,
+        };
+        if let Some(t) = targets.iter().find(|t| t.position_deltas.len() != n) {
+            return Err(bad(t));
+        }
+        let basis = mimic_solve::morph_basis::morph_basis(&targets, n)
+            .ok_or_else(|| bad(&targets[0]))?;
+        let names: Vec<String> = targets.iter().map(|t| t.name.clone()).collect();
+        let message = Arc::new(encode_morph_rig(&self.rig, &basis, &names));
+        let deltas = targets
+            .iter()
+            .flat_map(|t| t.position_deltas.iter().copied())
+            .collect();
+        self.morph = Some(MorphSet {
+            map: WeightMap::new(&names),
+            names,
+            deltas,
+            message,
+        });
+        Ok(self)
     }
 
     /// Rig name.

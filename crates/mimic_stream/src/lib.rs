@@ -22,7 +22,7 @@ mod settings;
 mod stats;
 pub mod wire;
 
-pub use catalog::{Catalog, CatalogError, RigEntry};
+pub use catalog::{Catalog, CatalogError, MorphSet, RigEntry};
 pub use server::Server;
 pub use settings::{DEFAULT_LISTEN, ServerSettings};
 pub use stats::{LatencyHistogram, LatencySummary, ServerStats, SessionSnapshot, ViewerSnapshot};

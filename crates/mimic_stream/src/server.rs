@@ -26,6 +26,8 @@ use tokio::net::{TcpListener, TcpStream, UdpSocket};
 use tokio::sync::{Semaphore, mpsc, watch};
 use tokio::time::{sleep, sleep_until, timeout};
 
+mod weights;
+
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
@@ -72,6 +74,7 @@ struct SessionRecord {
     malformed: Counter,
     udp_queue_dropped: Counter,
     replies_dropped: Counter,
+    unknown_weights: Counter,
     latency: Mutex<LatencyHistogram>,
     viewers: Mutex<Vec<Arc<Viewer>>>,
 }
@@ -94,6 +97,7 @@ impl SessionRecord {
             malformed: self.malformed.get(),
             udp_queue_dropped: self.udp_queue_dropped.get(),
             replies_dropped: self.replies_dropped.get(),
+            unknown_weights: self.unknown_weights.get(),
             latency: lock(&self.latency).summary(),
             viewers: lock(&self.viewers).iter().map(|v| v.snapshot()).collect(),
         }
@@ -362,6 +366,20 @@ async fn connection(shared: Arc<Shared>, socket: TcpStream, mut stop: watch::Rec
             rig,
         }) => {
             tracker(shared, lines, w, header, session, rig, stop).await;
+        }
+        Ok(Hello::Weights {
+            session,
+            rig,
+            rate_hz,
+            source,
+        }) => {
+            let hello = weights::WeightsHello {
+                session,
+                rig,
+                rate_hz,
+                source,
+            };
+            weights::session(shared, lines, w, hello, stop).await;
         }
     }
 }
@@ -632,6 +650,7 @@ async fn tracker(
         malformed: Counter::default(),
         udp_queue_dropped: Counter::default(),
         replies_dropped: Counter::default(),
+        unknown_weights: Counter::default(),
         latency: Mutex::new(LatencyHistogram::default()),
         viewers: Mutex::new(Vec::new()),
     });

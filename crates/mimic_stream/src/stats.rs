@@ -162,6 +162,8 @@ pub struct SessionSnapshot {
     pub udp_queue_dropped: u64,
     /// Error replies not sent because the tracker did not read them.
     pub replies_dropped: u64,
+    /// Weights sessions: weight names that matched no morph target, summed over frames.
+    pub unknown_weights: u64,
     /// Arrival (line or packet read) to broadcast (pushed to every viewer queue).
     pub latency: LatencySummary,
     /// Viewers that watched this session.

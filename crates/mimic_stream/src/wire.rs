@@ -58,6 +58,12 @@ pub enum ErrorCode {
     SessionBusy,
     /// The server is shutting down.
     ShuttingDown,
+    /// A weight frame whose weights are not an object of numbers (`docs/protocol.md`).
+    BadWeight,
+    /// A weights session names a rig without morph targets.
+    NoMorphTargets,
+    /// A weight name that is no target of the rig (a warning, once per name; not an error).
+    UnknownWeight,
 }
 
 impl ErrorCode {
@@ -79,6 +85,9 @@ impl ErrorCode {
             ErrorCode::UnknownLayout => "unknown_layout",
             ErrorCode::SessionBusy => "session_busy",
             ErrorCode::ShuttingDown => "shutting_down",
+            ErrorCode::BadWeight => "bad_weight",
+            ErrorCode::NoMorphTargets => "no_morph_targets",
+            ErrorCode::UnknownWeight => "unknown_weight",
         }
     }
 
@@ -108,6 +117,17 @@ pub enum Hello {
         session: Option<String>,
         /// Rig to drive (default: the server's default rig).
         rig: Option<String>,
+    },
+    /// A tracker that sends named blendshape weights (`{"mode":"weights"}`), not landmarks.
+    Weights {
+        /// Session name to open (default: one the server makes up).
+        session: Option<String>,
+        /// Rig to drive (default: the server's default rig); it must have morph targets.
+        rig: Option<String>,
+        /// Frame rate the tracker announces, if any.
+        rate_hz: Option<f64>,
+        /// Source the tracker announces (e.g. `arkit`), if any.
+        source: Option<String>,
     },
     /// A viewer joining a session.
     Viewer {
@@ -188,6 +208,21 @@ pub fn parse_hello(line: &[u8]) -> Result<Hello, HelloError> {
             rig,
         });
     }
+    if obj.get("mode").and_then(Value::as_str) == Some("weights") {
+        let text = |k: &str| obj.get(k).and_then(Value::as_str).map(str::to_string);
+        let session = text("session");
+        if let Some(s) = &session
+            && !valid_session_name(s)
+        {
+            return Err(HelloError::BadSessionName(s.clone()));
+        }
+        return Ok(Hello::Weights {
+            session,
+            rig: text("rig"),
+            rate_hz: obj.get("rate_hz").and_then(Value::as_f64),
+            source: text("source"),
+        });
+    }
     match obj.get("type").and_then(Value::as_str) {
         Some("viewer") => {
             let session = obj
@@ -207,6 +242,77 @@ pub fn parse_hello(line: &[u8]) -> Result<Hello, HelloError> {
         Some("stats") => Ok(Hello::Stats),
         _ => Err(HelloError::Unknown),
     }
+}
+
+/// One weight frame line: `{"t_us": .., "weights": {"name": value, ..}}`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WeightFrame {
+    /// Capture time (µs, the tracker's clock).
+    pub timestamp_us: i64,
+    /// `(name, value)` pairs in line order; values as sent (finite, not yet clamped).
+    pub weights: Vec<(String, f64)>,
+}
+
+/// Why a weight frame line is rejected.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum WeightFrameError {
+    /// Not JSON (JSON has no NaN: a `NaN` literal lands here), not an object, or no integer `t_us`.
+    #[error("{0}")]
+    Json(String),
+    /// `weights` missing or not an object, or a value that is not a number.
+    #[error("{0}")]
+    Weight(String),
+}
+
+impl WeightFrameError {
+    /// The error code the session answers with.
+    pub fn code(&self) -> ErrorCode {
+        match self {
+            WeightFrameError::Json(_) => ErrorCode::BadJson,
+            WeightFrameError::Weight(_) => ErrorCode::BadWeight,
+        }
+    }
+}
+
+/// Parses a weight frame line (without its newline).
+pub fn parse_weight_frame(line: &[u8]) -> Result<WeightFrame, WeightFrameError> {
+    let v: Value = serde_json::from_slice(trim_end(line))
+        .map_err(|e| WeightFrameError::Json(format!("invalid JSON: {e}")))?;
+    let Value::Object(obj) = v else {
+        return Err(WeightFrameError::Json("a weight frame is a JSON object".into()));
+    };
+    let timestamp_us = obj
+        .get("t_us")
+        .and_then(Value::as_i64)
+        .ok_or_else(|| WeightFrameError::Json("`t_us` must be an integer (µs)".into()))?;
+    let Some(Value::Object(map)) = obj.get("weights") else {
+        return Err(WeightFrameError::Weight(
+            "`weights` must be an object of name: number".into(),
+        ));
+    };
+    let mut weights = Vec::with_capacity(map.len());
+    for (name, value) in map {
+        match value.as_f64() {
+            Some(x) if x.is_finite() => weights.push((name.clone(), x)),
+            _ => {
+                return Err(WeightFrameError::Weight(format!(
+                    "weight `{name}` is {value}, not a number"
+                )));
+            }
+        }
+    }
+    Ok(WeightFrame {
+        timestamp_us,
+        weights,
+    })
+}
+
+/// A tracker warning line: `{"type":"warning","code":..,"line":..,"message":..}` and a newline.
+pub fn warning_line(code: ErrorCode, line: u64, message: &str) -> String {
+    let mut s = json!({"type": "warning", "code": code.name(), "line": line, "message": message})
+        .to_string();
+    s.push('\n');
+    s
 }
 
 /// A tracker reply line: `{"type":"error","code":..,"line":..,"message":..}` and a newline.
@@ -244,8 +350,29 @@ pub fn encode_rig(rig: &Rig, basis: &Basis) -> Vec<u8> {
             "fdp": c.fdp.to_string(), "vertex": c.vertex, "region": c.region.name()
         })).collect::<Vec<_>>(),
         "regions": rig.regions,
-    })
-    .to_string();
+    });
+    encode_rig_parts(&meta, rig, basis)
+}
+
+/// The rig message of a weights session: `B` is the morph basis (three columns per target,
+/// `mimic_solve::morph_basis`) and the JSON says `"mode":"weights"` and names the `targets` in
+/// weight order (its `controls` list is empty: the columns are not control points).
+pub fn encode_morph_rig(rig: &Rig, basis: &Basis, targets: &[String]) -> Vec<u8> {
+    let meta = json!({
+        "name": rig.name,
+        "units": rig.units,
+        "vertices": rig.mesh.vertex_count(),
+        "triangles": rig.mesh.triangles.len(),
+        "mode": "weights",
+        "targets": targets,
+        "controls": [],
+        "regions": rig.regions,
+    });
+    encode_rig_parts(&meta, rig, basis)
+}
+
+fn encode_rig_parts(meta: &Value, rig: &Rig, basis: &Basis) -> Vec<u8> {
+    let meta = meta.to_string();
     let n = rig.mesh.vertex_count();
     let t = rig.mesh.triangles.len();
     let m = basis.control_count();
@@ -665,6 +792,39 @@ mod tests {
             parse_hello(br#"{"format":"mimic-recording","version":2,"layout":"x","units":"m","source":"x","rate_hz":30}"#),
             Err(HelloError::BadHeader(_))
         ));
+    }
+
+    #[test]
+    fn weights_hello_and_frames() {
+        assert_eq!(
+            parse_hello(br#"{"mode":"weights","session":"w","rig":"ict-face","rate_hz":60}"#)
+                .unwrap(),
+            Hello::Weights {
+                session: Some("w".into()),
+                rig: Some("ict-face".into()),
+                rate_hz: Some(60.0),
+                source: None,
+            }
+        );
+        assert!(matches!(
+            parse_hello(br#"{"mode":"weights","session":"a b"}"#),
+            Err(HelloError::BadSessionName(_))
+        ));
+        let f = parse_weight_frame(br#"{"t_us":7,"weights":{"jawOpen":0.5,"x":2}}"#).unwrap();
+        assert_eq!(f.timestamp_us, 7);
+        assert_eq!(
+            f.weights,
+            vec![("jawOpen".to_string(), 0.5), ("x".to_string(), 2.0)]
+        );
+        let code = |l: &[u8]| parse_weight_frame(l).unwrap_err().code();
+        // JSON has no NaN: the literal is a JSON error.
+        assert_eq!(code(br#"{"t_us":7,"weights":{"jawOpen":NaN}}"#), ErrorCode::BadJson);
+        assert_eq!(code(br#"{"weights":{}}"#), ErrorCode::BadJson);
+        assert_eq!(code(br#"[1]"#), ErrorCode::BadJson);
+        assert_eq!(code(br#"{"t_us":7,"weights":{"jawOpen":"a"}}"#), ErrorCode::BadWeight);
+        assert_eq!(code(br#"{"t_us":7,"weights":{"jawOpen":null}}"#), ErrorCode::BadWeight);
+        assert_eq!(code(br#"{"t_us":7,"weights":[0.5]}"#), ErrorCode::BadWeight);
+        assert_eq!(code(br#"{"t_us":7}"#), ErrorCode::BadWeight);
     }
 
     #[test]

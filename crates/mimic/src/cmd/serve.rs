@@ -64,10 +64,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let dirs = args.rig.config_dirs();
     let mut entries = Vec::new();
     for name in std::iter::once(&args.rig.rig).chain(&args.also_rig) {
-        let rig = load_rig(&dirs.rig_path(name))?;
+        let rig_path = dirs.rig_path(name);
+        let rig = load_rig(&rig_path)?;
         let (basis, _, took) = args.rig.build_basis(&rig)?;
         tracing::info!(rig = %rig.name, ms = took.as_secs_f64() * 1e3, "basis built");
-        entries.push(RigEntry::new(rig, basis)?);
+        // Morph targets (for weights sessions), when the rig lists `[[morph_targets]]`.
+        let targets = mimic_assets::load_morph_targets(&rig_path, &rig)?;
+        entries.push(RigEntry::new(rig, basis)?.with_morph_targets(targets)?);
     }
     let mut entries = entries.into_iter();
     let first = entries.next().context("no rig")?;
