@@ -8,6 +8,7 @@ mod regression;
 mod render;
 mod replay;
 mod serve;
+mod serve_weights;
 
 use std::path::PathBuf;
 use std::process::{Command, Output};

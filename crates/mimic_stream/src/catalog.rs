@@ -29,7 +29,9 @@ pub enum CatalogError {
         controls: usize,
     },
     /// A morph target that does not cover the rig's vertices.
-    #[error("rig `{rig}`: morph target `{target}` has {got} vertex deltas, the mesh has {vertices}")]
+    #[error(
+        "rig `{rig}`: morph target `{target}` has {got} vertex deltas, the mesh has {vertices}"
+    )]
     MorphTarget {
         /// Rig name.
         rig: String,
@@ -152,8 +154,8 @@ impl RigEntry {
         if let Some(t) = targets.iter().find(|t| t.position_deltas.len() != n) {
             return Err(bad(t));
         }
-        let basis = mimic_solve::morph_basis::morph_basis(&targets, n)
-            .ok_or_else(|| bad(&targets[0]))?;
+        let basis =
+            mimic_solve::morph_basis::morph_basis(&targets, n).ok_or_else(|| bad(&targets[0]))?;
         let names: Vec<String> = targets.iter().map(|t| t.name.clone()).collect();
         let message = Arc::new(encode_morph_rig(&self.rig, &basis, &names));
         let deltas = targets

@@ -279,7 +279,9 @@ pub fn parse_weight_frame(line: &[u8]) -> Result<WeightFrame, WeightFrameError> 
     let v: Value = serde_json::from_slice(trim_end(line))
         .map_err(|e| WeightFrameError::Json(format!("invalid JSON: {e}")))?;
     let Value::Object(obj) = v else {
-        return Err(WeightFrameError::Json("a weight frame is a JSON object".into()));
+        return Err(WeightFrameError::Json(
+            "a weight frame is a JSON object".into(),
+        ));
     };
     let timestamp_us = obj
         .get("t_us")
@@ -818,11 +820,20 @@ mod tests {
         );
         let code = |l: &[u8]| parse_weight_frame(l).unwrap_err().code();
         // JSON has no NaN: the literal is a JSON error.
-        assert_eq!(code(br#"{"t_us":7,"weights":{"jawOpen":NaN}}"#), ErrorCode::BadJson);
+        assert_eq!(
+            code(br#"{"t_us":7,"weights":{"jawOpen":NaN}}"#),
+            ErrorCode::BadJson
+        );
         assert_eq!(code(br#"{"weights":{}}"#), ErrorCode::BadJson);
         assert_eq!(code(br#"[1]"#), ErrorCode::BadJson);
-        assert_eq!(code(br#"{"t_us":7,"weights":{"jawOpen":"a"}}"#), ErrorCode::BadWeight);
-        assert_eq!(code(br#"{"t_us":7,"weights":{"jawOpen":null}}"#), ErrorCode::BadWeight);
+        assert_eq!(
+            code(br#"{"t_us":7,"weights":{"jawOpen":"a"}}"#),
+            ErrorCode::BadWeight
+        );
+        assert_eq!(
+            code(br#"{"t_us":7,"weights":{"jawOpen":null}}"#),
+            ErrorCode::BadWeight
+        );
         assert_eq!(code(br#"{"t_us":7,"weights":[0.5]}"#), ErrorCode::BadWeight);
         assert_eq!(code(br#"{"t_us":7}"#), ErrorCode::BadWeight);
     }

@@ -69,7 +69,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let (basis, _, took) = args.rig.build_basis(&rig)?;
         tracing::info!(rig = %rig.name, ms = took.as_secs_f64() * 1e3, "basis built");
         // Morph targets (for weights sessions), when the rig lists `[[morph_targets]]`.
+        let started = std::time::Instant::now();
         let targets = mimic_assets::load_morph_targets(&rig_path, &rig)?;
+        if !targets.is_empty() {
+            let ms = started.elapsed().as_secs_f64() * 1e3;
+            tracing::info!(rig = %rig.name, targets = targets.len(), ms, "morph targets loaded");
+        }
         entries.push(RigEntry::new(rig, basis)?.with_morph_targets(targets)?);
     }
     let mut entries = entries.into_iter();

@@ -3,9 +3,7 @@
 //! morph targets and reach viewers as the morph basis's control values (`d[3k + a] = w_k e_a`),
 //! or as positions `P0 + sum_k w_k dP_k`.
 
-use super::{
-    Hub, Live, SessionRecord, Shared, lock, refuse, reply,
-};
+use super::{Hub, Live, SessionRecord, Shared, lock, refuse, reply};
 use crate::catalog::RigEntry;
 use crate::lines::{Line, LineReader};
 use crate::stats::{Counter, LatencyHistogram};
@@ -113,7 +111,11 @@ impl WeightsPipeline {
         };
         let d_message = want_d.then(|| Arc::new(encode_frame(seq, &self.out, None)));
         let p_message = want_positions.then(|| {
-            morph.blend(&self.rig.rig.mesh.positions, &self.weights, &mut self.positions);
+            morph.blend(
+                &self.rig.rig.mesh.positions,
+                &self.weights,
+                &mut self.positions,
+            );
             Arc::new(encode_frame(seq, &self.out, Some(&self.positions)))
         });
         {
