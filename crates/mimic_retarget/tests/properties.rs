@@ -219,9 +219,11 @@ proptest! {
             let f = apply_spoil(&r.frames[(start + k) % r.frames.len()], s);
             let status = rt.step(&f, &mut out);
             counts[status as usize] += 1;
-            if status == FrameStatus::Rejected {
-                prop_assert_eq!(f.points.len() != r.layout.point_count, true);
-            }
+            // Rejected exactly when the point count is wrong.
+            prop_assert_eq!(
+                status == FrameStatus::Rejected,
+                f.points.len() != r.layout.point_count
+            );
             prop_assert!(all_finite(&out.positions), "positions after {:?}", s);
             prop_assert!(all_finite(&out.normals), "normals after {:?}", s);
             prop_assert!(all_finite(&out.displacements), "displacements after {:?}", s);
