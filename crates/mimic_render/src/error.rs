@@ -11,7 +11,7 @@ pub enum RenderError {
     /// The adapter refused to create a device.
     #[error("could not create a GPU device: {0}")]
     NoDevice(String),
-    /// The rig has more controls than the per-frame uniform holds.
+    /// The rig has more controls than [`crate::MAX_CONTROLS`].
     #[error("the rig has {got} controls; the renderer holds at most {max}")]
     TooManyControls {
         /// Controls of the basis.

@@ -1,8 +1,9 @@
 //! `mimic_render`: a headless wgpu renderer for mimic rigs.
 //!
 //! A rig is uploaded once ([`Renderer::upload_rig`]): rest positions, triangles and the basis `B`
-//! (n x m, row-major) in storage buffers. Per frame only a uniform goes up: the camera, the head
-//! transform and the m control displacements `d`. A compute pass computes the morph
+//! (n x m, row-major) in storage buffers. Per frame a uniform (the camera, the head transform) and
+//! the m control displacements `d` (a storage buffer sized for the rig, so m is not bounded by a
+//! uniform: 64 morph targets are 192 columns) go up. A compute pass computes the morph
 //! `P_i = P0_i + sum_j B[i, j] d_j` and a second one the area-weighted vertex normals of the
 //! morphed surface; the vertex shader fetches vertex `i` by index and applies the head transform
 //! and the camera; the fragment shader lights it (diffuse + ambient) or colours it as a heat map of

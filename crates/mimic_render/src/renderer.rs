@@ -6,8 +6,9 @@ use mimic_solve::Basis;
 use std::sync::mpsc;
 use wgpu::util::DeviceExt;
 
-/// Most controls a rig may have: the per-frame uniform holds this many displacements.
-pub const MAX_CONTROLS: usize = 64;
+/// Most controls (basis columns) a rig may have: 1024, i.e. 341 morph targets at three columns
+/// each; the displacements go up per frame in a storage buffer sized for the rig.
+pub const MAX_CONTROLS: usize = 1024;
 
 /// Colour format of the offscreen target (and of the bytes read back): sRGB-encoded RGBA8.
 const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
@@ -97,7 +98,6 @@ struct FrameUniform {
     light: [f32; 4],
     params: [f32; 4],
     modes: [u32; 4],
-    d: [[f32; 4]; MAX_CONTROLS],
 }
 
 /// A rig uploaded once: rest positions, the basis, triangles with their per-vertex incidence
@@ -107,6 +107,7 @@ pub struct RigGpu {
     control_count: u32,
     index_count: u32,
     uniform: wgpu::Buffer,
+    controls: wgpu::Buffer,
     positions: wgpu::Buffer,
     normals: wgpu::Buffer,
     morph_group: wgpu::BindGroup,
@@ -389,6 +390,13 @@ impl Renderer {
             usage: wgpu::BufferUsages::UNIFORM | wgpu::BufferUsages::COPY_DST,
             mapped_at_creation: false,
         });
+        // One vec4 per control, written each frame (at least one, as empty bindings are invalid).
+        let controls = self.device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("controls"),
+            size: 16 * m.max(1) as u64,
+            usage: storage | wgpu::BufferUsages::COPY_DST,
+            mapped_at_creation: false,
+        });
         let rest_buf = init("rest", bytemuck::cast_slice(&rest), storage);
         let basis_buf = init("basis", bytemuck::cast_slice(basis_data), storage);
         let rw = storage | wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::COPY_SRC;
@@ -423,6 +431,7 @@ impl Renderer {
                 (1, &rest_buf),
                 (2, &basis_buf),
                 (3, &positions_buf),
+                (9, &controls),
             ],
         );
         let normals_group = group(
@@ -450,6 +459,7 @@ impl Renderer {
             control_count: m as u32,
             index_count: flat.len() as u32,
             uniform,
+            controls,
             positions: positions_buf,
             normals: normals_buf,
             morph_group,
@@ -459,23 +469,14 @@ impl Renderer {
         })
     }
 
-    fn uniform(
-        &self,
-        rig: &RigGpu,
-        d: &[Vec3],
-        view: Option<&View>,
-    ) -> Result<FrameUniform, RenderError> {
+    fn uniform(&self, rig: &RigGpu, view: Option<&View>) -> Result<FrameUniform, RenderError> {
         let mut u = FrameUniform {
             view_proj: Mat4::IDENTITY.to_cols_array_2d(),
             model: Mat4::IDENTITY.to_cols_array_2d(),
             light: [0.0, 0.0, 1.0, 0.25],
             params: [1.0, 0.0, 0.0, 0.0],
             modes: [0, 0, rig.vertex_count, rig.control_count],
-            d: [[0.0; 4]; MAX_CONTROLS],
         };
-        for (slot, v) in u.d.iter_mut().zip(d) {
-            *slot = [v.x, v.y, v.z, 0.0];
-        }
         if let Some(view) = view {
             let aspect = self.width as f32 / self.height as f32;
             u.view_proj = view.camera.view_proj(aspect).to_cols_array_2d();
@@ -557,9 +558,19 @@ impl Renderer {
                 (&[], false, normals.is_none())
             }
         };
-        let u = self.uniform(rig, d, view)?;
+        let u = self.uniform(rig, view)?;
         self.queue
             .write_buffer(&rig.uniform, 0, bytemuck::bytes_of(&u));
+        if morph {
+            // Rest: zero displacements (the buffer may hold the last frame's).
+            let controls = if d.is_empty() {
+                vec![[0f32; 4]; rig.control_count().max(1)]
+            } else {
+                vec4s(d, 0.0)
+            };
+            self.queue
+                .write_buffer(&rig.controls, 0, bytemuck::cast_slice(&controls));
+        }
         let groups = rig.vertex_count.div_ceil(WORKGROUP);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
             label: Some("deform"),

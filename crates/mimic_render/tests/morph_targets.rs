@@ -70,3 +70,89 @@ fn gpu_blendshapes_equal_the_cpu_blend() {
         assert!(worst_n < 1e-3, "worst normal difference {worst_n}");
     }
 }
+
+/// 64 synthetic targets (192 basis columns, beyond the old 64-control uniform) on a 40 x 40 grid:
+/// the GPU's `P0 + B d` equals the CPU blend `P0 + sum_k w_k dP_k` summed in f64.
+#[test]
+fn gpu_blends_64_synthetic_targets_like_the_cpu() {
+    if std::env::var_os("MIMIC_SKIP_GPU_TESTS").is_some() {
+        eprintln!("MIMIC_SKIP_GPU_TESTS is set: skipping a GPU test");
+        return;
+    }
+    let r = Renderer::new(64, 64)
+        .unwrap_or_else(|e| panic!("{e} (set MIMIC_SKIP_GPU_TESTS=1 to skip GPU tests)"));
+    let side = 40u32;
+    let positions: Vec<Vec3> = (0..side * side)
+        .map(|i| Vec3::new((i % side) as f32 * 0.1, (i / side) as f32 * 0.1, 0.0))
+        .collect();
+    let mut triangles = Vec::new();
+    for y in 0..side - 1 {
+        for x in 0..side - 1 {
+            let a = y * side + x;
+            triangles.push([a, a + 1, a + side + 1]);
+            triangles.push([a, a + side + 1, a + side]);
+        }
+    }
+    let n = positions.len();
+    let k = 64;
+    // Target t bends the sheet with its own frequency along each axis (all deltas within 1).
+    let targets: Vec<mimic_types::MorphTarget> = (0..k)
+        .map(|t| {
+            let f = 0.3 + 0.05 * t as f32;
+            let position_deltas = positions
+                .iter()
+                .map(|p| {
+                    Vec3::new(
+                        0.2 * (f * p.y).sin(),
+                        0.2 * (f * p.x).cos(),
+                        (f * (p.x + p.y)).sin(),
+                    )
+                })
+                .collect();
+            mimic_types::MorphTarget {
+                name: format!("t{t}"),
+                position_deltas,
+                normal_deltas: vec![Vec3::ZERO; n],
+            }
+        })
+        .collect();
+    let basis = morph_basis(&targets, n).unwrap();
+    assert_eq!(basis.control_count(), 3 * k);
+    let gpu = r.upload_rig(&positions, &triangles, Some(&basis)).unwrap();
+    let weights: Vec<f32> = (0..k).map(|t| ((t * 37) % 64) as f32 / 63.0).collect();
+    let mut d = vec![Vec3::ZERO; 3 * k];
+    morph_controls(&weights, &mut d);
+    r.deform(&gpu, Deform::Controls(&d)).unwrap();
+    let got = r.read_positions(&gpu).unwrap();
+    let mut worst = 0f64;
+    for (i, g) in got.iter().enumerate() {
+        let mut want = positions[i].to_array().map(f64::from);
+        let mut scale = f64::from(positions[i].abs().max_element());
+        for (t, &w) in targets.iter().zip(&weights) {
+            let dp = t.position_deltas[i];
+            scale += f64::from(w * dp.abs().max_element());
+            for (a, c) in want.iter_mut().zip(dp.to_array()) {
+                *a += f64::from(w) * f64::from(c);
+            }
+        }
+        // 3k = 192 f32 products and sums per axis (the zero columns add exactly 0): error at most
+        // (3k + 1) eps (|P0| + sum_k w_k |dP_k|).
+        let tol = (3 * k + 1) as f64 * f64::from(f32::EPSILON) * scale;
+        for (a, (gv, wv)) in g.to_array().iter().zip(want).enumerate() {
+            let e = (f64::from(*gv) - wv).abs();
+            worst = worst.max(e);
+            assert!(
+                e <= tol,
+                "vertex {i} axis {a}: gpu {gv} cpu {wv} (tol {tol})"
+            );
+        }
+    }
+    eprintln!("64 targets: worst |gpu - cpu| {worst:e}");
+    // The rest pose really differs from this blend (the comparison is not vacuous).
+    let moved = got
+        .iter()
+        .zip(&positions)
+        .map(|(g, p)| (*g - *p).length())
+        .fold(0f32, f32::max);
+    assert!(moved > 1.0, "the blend moves the sheet by {moved}");
+}

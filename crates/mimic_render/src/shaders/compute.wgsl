@@ -9,14 +9,14 @@ struct Frame {
     params: vec4<f32>,
     // x: shading mode, y: control for the weight heat map, z: vertex count, w: control count.
     modes: vec4<u32>,
-    // Control displacements d_j (xyz), j < control count.
-    d: array<vec4<f32>, 64>,
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> rest: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> basis: array<f32>;
 @group(0) @binding(3) var<storage, read_write> morphed: array<vec4<f32>>;
+// Control displacements d_j (xyz), j < control count: the per-frame upload, any count.
+@group(0) @binding(9) var<storage, read> controls: array<vec4<f32>>;
 
 @compute @workgroup_size(64)
 fn morph(@builtin(global_invocation_id) id: vec3<u32>) {
@@ -29,7 +29,7 @@ fn morph(@builtin(global_invocation_id) id: vec3<u32>) {
     var u = vec3<f32>(0.0);
     let row = i * m;
     for (var j = 0u; j < m; j = j + 1u) {
-        u = u + basis[row + j] * frame.d[j].xyz;
+        u = u + basis[row + j] * controls[j].xyz;
     }
     morphed[i] = vec4<f32>(rest[i].xyz + u, 1.0);
 }

@@ -7,7 +7,6 @@ struct Frame {
     light: vec4<f32>,
     params: vec4<f32>,
     modes: vec4<u32>,
-    d: array<vec4<f32>, 64>,
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
