@@ -326,3 +326,55 @@ fn a_weights_stream_reaches_viewers_as_the_blend_and_bad_frames_are_answered() {
         "closed after refusing"
     );
 }
+
+#[test]
+fn send_weights_csv_drives_a_weights_session() {
+    let serve = Serve::start(&[]);
+    let dir = std::env::temp_dir().join(format!("mimic-send-weights-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let csv = dir.join("w.csv");
+    // An ARKit-style export: a timecode column (not sent), two known names and one unknown.
+    std::fs::write(
+        &csv,
+        "Timecode,jawOpen,mouthSmileLeft,tongueOut\n00:00:00:01,0.1,0.2,0.3\n00:00:00:02,0.4,0.5,0.6\n00:00:00:03,0.7,0.8,0.9\n",
+    )
+    .unwrap();
+    let out = crate::mimic(&[
+        "send",
+        "--weights",
+        csv.to_str().unwrap(),
+        "--to",
+        &serve.tcp,
+        "--session",
+        "csv",
+        "--fast",
+    ]);
+    let (stdout, stderr) = crate::text(&out);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("sent 3 weight frames")
+            && stdout.contains("server: 3 frames, 0 late, 0 malformed, 3 unknown weight names"),
+        "{stdout}"
+    );
+    // The unknown name is reported once, though it came in every frame.
+    assert_eq!(stderr.matches("unknown_weight").count(), 1, "{stderr}");
+    let s = serve.wait_for("the csv session", |s| s["sessions"][0]["active"] == false);
+    assert_eq!(s["sessions"][0]["name"], "csv");
+    assert_eq!(s["sessions"][0]["tracked"], 3);
+    // A bad cell is an error naming the line and column.
+    std::fs::write(&csv, "jawOpen\n0.5\nwide\n").unwrap();
+    let out = crate::mimic(&[
+        "send",
+        "--weights",
+        csv.to_str().unwrap(),
+        "--to",
+        &serve.tcp,
+    ]);
+    let (_, stderr) = crate::text(&out);
+    assert!(!out.status.success());
+    assert!(
+        stderr.contains("w.csv:3: column `jawOpen`: `wide` is not a number"),
+        "{stderr}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -1,4 +1,5 @@
-//! `mimic send`: a tracker simulator that replays a recording into `mimic serve` over TCP.
+//! `mimic send`: a tracker simulator that replays a recording (or a CSV of named blendshape
+//! weights, as a weights session) into `mimic serve` over TCP.
 
 use anyhow::Context;
 use mimic_capture::{Pace, RecordedFrame, RecordingReader, RecordingWriter, Replay, ReplayOptions};
@@ -12,7 +13,17 @@ use std::time::Duration;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Recording (v1 JSON Lines) to send.
-    pub recording: PathBuf,
+    #[arg(required_unless_present = "weights", conflicts_with = "weights")]
+    pub recording: Option<PathBuf>,
+    /// Send named weights instead, as a weights session: a CSV with a header of names (e.g.
+    /// `replay --mode blendshapes --weights` output or an ARKit export); a `t_us` column gives
+    /// the times, else frames are `1/--rate` apart. `frame`, `status`, `label`, `timecode` and
+    /// `blendshapecount` columns are not sent.
+    #[arg(long)]
+    pub weights: Option<PathBuf>,
+    /// Frame rate of a weights CSV without a `t_us` column.
+    #[arg(long, default_value_t = 60.0)]
+    pub rate: f64,
     /// Server address (host:port of `mimic serve`).
     #[arg(long, default_value = mimic_stream::DEFAULT_LISTEN)]
     pub to: String,
@@ -38,9 +49,11 @@ pub struct Args {
 
 /// Runs `mimic send`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut header = RecordingReader::open(&args.recording, None)?
-        .header()
-        .clone();
+    if let Some(csv) = &args.weights {
+        return send_weights(&args, csv);
+    }
+    let recording = args.recording.clone().context("no recording given")?;
+    let mut header = RecordingReader::open(&recording, None)?.header().clone();
     if let Some(s) = &args.session {
         header
             .extra
@@ -77,7 +90,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         looping: args.looping,
         ..ReplayOptions::default()
     };
-    let mut replay = Replay::open(&args.recording, None, options)?;
+    let mut replay = Replay::open(&recording, None, options)?;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_time()
         .build()?;
@@ -109,6 +122,144 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ),
         None => println!(
             "sent {sent} frames to {}; no reply from the server",
+            args.to
+        ),
+    }
+    Ok(())
+}
+
+/// Columns of a weights CSV that are not weights.
+const NOT_WEIGHTS: [&str; 6] = [
+    "frame",
+    "t_us",
+    "status",
+    "label",
+    "timecode",
+    "blendshapecount",
+];
+
+/// Weight frame lines (`{"t_us", "weights"}`) of a weights CSV, with their times.
+fn weight_lines(csv: &std::path::Path, rate: f64) -> anyhow::Result<Vec<(i64, String)>> {
+    let text = std::fs::read_to_string(csv).with_context(|| csv.display().to_string())?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines
+        .next()
+        .with_context(|| format!("{}: empty file", csv.display()))?
+        .split(',')
+        .map(str::trim)
+        .collect();
+    let time_col = header.iter().position(|h| h.eq_ignore_ascii_case("t_us"));
+    let sent: Vec<usize> = (0..header.len())
+        .filter(|&c| {
+            !NOT_WEIGHTS
+                .iter()
+                .any(|n| header[c].eq_ignore_ascii_case(n))
+        })
+        .collect();
+    anyhow::ensure!(!sent.is_empty(), "{}: no weight columns", csv.display());
+    anyhow::ensure!(rate > 0.0 && rate.is_finite(), "--rate must be positive");
+    let mut out = Vec::new();
+    for (i, line) in lines.enumerate() {
+        if line.trim().is_empty() {
+            continue;
+        }
+        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+        let at = |c: usize| fields.get(c).copied().unwrap_or("");
+        let t_us = match time_col {
+            Some(c) => at(c).parse::<i64>().with_context(|| {
+                format!(
+                    "{}:{}: `t_us` `{}` is not an integer",
+                    csv.display(),
+                    i + 2,
+                    at(c)
+                )
+            })?,
+            None => (out.len() as f64 * 1e6 / rate).round() as i64,
+        };
+        let mut weights = serde_json::Map::new();
+        for &c in &sent {
+            let v: f64 = at(c)
+                .parse()
+                .ok()
+                .filter(|v: &f64| v.is_finite())
+                .with_context(|| {
+                    format!(
+                        "{}:{}: column `{}`: `{}` is not a number",
+                        csv.display(),
+                        i + 2,
+                        header[c],
+                        at(c)
+                    )
+                })?;
+            weights.insert(header[c].to_string(), Value::from(v));
+        }
+        let mut l = serde_json::json!({"t_us": t_us, "weights": weights}).to_string();
+        l.push('\n');
+        out.push((t_us, l));
+    }
+    Ok(out)
+}
+
+/// `mimic send --weights`: a weights session fed from a CSV.
+fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
+    use std::io::Write;
+    let lines = weight_lines(csv, args.rate)?;
+    let mut hello =
+        serde_json::json!({"mode": "weights", "source": "mimic send", "rate_hz": args.rate});
+    if let Some(s) = &args.session {
+        hello["session"] = Value::from(s.as_str());
+    }
+    if let Some(r) = &args.rig {
+        hello["rig"] = Value::from(r.as_str());
+    }
+    let mut stream =
+        TcpStream::connect(&args.to).with_context(|| format!("connecting to {}", args.to))?;
+    stream.set_nodelay(true)?;
+    let replies = stream.try_clone()?;
+    let reader = std::thread::spawn(move || {
+        let mut bye = None;
+        for line in BufReader::new(replies).lines() {
+            let Ok(line) = line else { break };
+            let v: Value = serde_json::from_str(&line).unwrap_or(Value::Null);
+            match v["type"].as_str() {
+                Some("welcome") => tracing::info!("{line}"),
+                Some("bye") => bye = Some(v),
+                _ => eprintln!("server: {line}"),
+            }
+        }
+        bye
+    });
+    stream.write_all(format!("{hello}\n").as_bytes())?;
+    let start = std::time::Instant::now();
+    let speed = if args.speed > 0.0 { args.speed } else { 1.0 };
+    let mut sent = 0usize;
+    let first_t = lines.first().map_or(0, |(t, _)| *t);
+    // Sent once (`--loop` would repeat timestamps, which the server drops as late).
+    for (t, line) in &lines {
+        if !args.fast {
+            let due = (*t - first_t).max(0) as f64 / 1e6 / speed;
+            let now = start.elapsed().as_secs_f64();
+            if due > now {
+                std::thread::sleep(Duration::from_secs_f64(due - now));
+            }
+        }
+        if stream.write_all(line.as_bytes()).is_err() {
+            break;
+        }
+        sent += 1;
+        if args.max_frames.is_some_and(|m| sent >= m) {
+            break;
+        }
+    }
+    let _ = stream.shutdown(Shutdown::Write);
+    let bye = reader.join().ok().flatten();
+    match bye {
+        Some(b) => println!(
+            "sent {sent} weight frames to {}; server: {} frames, {} late, {} malformed, {} unknown weight names ({})",
+            args.to, b["frames"], b["late"], b["malformed"], b["unknown_weights"], b["reason"]
+        ),
+        None => println!(
+            "sent {sent} weight frames to {}; no reply from the server",
             args.to
         ),
     }
