@@ -1,13 +1,17 @@
-//! Fuzzes the live service's decoders: the first line of a TCP connection (`parse_hello`), a UDP
-//! frame packet (`decode_udp_frame`) and a viewer message (`decode_viewer_message`, kind byte
-//! first). A decoded UDP frame must survive its own encoder unchanged.
+//! Fuzzes the live service's decoders: the first line of a TCP connection (`parse_hello`), a
+//! weight frame line (`parse_weight_frame`), a UDP frame packet (`decode_udp_frame`) and a viewer
+//! message (`decode_viewer_message`, kind byte first). A decoded UDP frame must survive its own
+//! encoder unchanged.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use mimic_stream::wire::{decode_udp_frame, decode_viewer_message, encode_udp_frame, parse_hello};
+use mimic_stream::wire::{
+    decode_udp_frame, decode_viewer_message, encode_udp_frame, parse_hello, parse_weight_frame,
+};
 
 fuzz_target!(|data: &[u8]| {
     let _ = parse_hello(data);
+    let _ = parse_weight_frame(data);
     if let Ok(f) = decode_udp_frame(data) {
         assert_eq!(f.frame.points.len(), f.frame.valid.len());
         let again = decode_udp_frame(&encode_udp_frame(f.session_id, f.key, &f.frame))
