@@ -284,10 +284,10 @@ proptest! {
         // is off by up to 2 * eps * (|shift| + 1.4) (~2e-6 at |shift| = 8.7) against the unshifted
         // one, a relative change of up to ~2e-6 / (smallest edge ~0.04) = 5e-5 in distances and
         // weights. The solves amplify it by their conditioning (unit-scale rigs, kernel radius >= 0.15);
-        // 1e-3 * max|B| bounds the change with room for that amplification.
+        // 1e-4 * max|B| bounds the change (measured worst over 300 cases: 1.2e-5 * max|B|).
         let bmax = b0.as_slice().iter().fold(0f32, |a, w| a.max(w.abs()));
         let worst = b0.as_slice().iter().zip(b1.as_slice()).fold(0f32, |a, (x, y)| a.max((x - y).abs()));
-        prop_assert!(worst <= 1e-3 * bmax.max(1.0), "basis moved by {} (max |B| {})", worst, bmax);
+        prop_assert!(worst <= 1e-4 * bmax.max(1.0), "basis moved by {} (max |B| {})", worst, bmax);
     }
 
     /// Random finite displacements of any size give finite vertex displacements.
