@@ -4,7 +4,7 @@
 //! are zero. Applying only the moving rows, and renormalising only the normals those rows can
 //! change, keeps a frame's cost proportional to the face, not to the whole head.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A};
 use mimic_solve::Basis;
 
 /// Moving rows of a basis and the neighbourhood whose normals follow them.
@@ -24,8 +24,8 @@ pub(crate) struct MovingPatch {
     /// Every triangle incident on a vertex whose normal can change, in local indices.
     local_triangles: Vec<[u32; 3]>,
     /// Scratch: positions and normal sums by local index.
-    local_positions: Vec<Vec3>,
-    local_normals: Vec<Vec3>,
+    local_positions: Vec<Vec3A>,
+    local_normals: Vec<Vec3A>,
 }
 
 impl MovingPatch {
@@ -82,8 +82,8 @@ impl MovingPatch {
             u: vec![Vec3::ZERO; rows.len()],
             rows,
             compact,
-            local_positions: vec![Vec3::ZERO; local_vertices.len()],
-            local_normals: vec![Vec3::ZERO; local_vertices.len()],
+            local_positions: vec![Vec3A::ZERO; local_vertices.len()],
+            local_normals: vec![Vec3A::ZERO; local_vertices.len()],
             local_vertices,
             normal_count,
             local_triangles,
@@ -105,13 +105,14 @@ impl MovingPatch {
 
     /// Recomputes the area-weighted normals of the vertices the moving rows can affect.
     ///
-    /// Works on a compact copy of the affected neighbourhood, so the triangle loop reads and
-    /// writes contiguous memory and needs no per-corner test.
+    /// Works on a compact copy of the affected neighbourhood in 16-byte SIMD vectors, so the
+    /// triangle loop reads and writes contiguous memory, one vector load or store per corner,
+    /// and needs no per-corner test.
     pub(crate) fn normals(&mut self, positions: &[Vec3], normals: &mut [Vec3]) {
         for (p, &v) in self.local_positions.iter_mut().zip(&self.local_vertices) {
-            *p = positions[v as usize];
+            *p = Vec3A::from(positions[v as usize]);
         }
-        self.local_normals.fill(Vec3::ZERO);
+        self.local_normals.fill(Vec3A::ZERO);
         let (pos, acc) = (&self.local_positions, &mut self.local_normals);
         for t in &self.local_triangles {
             let (a, b, c) = (pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]);
@@ -121,7 +122,7 @@ impl MovingPatch {
             acc[t[2] as usize] += n;
         }
         for (n, &v) in acc[..self.normal_count].iter().zip(&self.local_vertices) {
-            normals[v as usize] = n.normalize_or_zero();
+            normals[v as usize] = Vec3::from(n.normalize_or_zero());
         }
     }
 }
