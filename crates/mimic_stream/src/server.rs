@@ -559,6 +559,50 @@ fn reply(tx: &mpsc::Sender<String>, record: &SessionRecord, line: String) {
     }
 }
 
+/// Makes `record` the live tracker of session `name`: viewers already waiting get the session and
+/// rig messages, and the session joins the stats list, which keeps every live session and at most
+/// `ended_sessions_kept` ended ones. Returns false, changing nothing, when the session already has
+/// a live tracker.
+fn go_live(
+    shared: &Shared,
+    name: &str,
+    record: &Arc<SessionRecord>,
+    session_message: Message,
+    rig_message: &Message,
+) -> bool {
+    {
+        let mut hubs = lock(&shared.hubs);
+        let hub = hubs.entry(name.to_string()).or_default();
+        if hub.live.is_some() {
+            return false;
+        }
+        for v in &hub.viewers {
+            v.queue.push_control(session_message.clone(), true);
+            v.queue.push_control(rig_message.clone(), false);
+        }
+        *lock(&record.viewers) = hub.viewers.clone();
+        hub.live = Some(Live {
+            session_message,
+            rig_message: rig_message.clone(),
+            record: record.clone(),
+        });
+    }
+    let mut sessions = lock(&shared.sessions);
+    sessions.push(record.clone());
+    let ended = sessions
+        .iter()
+        .filter(|s| !s.active.load(Ordering::Relaxed))
+        .count();
+    if ended > shared.settings.ended_sessions_kept
+        && let Some(i) = sessions
+            .iter()
+            .position(|s| !s.active.load(Ordering::Relaxed))
+    {
+        sessions.remove(i);
+    }
+    true
+}
+
 /// A tracker session: set up the pipeline, then retarget its lines (and UDP packets) until it ends.
 #[allow(clippy::too_many_arguments)]
 async fn tracker(
@@ -662,26 +706,7 @@ async fn tracker(
             "source": header.source, "rate_hz": header.rate_hz,
         }),
     ));
-    let busy = {
-        let mut hubs = lock(&shared.hubs);
-        let hub = hubs.entry(name.clone()).or_default();
-        if hub.live.is_some() {
-            true
-        } else {
-            for v in &hub.viewers {
-                v.queue.push_control(session_message.clone(), true);
-                v.queue.push_control(rig.message.clone(), false);
-            }
-            *lock(&record.viewers) = hub.viewers.clone();
-            hub.live = Some(Live {
-                session_message,
-                rig_message: rig.message.clone(),
-                record: record.clone(),
-            });
-            false
-        }
-    };
-    if busy {
+    if !go_live(&shared, &name, &record, session_message, &rig.message) {
         shared.sessions_active.fetch_sub(1, Ordering::AcqRel);
         shared.refused.bump();
         let m = refuse_with(
@@ -690,22 +715,6 @@ async fn tracker(
         );
         refuse(&mut w, m.as_bytes()).await;
         return;
-    }
-    {
-        let mut sessions = lock(&shared.sessions);
-        sessions.push(record.clone());
-        // Keep every live session and the most recent ended ones.
-        let ended = sessions
-            .iter()
-            .filter(|s| !s.active.load(Ordering::Relaxed))
-            .count();
-        if ended > settings.ended_sessions_kept
-            && let Some(i) = sessions
-                .iter()
-                .position(|s| !s.active.load(Ordering::Relaxed))
-        {
-            sessions.remove(i);
-        }
     }
     let key = {
         let mut h = shared.keys.build_hasher();

@@ -3,7 +3,7 @@
 //! morph targets and reach viewers as the morph basis's control values (`d[3k + a] = w_k e_a`),
 //! or as positions `P0 + sum_k w_k dP_k`.
 
-use super::{Hub, Live, SessionRecord, Shared, lock, refuse, reply};
+use super::{Hub, SessionRecord, Shared, go_live, lock, refuse, reply};
 use crate::catalog::RigEntry;
 use crate::lines::{Line, LineReader};
 use crate::stats::{Counter, LatencyHistogram};
@@ -212,26 +212,7 @@ pub(super) async fn session(
             "source": hello.source, "rate_hz": hello.rate_hz,
         }),
     ));
-    let busy = {
-        let mut hubs = lock(&shared.hubs);
-        let hub = hubs.entry(name.clone()).or_default();
-        if hub.live.is_some() {
-            true
-        } else {
-            for v in &hub.viewers {
-                v.queue.push_control(session_message.clone(), true);
-                v.queue.push_control(morph.message.clone(), false);
-            }
-            *lock(&record.viewers) = hub.viewers.clone();
-            hub.live = Some(Live {
-                session_message,
-                rig_message: morph.message.clone(),
-                record: record.clone(),
-            });
-            false
-        }
-    };
-    if busy {
+    if !go_live(&shared, &name, &record, session_message, &morph.message) {
         shared.sessions_active.fetch_sub(1, Ordering::AcqRel);
         shared.refused.bump();
         let m = refuse_with(
@@ -240,21 +221,6 @@ pub(super) async fn session(
         );
         refuse(&mut w, m.as_bytes()).await;
         return;
-    }
-    {
-        let mut sessions = lock(&shared.sessions);
-        sessions.push(record.clone());
-        let ended = sessions
-            .iter()
-            .filter(|s| !s.active.load(Ordering::Relaxed))
-            .count();
-        if ended > settings.ended_sessions_kept
-            && let Some(i) = sessions
-                .iter()
-                .position(|s| !s.active.load(Ordering::Relaxed))
-        {
-            sessions.remove(i);
-        }
     }
     let (reply_tx, mut reply_rx) = mpsc::channel::<String>(32);
     let writer = tokio::spawn(async move {
