@@ -62,24 +62,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(r) = &args.rig {
         header.extra.insert("rig".into(), Value::from(r.as_str()));
     }
-    let stream =
-        TcpStream::connect(&args.to).with_context(|| format!("connecting to {}", args.to))?;
-    stream.set_nodelay(true)?;
-    let replies = stream.try_clone()?;
-    // Replies (welcome, errors, bye) are read on their own thread and reported on stderr.
-    let reader = std::thread::spawn(move || {
-        let mut bye = None;
-        for line in BufReader::new(replies).lines() {
-            let Ok(line) = line else { break };
-            let v: Value = serde_json::from_str(&line).unwrap_or(Value::Null);
-            match v["type"].as_str() {
-                Some("welcome") => tracing::info!("{line}"),
-                Some("bye") => bye = Some(v),
-                _ => eprintln!("server: {line}"),
-            }
-        }
-        bye
-    });
+    let (stream, reader) = connect(&args.to)?;
     let mut writer = RecordingWriter::new(&stream, &header)?.flush_each_frame(true);
     let options = ReplayOptions {
         pace: if args.fast {
@@ -212,23 +195,7 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
     if let Some(r) = &args.rig {
         hello["rig"] = Value::from(r.as_str());
     }
-    let mut stream =
-        TcpStream::connect(&args.to).with_context(|| format!("connecting to {}", args.to))?;
-    stream.set_nodelay(true)?;
-    let replies = stream.try_clone()?;
-    let reader = std::thread::spawn(move || {
-        let mut bye = None;
-        for line in BufReader::new(replies).lines() {
-            let Ok(line) = line else { break };
-            let v: Value = serde_json::from_str(&line).unwrap_or(Value::Null);
-            match v["type"].as_str() {
-                Some("welcome") => tracing::info!("{line}"),
-                Some("bye") => bye = Some(v),
-                _ => eprintln!("server: {line}"),
-            }
-        }
-        bye
-    });
+    let (mut stream, reader) = connect(&args.to)?;
     stream.write_all(format!("{hello}\n").as_bytes())?;
     let start = std::time::Instant::now();
     let speed = if args.speed > 0.0 { args.speed } else { 1.0 };
@@ -264,4 +231,26 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
         ),
     }
     Ok(())
+}
+
+/// Connects to a server as a tracker; its replies (welcome, errors, bye) are read on their own
+/// thread, errors reported on stderr, and the thread returns the `bye` message, if one came.
+fn connect(to: &str) -> anyhow::Result<(TcpStream, std::thread::JoinHandle<Option<Value>>)> {
+    let stream = TcpStream::connect(to).with_context(|| format!("connecting to {to}"))?;
+    stream.set_nodelay(true)?;
+    let replies = stream.try_clone()?;
+    let reader = std::thread::spawn(move || {
+        let mut bye = None;
+        for line in BufReader::new(replies).lines() {
+            let Ok(line) = line else { break };
+            let v: Value = serde_json::from_str(&line).unwrap_or(Value::Null);
+            match v["type"].as_str() {
+                Some("welcome") => tracing::info!("{line}"),
+                Some("bye") => bye = Some(v),
+                _ => eprintln!("server: {line}"),
+            }
+        }
+        bye
+    });
+    Ok((stream, reader))
 }
