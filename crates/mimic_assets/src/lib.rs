@@ -7,6 +7,7 @@
 mod error;
 mod frames;
 mod layout;
+mod material;
 mod morph;
 mod obj;
 mod rig;
@@ -15,6 +16,9 @@ mod span;
 pub use error::AssetError;
 pub use frames::{FRAMES_MAGIC, FRAMES_VERSION, FrameRecord, FramesReader, FramesWriter};
 pub use layout::{ConfigDirs, load_layout, parse_layout};
+pub use material::{
+    Material, MeshMaterials, load_rig_materials, parse_mtl, parse_obj_materials, rig_mesh_path,
+};
 pub use morph::{
     MORPH_FILE_DECIMALS, MorphTargetEntry, load_morph_file, load_morph_targets, morph_target,
     read_morph_file, save_morph_file, write_morph_file,

@@ -20,4 +20,6 @@ mod renderer;
 pub use camera::Camera;
 pub use error::RenderError;
 pub use image::Image;
-pub use renderer::{Deform, MAX_CONTROLS, Renderer, RigGpu, Shading, View};
+pub use renderer::{
+    COLOR_FORMAT, Deform, MAX_CONTROLS, Renderer, RigGpu, SKIN_ALBEDO, Shading, View,
+};

@@ -11,7 +11,7 @@ use wgpu::util::DeviceExt;
 pub const MAX_CONTROLS: usize = 1024;
 
 /// Colour format of the offscreen target (and of the bytes read back): sRGB-encoded RGBA8.
-const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
+pub const COLOR_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Rgba8UnormSrgb;
 /// Depth format.
 const DEPTH_FORMAT: wgpu::TextureFormat = wgpu::TextureFormat::Depth32Float;
 /// Samples per pixel of the multisampled target.
@@ -114,7 +114,11 @@ pub struct RigGpu {
     normals_group: wgpu::BindGroup,
     draw_group: wgpu::BindGroup,
     indices: wgpu::Buffer,
+    albedo: wgpu::Buffer,
 }
+
+/// Albedo of every vertex until [`Renderer::set_albedo`] says otherwise: skin (linear RGB).
+pub const SKIN_ALBEDO: [f32; 3] = [0.80, 0.66, 0.58];
 
 impl RigGpu {
     /// Number of vertices.
@@ -128,11 +132,13 @@ impl RigGpu {
     }
 }
 
-/// Headless renderer: its own device and an offscreen multisampled colour + depth target.
+/// Renderer: its own device and a multisampled colour + depth target, resolved into an offscreen
+/// image (read back by [`Renderer::render`]) or into a window's texture ([`Renderer::draw_to`]).
 pub struct Renderer {
     device: wgpu::Device,
     queue: wgpu::Queue,
     adapter: String,
+    format: wgpu::TextureFormat,
     width: u32,
     height: u32,
     color: wgpu::TextureView,
@@ -159,6 +165,50 @@ impl Renderer {
         let adapter =
             pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions::default()))
                 .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
+        Self::on_adapter(&adapter, width, height, COLOR_FORMAT)
+    }
+
+    /// Creates a device on an adapter that can present to `surface` and a `width x height` target
+    /// in the surface's sRGB format; returns the renderer and the surface configuration to
+    /// [`wgpu::Surface::configure`] with (done here once; again after a resize, with the new size).
+    pub fn for_surface(
+        instance: &wgpu::Instance,
+        surface: &wgpu::Surface<'_>,
+        width: u32,
+        height: u32,
+    ) -> Result<(Self, wgpu::SurfaceConfiguration), RenderError> {
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            compatible_surface: Some(surface),
+            ..Default::default()
+        }))
+        .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
+        let caps = surface.get_capabilities(&adapter);
+        let format = caps
+            .formats
+            .iter()
+            .copied()
+            .find(wgpu::TextureFormat::is_srgb)
+            .or_else(|| caps.formats.first().copied())
+            .ok_or_else(|| RenderError::NoDevice("the surface offers no format".into()))?;
+        let mut config = surface
+            .get_default_config(&adapter, width.max(1), height.max(1))
+            .ok_or_else(|| {
+                RenderError::NoDevice("the adapter cannot present to the window".into())
+            })?;
+        config.format = format;
+        // Fifo (vsync) is always supported and paces the loop at the display's rate.
+        config.present_mode = wgpu::PresentMode::AutoVsync;
+        let renderer = Self::on_adapter(&adapter, width.max(1), height.max(1), format)?;
+        surface.configure(&renderer.device, &config);
+        Ok((renderer, config))
+    }
+
+    fn on_adapter(
+        adapter: &wgpu::Adapter,
+        width: u32,
+        height: u32,
+        format: wgpu::TextureFormat,
+    ) -> Result<Self, RenderError> {
         let info = adapter.get_info();
         let max = adapter.limits().max_texture_dimension_2d;
         if width == 0 || height == 0 || width > max || height > max {
@@ -229,7 +279,7 @@ impl Renderer {
                 entry_point: Some("fs_main"),
                 compilation_options: Default::default(),
                 targets: &[Some(wgpu::ColorTargetState {
-                    format: COLOR_FORMAT,
+                    format,
                     blend: None,
                     write_mask: wgpu::ColorWrites::ALL,
                 })],
@@ -238,63 +288,20 @@ impl Renderer {
             cache: None,
         });
 
-        let target = |label, format, samples, usage| {
-            device.create_texture(&wgpu::TextureDescriptor {
-                label: Some(label),
-                size: wgpu::Extent3d {
-                    width,
-                    height,
-                    depth_or_array_layers: 1,
-                },
-                mip_level_count: 1,
-                sample_count: samples,
-                dimension: wgpu::TextureDimension::D2,
-                format,
-                usage,
-                view_formats: &[],
-            })
-        };
-        let color = target(
-            "color",
-            COLOR_FORMAT,
-            SAMPLES,
-            wgpu::TextureUsages::RENDER_ATTACHMENT,
-        )
-        .create_view(&Default::default());
-        let resolve = target(
-            "resolve",
-            COLOR_FORMAT,
-            1,
-            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
-        );
-        let resolve_view = resolve.create_view(&Default::default());
-        let depth = target(
-            "depth",
-            DEPTH_FORMAT,
-            SAMPLES,
-            wgpu::TextureUsages::RENDER_ATTACHMENT,
-        )
-        .create_view(&Default::default());
-        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
-        let padded_row = (width * 4).div_ceil(align) * align;
-        let readback = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("readback"),
-            size: u64::from(padded_row) * u64::from(height),
-            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-            mapped_at_creation: false,
-        });
+        let t = Targets::new(&device, width, height, format);
         Ok(Self {
             device,
             queue,
             adapter: format!("{} ({:?}, {:?})", info.name, info.device_type, info.backend),
+            format,
             width,
             height,
-            color,
-            resolve,
-            resolve_view,
-            depth,
-            readback,
-            padded_row,
+            color: t.color,
+            resolve: t.resolve,
+            resolve_view: t.resolve_view,
+            depth: t.depth,
+            readback: t.readback,
+            padded_row: t.padded_row,
             morph,
             normals,
             draw,
@@ -309,6 +316,48 @@ impl Renderer {
     /// Image size `(width, height)`.
     pub fn size(&self) -> (u32, u32) {
         (self.width, self.height)
+    }
+
+    /// Colour format of the target (of the window's surface, or [`COLOR_FORMAT`] headless).
+    pub fn format(&self) -> wgpu::TextureFormat {
+        self.format
+    }
+
+    /// The device (e.g. to configure a surface after a resize).
+    pub fn device(&self) -> &wgpu::Device {
+        &self.device
+    }
+
+    /// Resizes the target (a window's new inner size); zero sides are clamped to 1.
+    pub fn resize(&mut self, width: u32, height: u32) {
+        let (width, height) = (width.max(1), height.max(1));
+        if (width, height) == (self.width, self.height) {
+            return;
+        }
+        let t = Targets::new(&self.device, width, height, self.format);
+        self.width = width;
+        self.height = height;
+        self.color = t.color;
+        self.resolve = t.resolve;
+        self.resolve_view = t.resolve_view;
+        self.depth = t.depth;
+        self.readback = t.readback;
+        self.padded_row = t.padded_row;
+    }
+
+    /// Sets the albedo (linear RGB) of every vertex, e.g. from the mesh's material colours.
+    pub fn set_albedo(&self, rig: &RigGpu, colors: &[[f32; 3]]) -> Result<(), RenderError> {
+        if colors.len() != rig.vertex_count() {
+            return Err(RenderError::SizeMismatch {
+                what: "vertex colours vs vertices",
+                got: colors.len(),
+                expected: rig.vertex_count(),
+            });
+        }
+        let data: Vec<[f32; 4]> = colors.iter().map(|c| [c[0], c[1], c[2], 1.0]).collect();
+        self.queue
+            .write_buffer(&rig.albedo, 0, bytemuck::cast_slice(&data));
+        Ok(())
     }
 
     /// Uploads a rig: rest `positions`, the `triangles` to draw (counter-clockwise from outside;
@@ -408,6 +457,12 @@ impl Renderer {
             storage | wgpu::BufferUsages::INDEX,
         );
         let first_buf = init("first", bytemuck::cast_slice(&first), storage);
+        let [r, g, b] = SKIN_ALBEDO;
+        let albedo = init(
+            "albedo",
+            bytemuck::cast_slice(&vec![[r, g, b, 1.0]; n]),
+            storage | wgpu::BufferUsages::COPY_DST,
+        );
         let incident_buf = init("incident", bytemuck::cast_slice(&incident), storage);
 
         let group = |layout: &wgpu::BindGroupLayout, entries: &[(u32, &wgpu::Buffer)]| {
@@ -452,6 +507,7 @@ impl Renderer {
                 (2, &basis_buf),
                 (3, &positions_buf),
                 (4, &normals_buf),
+                (10, &albedo),
             ],
         );
         Ok(RigGpu {
@@ -466,6 +522,7 @@ impl Renderer {
             normals_group,
             draw_group,
             indices,
+            albedo,
         })
     }
 
@@ -606,36 +663,7 @@ impl Renderer {
     ) -> Result<Image, RenderError> {
         let mut encoder = self.device.create_command_encoder(&Default::default());
         self.deform_into(rig, deform, Some(view), &mut encoder)?;
-        {
-            let [r, g, b, a] = view.background;
-            let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
-                label: Some("draw"),
-                color_attachments: &[Some(wgpu::RenderPassColorAttachment {
-                    view: &self.color,
-                    depth_slice: None,
-                    resolve_target: Some(&self.resolve_view),
-                    ops: wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a }),
-                        store: wgpu::StoreOp::Discard,
-                    },
-                })],
-                depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
-                    view: &self.depth,
-                    depth_ops: Some(wgpu::Operations {
-                        load: wgpu::LoadOp::Clear(1.0),
-                        store: wgpu::StoreOp::Discard,
-                    }),
-                    stencil_ops: None,
-                }),
-                timestamp_writes: None,
-                occlusion_query_set: None,
-                multiview_mask: None,
-            });
-            pass.set_pipeline(&self.draw);
-            pass.set_bind_group(0, &rig.draw_group, &[]);
-            pass.set_index_buffer(rig.indices.slice(..), wgpu::IndexFormat::Uint32);
-            pass.draw_indexed(0..rig.index_count, 0, 0..1);
-        }
+        self.draw_pass(rig, view, &self.resolve_view, &mut encoder);
         encoder.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {
                 texture: &self.resolve,
@@ -667,11 +695,71 @@ impl Renderer {
         {
             rgba.extend_from_slice(&r[..row]);
         }
+        if matches!(
+            self.format,
+            wgpu::TextureFormat::Bgra8Unorm | wgpu::TextureFormat::Bgra8UnormSrgb
+        ) {
+            rgba.chunks_exact_mut(4).for_each(|p| p.swap(0, 2));
+        }
         Ok(Image {
             width: self.width,
             height: self.height,
             rgba,
         })
+    }
+
+    /// Deforms the rig and draws it into `target` (a view of a texture in [`Renderer::format`] and
+    /// of [`Renderer::size`], e.g. a window's surface texture); submits and returns without waiting.
+    pub fn draw_to(
+        &self,
+        rig: &RigGpu,
+        deform: Deform<'_>,
+        view: &View,
+        target: &wgpu::TextureView,
+    ) -> Result<(), RenderError> {
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        self.deform_into(rig, deform, Some(view), &mut encoder)?;
+        self.draw_pass(rig, view, target, &mut encoder);
+        self.queue.submit([encoder.finish()]);
+        Ok(())
+    }
+
+    /// Encodes the draw of the deformed rig into the multisampled target, resolved into `target`.
+    fn draw_pass(
+        &self,
+        rig: &RigGpu,
+        view: &View,
+        target: &wgpu::TextureView,
+        encoder: &mut wgpu::CommandEncoder,
+    ) {
+        let [r, g, b, a] = view.background;
+        let mut pass = encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("draw"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: &self.color,
+                depth_slice: None,
+                resolve_target: Some(target),
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a }),
+                    store: wgpu::StoreOp::Discard,
+                },
+            })],
+            depth_stencil_attachment: Some(wgpu::RenderPassDepthStencilAttachment {
+                view: &self.depth,
+                depth_ops: Some(wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(1.0),
+                    store: wgpu::StoreOp::Discard,
+                }),
+                stencil_ops: None,
+            }),
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        pass.set_pipeline(&self.draw);
+        pass.set_bind_group(0, &rig.draw_group, &[]);
+        pass.set_index_buffer(rig.indices.slice(..), wgpu::IndexFormat::Uint32);
+        pass.draw_indexed(0..rig.index_count, 0, 0..1);
     }
 
     /// The rig's current GPU positions (after [`Renderer::deform`] or [`Renderer::render`]).
@@ -724,5 +812,73 @@ impl Renderer {
             .to_vec();
         buffer.unmap();
         Ok(bytes)
+    }
+}
+
+/// The size-dependent textures: multisampled colour and depth, the resolve image and its readback.
+struct Targets {
+    color: wgpu::TextureView,
+    resolve: wgpu::Texture,
+    resolve_view: wgpu::TextureView,
+    depth: wgpu::TextureView,
+    readback: wgpu::Buffer,
+    padded_row: u32,
+}
+
+impl Targets {
+    fn new(device: &wgpu::Device, width: u32, height: u32, format: wgpu::TextureFormat) -> Self {
+        let target = |label, format, samples, usage| {
+            device.create_texture(&wgpu::TextureDescriptor {
+                label: Some(label),
+                size: wgpu::Extent3d {
+                    width,
+                    height,
+                    depth_or_array_layers: 1,
+                },
+                mip_level_count: 1,
+                sample_count: samples,
+                dimension: wgpu::TextureDimension::D2,
+                format,
+                usage,
+                view_formats: &[],
+            })
+        };
+        let color = target(
+            "color",
+            format,
+            SAMPLES,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        )
+        .create_view(&Default::default());
+        let resolve = target(
+            "resolve",
+            format,
+            1,
+            wgpu::TextureUsages::RENDER_ATTACHMENT | wgpu::TextureUsages::COPY_SRC,
+        );
+        let resolve_view = resolve.create_view(&Default::default());
+        let depth = target(
+            "depth",
+            DEPTH_FORMAT,
+            SAMPLES,
+            wgpu::TextureUsages::RENDER_ATTACHMENT,
+        )
+        .create_view(&Default::default());
+        let align = wgpu::COPY_BYTES_PER_ROW_ALIGNMENT;
+        let padded_row = (width * 4).div_ceil(align) * align;
+        let readback = device.create_buffer(&wgpu::BufferDescriptor {
+            label: Some("readback"),
+            size: u64::from(padded_row) * u64::from(height),
+            usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
+            mapped_at_creation: false,
+        });
+        Self {
+            color,
+            resolve,
+            resolve_view,
+            depth,
+            readback,
+            padded_row,
+        }
     }
 }

@@ -14,6 +14,8 @@ struct Frame {
 @group(0) @binding(2) var<storage, read> basis: array<f32>;
 @group(0) @binding(3) var<storage, read> positions: array<vec4<f32>>;
 @group(0) @binding(4) var<storage, read> normals: array<vec4<f32>>;
+// Per-vertex albedo (linear RGB; skin unless the material colours were set).
+@group(0) @binding(10) var<storage, read> albedo: array<vec4<f32>>;
 
 const MODE_LIT: u32 = 0u;
 const MODE_HEAT_DISPLACEMENT: u32 = 1u;
@@ -23,6 +25,7 @@ struct VsOut {
     @builtin(position) clip: vec4<f32>,
     @location(0) normal: vec3<f32>,
     @location(1) heat: f32,
+    @location(2) albedo: vec3<f32>,
 }
 
 @vertex
@@ -39,6 +42,7 @@ fn vs_main(@builtin(vertex_index) i: u32) -> VsOut {
         heat = basis[i * frame.modes.w + frame.modes.y];
     }
     out.heat = heat;
+    out.albedo = albedo[i].xyz;
     return out;
 }
 
@@ -70,10 +74,10 @@ fn fs_main(in: VsOut, @builtin(front_facing) front: bool) -> @location(0) vec4<f
     }
     let diffuse = max(dot(n, normalize(frame.light.xyz)), 0.0);
     let ambient = frame.light.w;
-    var albedo = vec3<f32>(0.80, 0.66, 0.58);
+    var base = in.albedo;
     if (frame.modes.x != MODE_LIT) {
-        albedo = ramp(in.heat);
+        base = ramp(in.heat);
     }
-    let c = albedo * (ambient + (1.0 - ambient) * diffuse);
+    let c = base * (ambient + (1.0 - ambient) * diffuse);
     return vec4<f32>(c, 1.0);
 }
