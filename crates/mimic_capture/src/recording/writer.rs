@@ -19,6 +19,7 @@ const SIGNIFICANT_DIGITS: i32 = 6;
 pub struct RecordingWriter<W: Write> {
     out: W,
     flush_each_frame: bool,
+    exact: bool,
     point_count: Option<usize>,
     last_t_us: Option<i64>,
     frames: usize,
@@ -42,6 +43,7 @@ impl<W: Write> RecordingWriter<W> {
         Ok(Self {
             out,
             flush_each_frame: false,
+            exact: false,
             point_count: header.point_count,
             last_t_us: None,
             frames: 0,
@@ -53,6 +55,19 @@ impl<W: Write> RecordingWriter<W> {
     pub fn flush_each_frame(mut self, on: bool) -> Self {
         self.flush_each_frame = on;
         self
+    }
+
+    /// Write each coordinate as the shortest decimal that reads back as the same `f32`
+    /// (up to 9 significant digits) instead of 6 digits: the file then holds exactly the frames
+    /// given, e.g. what a live server accepted.
+    pub fn exact_coordinates(mut self, on: bool) -> Self {
+        self.exact = on;
+        self
+    }
+
+    /// The underlying writer (e.g. to sync a file to disk).
+    pub fn get_ref(&self) -> &W {
+        &self.out
     }
 
     /// Frames written so far.
@@ -120,11 +135,17 @@ impl<W: Write> RecordingWriter<W> {
             if frame.is_valid(i) {
                 let p = frame.points[i];
                 line.push('[');
-                write_coordinate(line, p.x);
-                line.push(',');
-                write_coordinate(line, p.y);
-                line.push(',');
-                write_coordinate(line, p.z);
+                for (k, v) in [p.x, p.y, p.z].into_iter().enumerate() {
+                    if k > 0 {
+                        line.push(',');
+                    }
+                    if self.exact {
+                        // Rust prints an f32 as the shortest decimal that parses back to it.
+                        let _ = write!(line, "{v}");
+                    } else {
+                        write_coordinate(line, v);
+                    }
+                }
                 line.push(']');
             } else {
                 line.push_str("null");
@@ -265,6 +286,83 @@ mod tests {
         let f = r.next_frame().unwrap().unwrap();
         assert_eq!(f.frame, frame);
         assert_eq!(f.label, Some(1));
+    }
+
+    /// Random f32 bit patterns (finite ones), as the exact writer prints them and the reader
+    /// parses them (JSON number -> f64 -> f32), come back bit for bit.
+    #[test]
+    fn exact_coordinates_read_back_bit_for_bit() {
+        let header = RecordingHeader::new("t", "test", 30.0, Some(2));
+        let mut w = RecordingWriter::new(Vec::new(), &header)
+            .unwrap()
+            .exact_coordinates(true);
+        let mut state = 0x2545_F491_4F6C_DD1Du64;
+        let mut frames = Vec::new();
+        let mut t_us = 0;
+        while frames.len() < 20_000 {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            let v: Vec<f32> = [state as u32, (state >> 32) as u32]
+                .iter()
+                .map(|b| f32::from_bits(*b))
+                .collect();
+            if !v.iter().all(|x| x.is_finite()) {
+                continue;
+            }
+            t_us += 1;
+            let p = vec![glam::Vec3::new(v[0], v[1], -v[0]), glam::Vec3::splat(v[1])];
+            let f = LandmarkFrame::new(t_us, p);
+            w.write_frame(&f, None).unwrap();
+            frames.push(f);
+        }
+        let text = w.finish().unwrap();
+        let r = super::super::RecordingReader::new(text.as_slice(), "mem", None).unwrap();
+        let mut n = 0;
+        for (got, want) in r.zip(&frames) {
+            let got = got.unwrap().frame;
+            let bits = |f: &LandmarkFrame| {
+                f.points
+                    .iter()
+                    .flat_map(|p| p.to_array().map(f32::to_bits))
+                    .collect::<Vec<_>>()
+            };
+            assert_eq!(bits(&got), bits(want), "t_us {}", want.timestamp_us);
+            n += 1;
+        }
+        assert_eq!(n, frames.len());
+    }
+
+    /// A writer flushing per frame, cut off in the middle of its last line (a crash), reads
+    /// back as every frame before the cut plus one `truncated` rejection.
+    #[test]
+    fn a_torn_last_line_loses_only_that_frame() {
+        let header = RecordingHeader::new("t", "test", 30.0, Some(1));
+        let mut w = RecordingWriter::new(Vec::new(), &header)
+            .unwrap()
+            .flush_each_frame(true)
+            .exact_coordinates(true);
+        let frames: Vec<_> = (1..=5)
+            .map(|k| LandmarkFrame::new(k * 10, vec![glam::Vec3::new(0.1 * k as f32, 0.2, -1.0)]))
+            .collect();
+        for f in &frames {
+            w.write_frame(f, None).unwrap();
+        }
+        let text = w.finish().unwrap();
+        let last_line_start = text[..text.len() - 1]
+            .iter()
+            .rposition(|b| *b == b'\n')
+            .unwrap()
+            + 1;
+        for cut in last_line_start + 1..text.len() - 1 {
+            let mut r =
+                super::super::RecordingReader::new(&text[..cut], "torn.jsonl", None).unwrap();
+            let got: Vec<_> = r.by_ref().filter_map(Result::ok).map(|f| f.frame).collect();
+            assert_eq!(got, frames[..4], "cut at byte {cut}");
+            assert_eq!(r.stats().accepted, 4);
+            assert_eq!(r.stats().rejected.truncated, 1, "cut at byte {cut}");
+            assert_eq!(r.stats().rejected.total(), 1);
+        }
     }
 
     #[test]
