@@ -11,15 +11,19 @@
 //! Every session has its own [`Retargeter`](mimic_retarget::Retargeter); each rig's basis is
 //! built once ([`RigEntry`]) and shared. Everything is bounded: sessions, viewers, message size,
 //! idle time, reply and UDP queues, and viewer queues, which drop their oldest frame (counted per
-//! viewer) so a slow viewer never slows a session. Wire encoding lives in [`wire`].
+//! viewer) so a slow viewer never slows a session. With a record folder, every accepted frame of
+//! a landmark session is also written, flushed per frame, to that session's v1 recording. Wire
+//! encoding lives in [`wire`].
 //! Depends on mimic_types, mimic_solve, mimic_retarget, mimic_capture and tokio; no renderer.
 
 mod catalog;
 mod lines;
 mod queue;
+mod record;
 mod server;
 mod settings;
 mod stats;
+mod timing;
 pub mod wire;
 
 pub use catalog::{Catalog, CatalogError, MorphSet, RigEntry};

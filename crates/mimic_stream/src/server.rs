@@ -3,20 +3,23 @@
 use crate::catalog::{Catalog, RigEntry};
 use crate::lines::{Line, LineReader};
 use crate::queue::{Message, ViewerQueue};
+use crate::record::{RecordCounters, Recorder, SessionLabel};
 use crate::settings::ServerSettings;
 use crate::stats::{Counter, LatencyHistogram, ServerStats, SessionSnapshot, ViewerSnapshot};
+use crate::timing::{FrameClock, TimeProblem};
 use crate::wire::{
     self, ErrorCode, Hello, KIND_END, KIND_ERROR, KIND_SESSION, encode_frame, encode_json,
     error_line,
 };
 use glam::Vec3;
-use mimic_capture::{FrameProblem, RecordingHeader, parse_frame_line};
+use mimic_capture::{FrameProblem, RecordedFrame, RecordingHeader, parse_frame_line};
 use mimic_retarget::{FrameStatus, RetargetSettings, Retargeter};
 use mimic_types::LandmarkFrame;
 use serde_json::json;
 use std::collections::HashMap;
 use std::future::Future;
 use std::hash::{BuildHasher, Hasher};
+use std::net::SocketAddr;
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Instant;
@@ -71,15 +74,45 @@ struct SessionRecord {
     calibrating: Counter,
     lost: Counter,
     late: Counter,
+    future: Counter,
     malformed: Counter,
     udp_queue_dropped: Counter,
     replies_dropped: Counter,
     unknown_weights: Counter,
+    record: Arc<RecordCounters>,
+    recording: Mutex<Option<String>>,
     latency: Mutex<LatencyHistogram>,
     viewers: Mutex<Vec<Arc<Viewer>>>,
 }
 
 impl SessionRecord {
+    /// A live session's record with every counter at 0.
+    fn new(id: u32, name: &str, rig: &str, layout: &str) -> Self {
+        Self {
+            id,
+            name: name.to_string(),
+            rig: rig.to_string(),
+            layout: layout.to_string(),
+            active: AtomicBool::new(true),
+            end_reason: Mutex::new(None),
+            frames: Counter::default(),
+            udp_frames: Counter::default(),
+            tracked: Counter::default(),
+            calibrating: Counter::default(),
+            lost: Counter::default(),
+            late: Counter::default(),
+            future: Counter::default(),
+            malformed: Counter::default(),
+            udp_queue_dropped: Counter::default(),
+            replies_dropped: Counter::default(),
+            unknown_weights: Counter::default(),
+            record: Arc::default(),
+            recording: Mutex::new(None),
+            latency: Mutex::new(LatencyHistogram::default()),
+            viewers: Mutex::new(Vec::new()),
+        }
+    }
+
     fn snapshot(&self) -> SessionSnapshot {
         SessionSnapshot {
             id: self.id,
@@ -94,10 +127,15 @@ impl SessionRecord {
             calibrating: self.calibrating.get(),
             lost: self.lost.get(),
             late: self.late.get(),
+            future: self.future.get(),
             malformed: self.malformed.get(),
             udp_queue_dropped: self.udp_queue_dropped.get(),
             replies_dropped: self.replies_dropped.get(),
             unknown_weights: self.unknown_weights.get(),
+            recording: lock(&self.recording).clone(),
+            recorded: self.record.recorded.get(),
+            record_lost: self.record.lost.get(),
+            record_waits: self.record.waits.get(),
             latency: lock(&self.latency).summary(),
             viewers: lock(&self.viewers).iter().map(|v| v.snapshot()).collect(),
         }
@@ -143,6 +181,7 @@ struct Shared {
     connections: Counter,
     refused: Counter,
     udp_bad: Counter,
+    recordings_open: Arc<AtomicUsize>,
     keys: std::collections::hash_map::RandomState,
 }
 
@@ -170,6 +209,7 @@ impl Server {
                 connections: Counter::default(),
                 refused: Counter::default(),
                 udp_bad: Counter::default(),
+                recordings_open: Arc::new(AtomicUsize::new(0)),
                 keys: std::collections::hash_map::RandomState::new(),
             }),
         }
@@ -255,6 +295,19 @@ impl Server {
         }
         drop(done_tx);
         let _ = tokio::time::timeout_at(deadline, done_rx.recv()).await;
+        // Accepted frames are never given up: wait (past the grace) until every session's
+        // recording has written, flushed and synced what it was given.
+        let mut waited = 0u32;
+        while shared.recordings_open.load(Ordering::Acquire) > 0 {
+            if waited % 1000 == 999 {
+                tracing::warn!(
+                    open = shared.recordings_open.load(Ordering::Acquire),
+                    "waiting for session recordings to reach the disk"
+                );
+            }
+            waited = waited.wrapping_add(1);
+            sleep(std::time::Duration::from_millis(5)).await;
+        }
         let stats = shared.stats();
         for s in &stats.sessions {
             tracing::info!(session = %s.name, frames = s.frames, late = s.late, malformed = s.malformed,
@@ -306,6 +359,7 @@ async fn refuse<W: AsyncWrite + Unpin>(w: &mut W, bytes: &[u8]) {
 /// One TCP connection: read the hello, then serve it as a tracker, viewer or stats request.
 async fn connection(shared: Arc<Shared>, socket: TcpStream, mut stop: watch::Receiver<bool>) {
     let _ = socket.set_nodelay(true);
+    let peer = socket.peer_addr().ok();
     let (r, mut w) = socket.into_split();
     let mut lines = LineReader::new(BufReader::new(r), shared.settings.max_message_bytes);
     let idle = shared.settings.idle_timeout;
@@ -365,7 +419,13 @@ async fn connection(shared: Arc<Shared>, socket: TcpStream, mut stop: watch::Rec
             session,
             rig,
         }) => {
-            tracker(shared, lines, w, header, session, rig, stop).await;
+            let hello = TrackerHello {
+                header,
+                session,
+                rig,
+                peer,
+            };
+            tracker(shared, lines, w, hello, stop).await;
         }
         Ok(Hello::Weights {
             session,
@@ -470,22 +530,55 @@ struct Pipeline {
     out: mimic_retarget::FrameOutput,
     positions: Vec<Vec3>,
     scratch: Vec<Vec3>,
-    last_t_us: Option<i64>,
+    clock: FrameClock,
     point_count: usize,
     multi_thread: bool,
 }
 
+/// What became of a frame handed to a session.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Outcome {
+    /// Retargeted and broadcast (counted in `frames`).
+    Accepted,
+    /// Dropped for its timestamp (counted in `late` or `future`).
+    Refused(TimeProblem),
+    /// Wrong point count or refused by the pipeline (counted in `malformed`).
+    Malformed,
+}
+
+/// Checks a frame's timestamp against the session clock, counting a refusal.
+fn check_time(
+    clock: &mut FrameClock,
+    record: &SessionRecord,
+    t_us: i64,
+    arrival: Instant,
+) -> Result<(), TimeProblem> {
+    clock.advance(t_us, arrival).inspect_err(|p| match p {
+        TimeProblem::Late => record.late.bump(),
+        TimeProblem::Future { .. } => record.future.bump(),
+    })
+}
+
+/// The error line answering a frame from the future.
+fn future_line(line_no: u64, t_us: i64, jump_us: u64, allowed_us: u64) -> String {
+    error_line(
+        ErrorCode::FutureTimestamp,
+        line_no,
+        &format!(
+            "t_us {t_us} is {jump_us} us after the last accepted frame; at most {allowed_us} us \
+             (the time between their arrivals plus the allowed jump) is taken"
+        ),
+    )
+}
+
 impl Pipeline {
-    /// Retargets one frame and broadcasts it; late frames are dropped and counted.
-    fn accept(&mut self, frame: &LandmarkFrame, arrival: Instant, udp: bool) {
+    /// Retargets one frame and broadcasts it; late frames and frames from the future are
+    /// dropped and counted.
+    fn accept(&mut self, frame: &LandmarkFrame, arrival: Instant, udp: bool) -> Outcome {
         let r = &self.record;
-        if let Some(last) = self.last_t_us
-            && frame.timestamp_us <= last
-        {
-            r.late.bump();
-            return;
+        if let Err(p) = check_time(&mut self.clock, r, frame.timestamp_us, arrival) {
+            return Outcome::Refused(p);
         }
-        self.last_t_us = Some(frame.timestamp_us);
         let status = if self.retargeter.source_to_target().is_none() && self.multi_thread {
             // Finishing the neutral fits the source-to-target map (a consensus search of up to
             // tens of milliseconds): let the runtime move other sessions off this worker meanwhile.
@@ -499,7 +592,7 @@ impl Pipeline {
             FrameStatus::Lost => r.lost.bump(),
             FrameStatus::Rejected => {
                 r.malformed.bump();
-                return;
+                return Outcome::Malformed;
             }
         }
         let seq = r.frames.get();
@@ -539,16 +632,70 @@ impl Pipeline {
         let us = u64::try_from(arrival.elapsed().as_micros()).unwrap_or(u64::MAX);
         tracing::trace!(session = %r.name, seq, us, "broadcast");
         lock(&r.latency).record(us);
+        Outcome::Accepted
     }
 
     /// A UDP frame: checked against the layout (no reply over UDP), then accepted.
-    fn accept_udp(&mut self, frame: &LandmarkFrame, arrival: Instant) {
+    fn accept_udp(&mut self, frame: &LandmarkFrame, arrival: Instant) -> Outcome {
         let count = frame.points.len();
         if (frame.tracked || count > 0) && count != self.point_count {
             self.record.malformed.bump();
-            return;
+            return Outcome::Malformed;
         }
-        self.accept(frame, arrival, true);
+        self.accept(frame, arrival, true)
+    }
+}
+
+/// A session's recording: off, on, or asked for but not started (its frames count as lost).
+#[derive(Debug)]
+enum Recording {
+    Off,
+    On(Recorder),
+    Failed(Arc<RecordCounters>),
+}
+
+/// Hands an accepted frame to the session's recording, if the server records.
+async fn record_frame(recording: &Recording, outcome: Outcome, f: RecordedFrame) {
+    if outcome != Outcome::Accepted {
+        return;
+    }
+    match recording {
+        Recording::Off => {}
+        Recording::On(r) => r.record(f).await,
+        Recording::Failed(c) => c.lost.bump(),
+    }
+}
+
+/// Starts a session's recording when the server records; a failure is logged, and the
+/// session's accepted frames are then counted as `record_lost`.
+async fn start_recording(
+    shared: &Shared,
+    header: &RecordingHeader,
+    who: &SessionLabel<'_>,
+    record: &SessionRecord,
+) -> Recording {
+    let Some(dir) = shared.settings.record_dir.as_ref() else {
+        return Recording::Off;
+    };
+    let started = Recorder::start(
+        dir,
+        header,
+        who,
+        shared.settings.record_queue_frames,
+        record.record.clone(),
+        shared.recordings_open.clone(),
+    )
+    .await;
+    match started {
+        Ok(r) => {
+            *lock(&record.recording) = Some(r.path().display().to_string());
+            tracing::info!(session = %who.name, path = %r.path().display(), "recording");
+            Recording::On(r)
+        }
+        Err(e) => {
+            tracing::error!(session = %who.name, "not recorded; its accepted frames count as record_lost: {e}");
+            Recording::Failed(record.record.clone())
+        }
     }
 }
 
@@ -603,17 +750,29 @@ fn go_live(
     true
 }
 
+/// What a tracker's first line asked for, and who it is.
+#[derive(Debug)]
+struct TrackerHello {
+    header: Box<RecordingHeader>,
+    session: Option<String>,
+    rig: Option<String>,
+    peer: Option<SocketAddr>,
+}
+
 /// A tracker session: set up the pipeline, then retarget its lines (and UDP packets) until it ends.
-#[allow(clippy::too_many_arguments)]
 async fn tracker(
     shared: Arc<Shared>,
     mut lines: LineReader<BufReader<OwnedReadHalf>>,
     mut w: OwnedWriteHalf,
-    header: Box<RecordingHeader>,
-    session: Option<String>,
-    rig_name: Option<String>,
+    hello: TrackerHello,
     mut stop: watch::Receiver<bool>,
 ) {
+    let TrackerHello {
+        header,
+        session,
+        rig: rig_name,
+        peer,
+    } = hello;
     let settings = &shared.settings;
     let refuse_with = |code: ErrorCode, msg: String| error_line(code, 1, &msg);
     let Some(layout) = shared.catalog.layout(&header.layout) else {
@@ -678,26 +837,7 @@ async fn tracker(
     }
     let id = shared.next_session.fetch_add(1, Ordering::Relaxed);
     let name = session.unwrap_or_else(|| format!("s{id}"));
-    let record = Arc::new(SessionRecord {
-        id,
-        name: name.clone(),
-        rig: rig.name().to_string(),
-        layout: layout.name.clone(),
-        active: AtomicBool::new(true),
-        end_reason: Mutex::new(None),
-        frames: Counter::default(),
-        udp_frames: Counter::default(),
-        tracked: Counter::default(),
-        calibrating: Counter::default(),
-        lost: Counter::default(),
-        late: Counter::default(),
-        malformed: Counter::default(),
-        udp_queue_dropped: Counter::default(),
-        replies_dropped: Counter::default(),
-        unknown_weights: Counter::default(),
-        latency: Mutex::new(LatencyHistogram::default()),
-        viewers: Mutex::new(Vec::new()),
-    });
+    let record = Arc::new(SessionRecord::new(id, &name, rig.name(), &layout.name));
     let session_message = Arc::new(encode_json(
         KIND_SESSION,
         &json!({
@@ -716,6 +856,15 @@ async fn tracker(
         refuse(&mut w, m.as_bytes()).await;
         return;
     }
+    let who = SessionLabel {
+        name: &name,
+        id,
+        rig: rig.name(),
+        peer,
+    };
+    let mut recorded_header = (*header).clone();
+    recorded_header.point_count = Some(layout.point_count);
+    let recorder = start_recording(&shared, &recorded_header, &who, &record).await;
     let key = {
         let mut h = shared.keys.build_hasher();
         h.write_u32(id);
@@ -760,7 +909,7 @@ async fn tracker(
         retargeter,
         rig: rig.clone(),
         record: record.clone(),
-        last_t_us: None,
+        clock: FrameClock::new(settings.max_time_jump),
         point_count: layout.point_count,
         multi_thread: tokio::runtime::Handle::current().runtime_flavor()
             == tokio::runtime::RuntimeFlavor::MultiThread,
@@ -784,7 +933,8 @@ async fn tracker(
             _ = stop.changed() => break "shutdown".into(),
             Some((arrival, frame)) = udp_rx.recv() => {
                 last_activity = tokio::time::Instant::now();
-                p.accept_udp(&frame, arrival);
+                let outcome = p.accept_udp(&frame, arrival);
+                record_frame(&recorder, outcome, RecordedFrame::unlabelled(frame)).await;
             }
             _ = log_tick.tick() => {
                 let s = record.snapshot();
@@ -819,7 +969,11 @@ async fn tracker(
                             match parse_frame_line(text, kind == Line::Complete, Some(p.point_count), &layout_name) {
                                 Ok(rf) => {
                                     errors_in_a_row = 0;
-                                    p.accept(&rf.frame, arrival, false);
+                                    let outcome = p.accept(&rf.frame, arrival, false);
+                                    if let Outcome::Refused(TimeProblem::Future { jump_us, allowed_us }) = outcome {
+                                        reply(&reply_tx, &record, future_line(line_no, rf.frame.timestamp_us, jump_us, allowed_us));
+                                    }
+                                    record_frame(&recorder, outcome, rf).await;
                                     None
                                 }
                                 Err(problem) => Some(problem),
@@ -844,14 +998,20 @@ async fn tracker(
     // Flush what was accepted: UDP frames already queued are retargeted and broadcast too.
     lock(&shared.routes).remove(&id);
     while let Ok((arrival, frame)) = udp_rx.try_recv() {
-        p.accept_udp(&frame, arrival);
+        let outcome = p.accept_udp(&frame, arrival);
+        record_frame(&recorder, outcome, RecordedFrame::unlabelled(frame)).await;
+    }
+    // Every accepted frame is in the recording (written, flushed, synced) before the session
+    // is reported ended.
+    if let Recording::On(r) = recorder {
+        r.finish().await;
     }
     *lock(&record.end_reason) = Some(reason.clone());
     record.active.store(false, Ordering::Relaxed);
     let end = record.snapshot();
     let end_json = json!({
         "session": name, "reason": reason, "frames": end.frames, "late": end.late,
-        "malformed": end.malformed,
+        "future": end.future, "malformed": end.malformed,
     });
     {
         let mut hubs = lock(&shared.hubs);
@@ -867,7 +1027,10 @@ async fn tracker(
         }
     }
     shared.sessions_active.fetch_sub(1, Ordering::AcqRel);
-    let mut bye = json!({"type": "bye", "reason": reason, "frames": end.frames, "late": end.late, "malformed": end.malformed}).to_string();
+    let mut bye = json!({"type": "bye", "reason": reason, "frames": end.frames, "late": end.late,
+        "future": end.future, "malformed": end.malformed,
+        "recorded": settings.record_dir.is_some().then_some(end.recorded)})
+    .to_string();
     bye.push('\n');
     reply(&reply_tx, &record, bye);
     drop(reply_tx);

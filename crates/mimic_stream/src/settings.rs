@@ -1,6 +1,7 @@
 //! Limits and knobs of a server.
 
 use mimic_retarget::RetargetSettings;
+use std::path::PathBuf;
 use std::time::Duration;
 
 /// The address `mimic serve` listens on unless told otherwise: loopback only.
@@ -31,6 +32,13 @@ pub struct ServerSettings {
     pub ended_sessions_kept: usize,
     /// How often each live session logs its counters (tracing, info level).
     pub log_every: Duration,
+    /// A frame may run ahead of the last accepted one by the wall-clock time between their
+    /// arrivals plus this much; further ahead it is refused as `future_timestamp`.
+    pub max_time_jump: Duration,
+    /// Record every landmark session's accepted frames as a v1 recording in this folder.
+    pub record_dir: Option<PathBuf>,
+    /// Accepted frames queued per session for its recording before the session waits for the disk.
+    pub record_queue_frames: usize,
     /// Pipeline settings of every session (`positions` and `normals` are forced off: the
     /// server computes positions itself, only for viewers that ask for them).
     pub retarget: RetargetSettings,
@@ -50,6 +58,9 @@ impl Default for ServerSettings {
             shutdown_grace: Duration::from_secs(3),
             ended_sessions_kept: 256,
             log_every: Duration::from_secs(10),
+            max_time_jump: Duration::from_secs(10),
+            record_dir: None,
+            record_queue_frames: 128,
             retarget: RetargetSettings::default(),
         }
     }

@@ -156,6 +156,9 @@ pub struct SessionSnapshot {
     pub lost: u64,
     /// Frames dropped because their timestamp was not after the last accepted one (late or out of order).
     pub late: u64,
+    /// Frames dropped because their timestamp ran ahead of the last accepted one by more than
+    /// the wall-clock time between their arrivals plus the allowed jump (answered on TCP).
+    pub future: u64,
     /// Malformed messages (answered with an error on TCP).
     pub malformed: u64,
     /// UDP frames dropped because the session's queue was full.
@@ -164,6 +167,14 @@ pub struct SessionSnapshot {
     pub replies_dropped: u64,
     /// Weights sessions: weight names that matched no morph target, summed over frames.
     pub unknown_weights: u64,
+    /// The session's recording file, when the server records (`--record`).
+    pub recording: Option<String>,
+    /// Accepted frames written and flushed to the recording.
+    pub recorded: u64,
+    /// Accepted frames that could not be recorded (file not created or a write failed).
+    pub record_lost: u64,
+    /// Accepted frames that found the recording queue full: the session waited for the disk.
+    pub record_waits: u64,
     /// Arrival (line or packet read) to broadcast (pushed to every viewer queue).
     pub latency: LatencySummary,
     /// Viewers that watched this session.

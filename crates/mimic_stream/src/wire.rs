@@ -64,6 +64,9 @@ pub enum ErrorCode {
     NoMorphTargets,
     /// A weight name that is no target of the rig (a warning, once per name; not an error).
     UnknownWeight,
+    /// A frame's timestamp runs ahead of the last accepted one by more than the wall-clock time
+    /// between them plus the allowed jump; the frame is dropped, the session goes on.
+    FutureTimestamp,
 }
 
 impl ErrorCode {
@@ -88,6 +91,7 @@ impl ErrorCode {
             ErrorCode::BadWeight => "bad_weight",
             ErrorCode::NoMorphTargets => "no_morph_targets",
             ErrorCode::UnknownWeight => "unknown_weight",
+            ErrorCode::FutureTimestamp => "future_timestamp",
         }
     }
 

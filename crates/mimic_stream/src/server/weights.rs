@@ -3,10 +3,10 @@
 //! morph targets and reach viewers as the morph basis's control values (`d[3k + a] = w_k e_a`),
 //! or as positions `P0 + sum_k w_k dP_k`.
 
-use super::{Hub, SessionRecord, Shared, go_live, lock, refuse, reply};
+use super::{Hub, SessionRecord, Shared, check_time, future_line, go_live, lock, refuse, reply};
 use crate::catalog::RigEntry;
 use crate::lines::{Line, LineReader};
-use crate::stats::{Counter, LatencyHistogram};
+use crate::timing::{FrameClock, TimeProblem};
 use crate::wire::{
     ErrorCode, KIND_END, KIND_SESSION, encode_frame, encode_json, error_line, parse_weight_frame,
     warning_line,
@@ -16,8 +16,8 @@ use mimic_retarget::{FrameOutput, FrameStatus};
 use mimic_types::HeadPose;
 use serde_json::json;
 use std::collections::HashSet;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{Arc, Mutex};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 use tokio::io::{AsyncWriteExt, BufReader};
 use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
@@ -45,12 +45,13 @@ struct WeightsPipeline {
     scratch: Vec<f32>,
     out: FrameOutput,
     positions: Vec<Vec3>,
-    last_t_us: Option<i64>,
+    clock: FrameClock,
     reported: HashSet<String>,
 }
 
 impl WeightsPipeline {
-    /// Maps, orders and broadcasts one weight frame; returns warning lines for names never seen.
+    /// Maps, orders and broadcasts one weight frame; returns warning lines for names never seen
+    /// (or the error line of a frame from the future).
     fn accept(
         &mut self,
         t_us: i64,
@@ -59,13 +60,14 @@ impl WeightsPipeline {
         line_no: u64,
     ) -> Vec<String> {
         let r = self.record.clone();
-        if let Some(last) = self.last_t_us
-            && t_us <= last
-        {
-            r.late.bump();
-            return Vec::new();
+        match check_time(&mut self.clock, &r, t_us, arrival) {
+            Ok(()) => {}
+            Err(TimeProblem::Late) => return Vec::new(),
+            Err(TimeProblem::Future {
+                jump_us,
+                allowed_us,
+            }) => return vec![future_line(line_no, t_us, jump_us, allowed_us)],
         }
-        self.last_t_us = Some(t_us);
         let mut warnings = Vec::new();
         let Some(morph) = self.rig.morph.as_ref() else {
             return warnings;
@@ -183,26 +185,7 @@ pub(super) async fn session(
     let k = morph.len();
     let id = shared.next_session.fetch_add(1, Ordering::Relaxed);
     let name = hello.session.unwrap_or_else(|| format!("s{id}"));
-    let record = Arc::new(SessionRecord {
-        id,
-        name: name.clone(),
-        rig: rig.name().to_string(),
-        layout: "weights".to_string(),
-        active: AtomicBool::new(true),
-        end_reason: Mutex::new(None),
-        frames: Counter::default(),
-        udp_frames: Counter::default(),
-        tracked: Counter::default(),
-        calibrating: Counter::default(),
-        lost: Counter::default(),
-        late: Counter::default(),
-        malformed: Counter::default(),
-        udp_queue_dropped: Counter::default(),
-        replies_dropped: Counter::default(),
-        unknown_weights: Counter::default(),
-        latency: Mutex::new(LatencyHistogram::default()),
-        viewers: Mutex::new(Vec::new()),
-    });
+    let record = Arc::new(SessionRecord::new(id, &name, rig.name(), "weights"));
     let session_message = Arc::new(encode_json(
         KIND_SESSION,
         &json!({
@@ -240,6 +223,9 @@ pub(super) async fn session(
     welcome.push('\n');
     reply(&reply_tx, &record, welcome);
     tracing::info!(session = %name, id, rig = rig.name(), targets = k, "weights session started");
+    if settings.record_dir.is_some() {
+        tracing::info!(session = %name, "weights sessions are not recorded (recordings hold landmark frames)");
+    }
 
     let mut p = WeightsPipeline {
         shared: shared.clone(),
@@ -259,7 +245,7 @@ pub(super) async fn session(
             times: Default::default(),
         },
         positions: rig.rig.mesh.positions.clone(),
-        last_t_us: None,
+        clock: FrameClock::new(settings.max_time_jump),
         reported: HashSet::new(),
     };
     let mut errors_in_a_row = 0u32;
@@ -329,7 +315,7 @@ pub(super) async fn session(
     let end = record.snapshot();
     let end_json = json!({
         "session": name, "reason": reason, "frames": end.frames, "late": end.late,
-        "malformed": end.malformed, "unknown_weights": end.unknown_weights,
+        "future": end.future, "malformed": end.malformed, "unknown_weights": end.unknown_weights,
     });
     {
         let mut hubs = lock(&shared.hubs);
@@ -346,7 +332,7 @@ pub(super) async fn session(
     }
     shared.sessions_active.fetch_sub(1, Ordering::AcqRel);
     let mut bye = json!({"type": "bye", "reason": reason, "frames": end.frames, "late": end.late,
-        "malformed": end.malformed, "unknown_weights": end.unknown_weights})
+        "future": end.future, "malformed": end.malformed, "unknown_weights": end.unknown_weights})
     .to_string();
     bye.push('\n');
     reply(&reply_tx, &record, bye);
