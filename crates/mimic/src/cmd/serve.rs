@@ -47,6 +47,21 @@ pub struct Args {
     /// Malformed messages in a row after which a tracker connection is closed.
     #[arg(long, default_value_t = ServerSettings::default().max_errors_in_a_row)]
     pub max_errors: u32,
+    /// Seconds a viewer's socket may take to accept one message before it is disconnected.
+    #[arg(long, default_value_t = ServerSettings::default().viewer_write_timeout.as_secs_f64())]
+    pub viewer_write_timeout: f64,
+    /// Seconds a frame's timestamp may run ahead of the last accepted frame's, beyond the time
+    /// between their arrivals; further ahead it is refused (`future_timestamp`).
+    #[arg(long, default_value_t = ServerSettings::default().max_time_jump.as_secs_f64())]
+    pub max_time_jump: f64,
+    /// Record every landmark session's accepted frames in this folder (created if missing), one
+    /// v1 recording per session (`<session>-<id>-<peer>-<UTC time>.jsonl`), flushed per frame.
+    #[arg(long, value_name = "DIR")]
+    pub record: Option<PathBuf>,
+    /// Accepted frames queued per session for its recording; when full the session waits for
+    /// the disk (no frame is dropped).
+    #[arg(long, default_value_t = ServerSettings::default().record_queue_frames)]
+    pub record_queue: usize,
     /// Seconds viewers get after Ctrl-C to receive what was accepted.
     #[arg(long, default_value_t = ServerSettings::default().shutdown_grace.as_secs_f64())]
     pub shutdown_grace: f64,
@@ -92,6 +107,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         viewer_queue_frames: args.viewer_queue,
         max_errors_in_a_row: args.max_errors.max(1),
         shutdown_grace: seconds(args.shutdown_grace, "--shutdown-grace")?,
+        viewer_write_timeout: seconds(args.viewer_write_timeout, "--viewer-write-timeout")?,
+        max_time_jump: seconds(args.max_time_jump, "--max-time-jump")?,
+        record_dir: record_dir(args.record.as_deref())?,
+        record_queue_frames: args.record_queue.max(1),
         retarget: args.pipeline.settings(),
         ..ServerSettings::default()
     };
@@ -143,8 +162,38 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             stats.latency.p99_us,
             stats.viewer_frames_dropped
         );
+        if let Some(dir) = &args.record {
+            let recorded: u64 = stats.sessions.iter().map(|s| s.recorded).sum();
+            let lost: u64 = stats.sessions.iter().map(|s| s.record_lost).sum();
+            println!(
+                "mimic serve: {recorded} frames recorded in {} ({lost} not recorded)",
+                dir.display()
+            );
+        }
     }
     Ok(())
+}
+
+/// The `--record` folder, created if missing and checked writable before any session starts.
+fn record_dir(dir: Option<&std::path::Path>) -> anyhow::Result<Option<PathBuf>> {
+    let Some(dir) = dir else { return Ok(None) };
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("--record: creating {}", dir.display()))?;
+    let probe = probe_writable(dir)?;
+    std::fs::remove_file(&probe).with_context(|| format!("--record: {}", probe.display()))?;
+    Ok(Some(dir.to_path_buf()))
+}
+
+/// Creates an empty, unused file in `dir` (proof that recordings can be written there).
+fn probe_writable(dir: &std::path::Path) -> anyhow::Result<PathBuf> {
+    let probe = dir.join(format!(".mimic-serve-probe-{}", std::process::id()));
+    std::fs::OpenOptions::new()
+        .write(true)
+        .create(true)
+        .truncate(true)
+        .open(&probe)
+        .with_context(|| format!("--record: {} is not writable", dir.display()))?;
+    Ok(probe)
 }
 
 /// Names of the layouts in `configs/layouts/`.
