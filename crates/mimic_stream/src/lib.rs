@@ -27,6 +27,6 @@ mod timing;
 pub mod wire;
 
 pub use catalog::{Catalog, CatalogError, MorphSet, RigEntry};
-pub use server::Server;
+pub use server::{HELLO_MAX_BYTES, Server};
 pub use settings::{DEFAULT_LISTEN, ServerSettings};
 pub use stats::{LatencyHistogram, LatencySummary, ServerStats, SessionSnapshot, ViewerSnapshot};

@@ -38,6 +38,16 @@ impl<R: AsyncBufRead + Unpin> LineReader<R> {
         }
     }
 
+    /// Changes the longest line taken from the next line on (e.g. after a short hello).
+    pub fn set_limit(&mut self, limit: usize) {
+        self.limit = limit;
+    }
+
+    /// The underlying reader (what it has buffered stays in it; a partial line is dropped).
+    pub fn into_inner(self) -> R {
+        self.input
+    }
+
     /// The last line read (with its newline, if it had one).
     pub fn line(&self) -> &[u8] {
         &self.buf

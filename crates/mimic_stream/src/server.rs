@@ -31,6 +31,10 @@ use tokio::time::{sleep, sleep_until, timeout};
 
 mod weights;
 
+/// Longest first line of a connection (hello or recording header), unless the message limit is
+/// smaller: a connection that has not said what it is holds at most this much.
+pub const HELLO_MAX_BYTES: usize = 64 * 1024;
+
 fn lock<T>(m: &Mutex<T>) -> MutexGuard<'_, T> {
     m.lock().unwrap_or_else(PoisonError::into_inner)
 }
@@ -361,7 +365,8 @@ async fn connection(shared: Arc<Shared>, socket: TcpStream, mut stop: watch::Rec
     let _ = socket.set_nodelay(true);
     let peer = socket.peer_addr().ok();
     let (r, mut w) = socket.into_split();
-    let mut lines = LineReader::new(BufReader::new(r), shared.settings.max_message_bytes);
+    let hello_limit = shared.settings.max_message_bytes.min(HELLO_MAX_BYTES);
+    let mut lines = LineReader::new(BufReader::new(r), hello_limit);
     let idle = shared.settings.idle_timeout;
     let read = tokio::select! {
         _ = stop.changed() => return,
@@ -376,15 +381,14 @@ async fn connection(shared: Arc<Shared>, socket: TcpStream, mut stop: watch::Rec
         Ok(Line::Complete | Line::Partial) => wire::parse_hello(lines.line()),
         Ok(Line::TooLong) => {
             shared.refused.bump();
-            let msg = format!(
-                "hello longer than {} bytes",
-                shared.settings.max_message_bytes
-            );
+            let msg = format!("hello longer than {hello_limit} bytes");
             refuse(&mut w, error_line(ErrorCode::TooLong, 1, &msg).as_bytes()).await;
             return;
         }
         Ok(Line::Eof) | Err(_) => return,
     };
+    // Trackers' frame lines may be as long as the message limit.
+    lines.set_limit(shared.settings.max_message_bytes);
     match hello {
         Err(e) => {
             shared.refused.bump();
@@ -481,12 +485,13 @@ async fn viewer(
         hub.viewers.push(v.clone());
     }
     tracing::info!(viewer = v.id, session = %session, positions, "viewer joined");
-    // The viewer sends nothing after its hello; reading tells us when it goes away.
+    // The viewer sends nothing after its hello; reading (and discarding, through the reader's
+    // fixed buffer) tells us when it goes away.
     let watcher = {
         let v = v.clone();
-        let mut r = lines;
+        let mut r = lines.into_inner();
         tokio::spawn(async move {
-            while let Ok(Line::Complete | Line::TooLong | Line::Partial) = r.next_line().await {}
+            let _ = tokio::io::copy(&mut r, &mut tokio::io::sink()).await;
             v.queue.abandon();
         })
     };
