@@ -1,8 +1,10 @@
 //! End-to-end tests of the `mimic` binary on the shipped configs and recordings.
 
+mod faults;
 mod fit;
 mod import;
 mod info;
+mod loopback;
 mod morph;
 mod regression;
 mod render;
