@@ -6,6 +6,7 @@
 
 use glam::{Vec3, Vec3A};
 use mimic_solve::Basis;
+use mimic_solve::normals::VertexFans;
 
 /// Moving rows of a basis and the neighbourhood whose normals follow them.
 #[derive(Clone, Debug)]
@@ -16,22 +17,22 @@ pub(crate) struct MovingPatch {
     compact: Basis,
     /// Scratch for the compact product.
     u: Vec<Vec3>,
-    /// Vertices the normal pass reads, by local index: first the ones whose normal can change
-    /// (corners of triangles with a moving vertex), then the other corners of their triangles.
+    /// Vertices the normal pass reads, by local index: first the moving rows (in `rows` order),
+    /// then the other vertices whose normal can change (corners of triangles with a moving
+    /// vertex), then the other corners of their triangles.
     local_vertices: Vec<u32>,
-    /// How many of `local_vertices` get their normal written back.
-    normal_count: usize,
-    /// Every triangle incident on a vertex whose normal can change, in local indices.
-    local_triangles: Vec<[u32; 3]>,
-    /// Scratch: positions and normal sums by local index.
+    /// Fans around the local vertices whose normal can change (`0..fans.count()`).
+    fans: VertexFans,
+    /// Positions by local index: the moving rows are rewritten by every [`MovingPatch::deform`],
+    /// the others never move and keep their rest position.
     local_positions: Vec<Vec3A>,
-    local_normals: Vec<Vec3A>,
 }
 
 impl MovingPatch {
-    /// Finds the moving rows of `basis` and the triangles around them.
-    pub(crate) fn new(basis: &Basis, triangles: &[[u32; 3]]) -> Self {
-        let n = basis.vertex_count();
+    /// Finds the moving rows of `basis` and the triangles around them; `rest` holds the rest
+    /// positions of every vertex of the mesh (`basis.vertex_count()` of them).
+    pub(crate) fn new(basis: &Basis, triangles: &[[u32; 3]], rest: &[Vec3]) -> Self {
+        let n = basis.vertex_count().min(rest.len());
         let m = basis.control_count();
         let rows: Vec<u32> = (0..n)
             .filter(|&i| basis.row(i).iter().any(|w| *w != 0.0))
@@ -57,11 +58,13 @@ impl MovingPatch {
             .filter(|t| in_range(t) && t.iter().any(|&v| in_normal_set[v as usize]))
             .copied()
             .collect();
-        // Local numbering: the normal set first, then the remaining corners of incident triangles.
+        // Local numbering: the moving rows, the rest of the normal set, then the remaining corners
+        // of incident triangles. Every moving vertex is in the normal set or in no triangle at
+        // all (its normal is then zero, as `vertex_normals` gives it).
         let mut local_of = vec![u32::MAX; n];
-        let mut local_vertices: Vec<u32> = (0..n as u32)
-            .filter(|&v| in_normal_set[v as usize])
-            .collect();
+        let mut local_vertices: Vec<u32> = rows.clone();
+        local_vertices
+            .extend((0..n as u32).filter(|&v| in_normal_set[v as usize] && !moving[v as usize]));
         let normal_count = local_vertices.len();
         for (k, &v) in local_vertices.iter().enumerate() {
             local_of[v as usize] = k as u32;
@@ -78,15 +81,17 @@ impl MovingPatch {
             .iter()
             .map(|t| t.map(|v| local_of[v as usize]))
             .collect();
+        let fans = VertexFans::new(normal_count, local_vertices.len(), &local_triangles);
         Self {
             u: vec![Vec3::ZERO; rows.len()],
             rows,
             compact,
-            local_positions: vec![Vec3A::ZERO; local_vertices.len()],
-            local_normals: vec![Vec3A::ZERO; local_vertices.len()],
+            local_positions: local_vertices
+                .iter()
+                .map(|&v| Vec3A::from(rest[v as usize]))
+                .collect(),
             local_vertices,
-            normal_count,
-            local_triangles,
+            fans,
         }
     }
 
@@ -96,34 +101,27 @@ impl MovingPatch {
     }
 
     /// `positions[i] = rest[i] + (B d)_i` for every moving vertex; others are left as they are.
+    /// The new positions are also kept for [`MovingPatch::normals`].
     pub(crate) fn deform(&mut self, d: &[Vec3], rest: &[Vec3], positions: &mut [Vec3]) {
         self.compact.apply(d, &mut self.u);
-        for (&i, u) in self.rows.iter().zip(&self.u) {
-            positions[i as usize] = rest[i as usize] + *u;
+        for ((&i, u), local) in self.rows.iter().zip(&self.u).zip(&mut self.local_positions) {
+            let p = rest[i as usize] + *u;
+            positions[i as usize] = p;
+            *local = Vec3A::from(p);
         }
     }
 
-    /// Recomputes the area-weighted normals of the vertices the moving rows can affect.
+    /// Recomputes the area-weighted normals of the vertices the moving rows can affect, from the
+    /// positions of the last [`MovingPatch::deform`] (rest positions before the first).
     ///
-    /// Works on a compact copy of the affected neighbourhood in 16-byte SIMD vectors, so the
-    /// triangle loop reads and writes contiguous memory, one vector load or store per corner,
-    /// and needs no per-corner test.
-    pub(crate) fn normals(&mut self, positions: &[Vec3], normals: &mut [Vec3]) {
-        for (p, &v) in self.local_positions.iter_mut().zip(&self.local_vertices) {
-            *p = Vec3A::from(positions[v as usize]);
-        }
-        self.local_normals.fill(Vec3A::ZERO);
-        let (pos, acc) = (&self.local_positions, &mut self.local_normals);
-        for t in &self.local_triangles {
-            let (a, b, c) = (pos[t[0] as usize], pos[t[1] as usize], pos[t[2] as usize]);
-            let n = (b - a).cross(c - a);
-            acc[t[0] as usize] += n;
-            acc[t[1] as usize] += n;
-            acc[t[2] as usize] += n;
-        }
-        for (n, &v) in acc[..self.normal_count].iter().zip(&self.local_vertices) {
-            normals[v as usize] = Vec3::from(n.normalize_or_zero());
-        }
+    /// Gathers vertex by vertex over precomputed fans ([`VertexFans`]) on the compact copy of the
+    /// neighbourhood in 16-byte SIMD vectors: each normal is summed in registers, normalised and
+    /// written once.
+    pub(crate) fn normals(&mut self, normals: &mut [Vec3]) {
+        let targets = &self.local_vertices;
+        self.fans.normals(&self.local_positions, |k, n| {
+            normals[targets[k] as usize] = n;
+        });
     }
 }
 
@@ -156,7 +154,7 @@ mod tests {
             })
             .collect();
         let basis = Basis::from_row_major(g * g, 2, data).unwrap();
-        let mut patch = MovingPatch::new(&basis, &triangles);
+        let mut patch = MovingPatch::new(&basis, &triangles, &positions);
         assert_eq!(patch.moving_count(), g * 3);
         let d = [Vec3::new(0.0, 0.0, 1.0), Vec3::new(0.3, -0.2, 0.5)];
         // Reference: full apply and full normals.
@@ -170,7 +168,7 @@ mod tests {
         let mut nrm = vec![Vec3::ZERO; g * g];
         mimic_solve::vertex_normals(&pos, &triangles, &mut nrm);
         patch.deform(&d, &positions, &mut pos);
-        patch.normals(&pos, &mut nrm);
+        patch.normals(&mut nrm);
         assert_eq!(pos, full);
         for (a, b) in nrm.iter().zip(&full_n) {
             // Same sums in a different order: f32 rounding, ~1e-6.

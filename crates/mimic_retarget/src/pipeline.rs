@@ -223,12 +223,12 @@ impl Retargeter {
         let mut r = Retargeter {
             layout: layout.clone(),
             patch: if settings.positions {
-                MovingPatch::new(&basis, &rig.mesh.triangles)
+                MovingPatch::new(&basis, &rig.mesh.triangles, &rig.mesh.positions)
             } else {
                 // No positions: an empty patch, so no per-retargeter copy of the moving rows.
                 let empty = Basis::from_row_major(0, m, Vec::new())
                     .unwrap_or_else(|| unreachable!("0 x m from no values"));
-                MovingPatch::new(&empty, &[])
+                MovingPatch::new(&empty, &[], &[])
             },
             basis,
             rest: rig.mesh.positions.clone(),
@@ -451,7 +451,7 @@ impl Retargeter {
             .deform(&out.displacements, &self.rest, &mut out.positions);
         let t4 = Instant::now();
         if self.settings.normals {
-            self.patch.normals(&out.positions, &mut out.normals);
+            self.patch.normals(&mut out.normals);
         }
         (t4, Instant::now())
     }

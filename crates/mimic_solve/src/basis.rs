@@ -8,14 +8,24 @@ const STACK_CONTROLS: usize = 64;
 /// Lanes of the vectorised inner loop (one AVX register of f32).
 const LANES: usize = 8;
 
+/// Rows per block of the column-blocked copy that [`Basis::apply`] reads: 3 AVX registers, so one
+/// broadcast of `d_j` feeds 3 fused multiply-adds per axis and 9 accumulators keep both FMA
+/// units busy past their latency.
+const BLOCK: usize = 3 * LANES;
+
 /// An n x m deformation basis, f32, row-major: vertex `i` moves by `sum_j B[i, j] * d[j]`.
 ///
-/// The same matrix serves x, y and z. Rows of frozen vertices are zero.
+/// The same matrix serves x, y and z. Rows of frozen vertices are zero. Besides the row-major
+/// matrix ([`Basis::as_slice`], [`Basis::row`]) it keeps a column-blocked copy for
+/// [`Basis::apply`] (blocks of 24 rows, each column of a block contiguous), so a basis takes
+/// twice `n * m * 4` bytes.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Basis {
     vertex_count: usize,
     control_count: usize,
     data: Vec<f32>,
+    /// `blocked[(b * m + j) * BLOCK + r] = B[b * BLOCK + r, j]`, zero past the last row.
+    blocked: Vec<f32>,
 }
 
 impl Basis {
@@ -25,10 +35,22 @@ impl Basis {
         control_count: usize,
         data: Vec<f32>,
     ) -> Option<Self> {
-        (vertex_count.checked_mul(control_count)? == data.len()).then_some(Self {
+        if vertex_count.checked_mul(control_count)? != data.len() {
+            return None;
+        }
+        let m = control_count;
+        let mut blocked = vec![0f32; vertex_count.div_ceil(BLOCK) * BLOCK * m];
+        for (i, row) in data.chunks_exact(m.max(1)).enumerate().take(vertex_count) {
+            let (b, r) = (i / BLOCK, i % BLOCK);
+            for (j, w) in row.iter().enumerate() {
+                blocked[(b * m + j) * BLOCK + r] = *w;
+            }
+        }
+        Some(Self {
             vertex_count,
             control_count,
             data,
+            blocked,
         })
     }
 
@@ -92,12 +114,148 @@ impl Basis {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
         {
+            // SAFETY: AVX2 and FMA are checked just above; blocked.len() ==
+            // ceil(n / BLOCK) * BLOCK * m by construction, out.len() == n (asserted), and
+            // 0 < m <= STACK_CONTROLS here.
+            unsafe { apply_blocked_avx2_fma(&self.blocked, m, &dx, &dy, &dz, out) };
+            return;
+        }
+        apply_soa::<false>(&self.data, m, &dx[..m], &dy[..m], &dz[..m], out);
+    }
+
+    /// [`Basis::apply`] by the previous kernel, row-major, two rows at a time (AVX2 + FMA where
+    /// the CPU has them): kept as the in-process baseline of the benchmarks.
+    ///
+    /// # Panics
+    /// As [`Basis::apply`].
+    pub fn apply_row_pairs(&self, d: &[Vec3], out: &mut [Vec3]) {
+        let m = self.control_count;
+        assert!(
+            d.len() == m && out.len() == self.vertex_count,
+            "Basis::apply_row_pairs: shapes"
+        );
+        if m == 0 || m > STACK_CONTROLS {
+            self.apply(d, out);
+            return;
+        }
+        let mut dx = [0f32; STACK_CONTROLS];
+        let mut dy = [0f32; STACK_CONTROLS];
+        let mut dz = [0f32; STACK_CONTROLS];
+        for (j, v) in d.iter().enumerate() {
+            dx[j] = v.x;
+            dy[j] = v.y;
+            dz[j] = v.z;
+        }
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
             // SAFETY: AVX2 and FMA are checked just above; data.len() == n * m by construction,
             // 0 < m <= STACK_CONTROLS here, and the stack arrays are zero past m.
             unsafe { apply_avx2_fma(&self.data, m, &dx, &dy, &dz, out) };
             return;
         }
         apply_soa::<false>(&self.data, m, &dx[..m], &dy[..m], &dz[..m], out);
+    }
+}
+
+/// `u = B d` over the column-blocked copy: per block of 24 rows and per control `j`, `d_j`'s
+/// coordinates are broadcast and multiply-added with the block's column `j` (3 registers) into 9
+/// accumulators (rows x axes); no horizontal sums, no partial chunk (38 controls are 38 steps).
+/// The accumulators are transposed to (x, y, z) triples 8 rows at a time.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA; `0 < m <= STACK_CONTROLS`,
+/// `blocked.len() == out.len().div_ceil(BLOCK) * BLOCK * m`, and `dx`, `dy`, `dz` hold
+/// `STACK_CONTROLS` values.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn apply_blocked_avx2_fma(
+    blocked: &[f32],
+    m: usize,
+    dx: &[f32; STACK_CONTROLS],
+    dy: &[f32; STACK_CONTROLS],
+    dz: &[f32; STACK_CONTROLS],
+    out: &mut [Vec3],
+) {
+    use std::arch::x86_64::*;
+    debug_assert!(m > 0 && m <= STACK_CONTROLS);
+    debug_assert_eq!(blocked.len(), out.len().div_ceil(BLOCK) * BLOCK * m);
+    let (px, py, pz) = (dx.as_ptr(), dy.as_ptr(), dz.as_ptr());
+    // The last, partial block is written through this buffer.
+    let mut spare = [Vec3::ZERO; BLOCK];
+    for (b, rows) in out.chunks_mut(BLOCK).enumerate() {
+        let full = rows.len() == BLOCK;
+        let dst: *mut f32 = if full {
+            rows.as_mut_ptr().cast()
+        } else {
+            spare.as_mut_ptr().cast()
+        };
+        // SAFETY: block b spans blocked[b * BLOCK * m .. (b + 1) * BLOCK * m] (length asserted
+        // above); column j of it is the BLOCK values at offset j * BLOCK; j < m <= STACK_CONTROLS
+        // for the d arrays; dst points at BLOCK Vec3 = 3 * BLOCK f32 (the block's rows when the
+        // block is full, else `spare`), and Vec3 is repr(C) x, y, z.
+        unsafe {
+            let mut col = blocked.as_ptr().add(b * BLOCK * m);
+            let mut acc = [_mm256_setzero_ps(); 9];
+            for j in 0..m {
+                let c = [
+                    _mm256_loadu_ps(col),
+                    _mm256_loadu_ps(col.add(LANES)),
+                    _mm256_loadu_ps(col.add(2 * LANES)),
+                ];
+                let dv = [
+                    _mm256_broadcast_ss(&*px.add(j)),
+                    _mm256_broadcast_ss(&*py.add(j)),
+                    _mm256_broadcast_ss(&*pz.add(j)),
+                ];
+                for g in 0..3 {
+                    for a in 0..3 {
+                        acc[3 * g + a] = _mm256_fmadd_ps(c[g], dv[a], acc[3 * g + a]);
+                    }
+                }
+                col = col.add(BLOCK);
+            }
+            for g in 0..3 {
+                store_xyz8(
+                    dst.add(g * 3 * LANES),
+                    acc[3 * g],
+                    acc[3 * g + 1],
+                    acc[3 * g + 2],
+                );
+            }
+        }
+        if !full {
+            rows.copy_from_slice(&spare[..rows.len()]);
+        }
+    }
+}
+
+/// Writes 8 rows given as x, y, z registers as 24 interleaved f32 `x0 y0 z0 x1 ...` at `dst`:
+/// each register permuted so that lane `k` lands at position `3k + axis (mod 8)`, then blended.
+///
+/// # Safety
+/// The CPU must support AVX2; `dst` must be valid for writing 24 f32.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+unsafe fn store_xyz8(
+    dst: *mut f32,
+    x: std::arch::x86_64::__m256,
+    y: std::arch::x86_64::__m256,
+    z: std::arch::x86_64::__m256,
+) {
+    use std::arch::x86_64::*;
+    let px = _mm256_permutevar8x32_ps(x, _mm256_setr_epi32(0, 3, 6, 1, 4, 7, 2, 5));
+    let py = _mm256_permutevar8x32_ps(y, _mm256_setr_epi32(5, 0, 3, 6, 1, 4, 7, 2));
+    let pz = _mm256_permutevar8x32_ps(z, _mm256_setr_epi32(2, 5, 0, 3, 6, 1, 4, 7));
+    // out0 = x0 y0 z0 x1 y1 z1 x2 y2, out1 = z2 x3 y3 z3 x4 y4 z4 x5, out2 = y5 z5 x6 y6 z6 x7 y7 z7.
+    let o0 = _mm256_blend_ps::<0x24>(_mm256_blend_ps::<0x92>(px, py), pz);
+    let o1 = _mm256_blend_ps::<0x49>(_mm256_blend_ps::<0x24>(px, py), pz);
+    let o2 = _mm256_blend_ps::<0x92>(_mm256_blend_ps::<0x49>(px, py), pz);
+    // SAFETY: dst is valid for 24 f32 (caller).
+    unsafe {
+        _mm256_storeu_ps(dst, o0);
+        _mm256_storeu_ps(dst.add(8), o1);
+        _mm256_storeu_ps(dst.add(16), o2);
     }
 }
 
@@ -324,6 +482,9 @@ mod tests {
             (5, 7),
             (13, 8),
             (33, 38),
+            (24, 38),
+            (49, 38),
+            (100, 5),
             (10, 64),
             (4, 65),
             (3, 100),
@@ -335,6 +496,8 @@ mod tests {
             let b = Basis::from_row_major(n, m, data.clone()).unwrap();
             let mut out = vec![Vec3::splat(f32::NAN); n];
             b.apply(&d, &mut out);
+            let mut pairs = vec![Vec3::splat(f32::NAN); n];
+            b.apply_row_pairs(&d, &mut pairs);
             // The portable path too (apply takes the AVX2 one on CPUs that have it).
             let mut portable = vec![Vec3::splat(f32::NAN); n];
             let dx: Vec<f32> = d.iter().map(|v| v.x).collect();
@@ -365,6 +528,10 @@ mod tests {
                     assert!(
                         (out[i][k] as f64 - r[k]).abs() <= tol,
                         "n={n} m={m} i={i} k={k}"
+                    );
+                    assert!(
+                        (pairs[i][k] as f64 - r[k]).abs() <= tol,
+                        "row pairs: n={n} m={m} i={i} k={k}"
                     );
                 }
             }

@@ -1,6 +1,7 @@
-//! Area-weighted vertex normals.
+//! Area-weighted vertex normals: the reference face-by-face pass ([`vertex_normals`]) and a
+//! vertex-by-vertex gather over precomputed triangle fans ([`VertexFans`]) for the per-frame path.
 
-use glam::Vec3;
+use glam::{Vec3, Vec3A, Vec3Swizzles};
 
 /// Area-weighted vertex normals: each vertex gets the normalised sum of the un-normalised normals
 /// `(b - a) x (c - a)` of its triangles (counter-clockwise seen from outside points outwards).
@@ -33,9 +34,466 @@ pub fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]], out: &mut [Vec
     }
 }
 
+/// Vertices gathered together by [`VertexFans`]: one AVX register of f32 lanes.
+const GROUP: usize = 8;
+
+/// Triangle fans around the first `count` vertices of a mesh, for gathering their area-weighted
+/// normals vertex by vertex (the same normals as [`vertex_normals`], up to f32 rounding).
+///
+/// Vertex `v`'s fan is a list of neighbours `w_0, w_1, ..., w_r` such that each consecutive pair
+/// `(w_l, w_{l+1})` closes a triangle `(v, w_l, w_{l+1})` in the mesh's orientation; its normal is
+/// the normalised `sum_l (p[w_l] - p[v]) x (p[w_{l+1}] - p[v])`, each triangle's cross product
+/// taken at `v`'s own corner. Triangles sharing an edge at `v` share its difference vector, so a
+/// closed fan of `k` triangles reads `k + 1` neighbours, and no sum is scattered to memory.
+/// Where the triangles around `v` do not form one chain (boundary, non-manifold), the chains are
+/// joined by `v` itself, whose difference vector is zero and adds exactly nothing; the same
+/// padding evens out fan lengths.
+///
+/// Fans are stored in groups of 8 vertices of (nearly) equal fan length, step-major (entry `l` of
+/// the 8 fans side by side), so that [`VertexFans::normals`] can run the 8 fans in the lanes of
+/// one AVX register, with no data-dependent branch inside a group.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct VertexFans {
+    /// Per group: first entry in `entries`, steps (entries per lane), lanes in use (1..=8).
+    groups: Vec<[u32; 3]>,
+    /// 8 centre vertices per group (unused lanes repeat the first).
+    centres: Vec<u32>,
+    /// Per group, `steps * 8` neighbours, step-major.
+    entries: Vec<u32>,
+    /// Vertices with a fan.
+    count: usize,
+    /// Positions needed: one past the largest vertex any fan names.
+    position_count: usize,
+}
+
+impl VertexFans {
+    /// Fans of vertices `0..count` from `triangles` over `vertex_count` positions; triangles naming
+    /// a vertex `>= vertex_count` are skipped, as in [`vertex_normals`].
+    pub fn new(count: usize, vertex_count: usize, triangles: &[[u32; 3]]) -> Self {
+        let count = count.min(vertex_count);
+        let fans = chain_fans(count, vertex_count, triangles);
+        // Group by fan length (stable, so neighbouring vertices stay together).
+        let mut order: Vec<usize> = (0..count).collect();
+        order.sort_by_key(|&v| fans[v].len());
+        let mut groups = Vec::with_capacity(count.div_ceil(GROUP));
+        let mut centres = Vec::with_capacity(count.div_ceil(GROUP) * GROUP);
+        let mut entries = Vec::new();
+        for chunk in order.chunks(GROUP) {
+            let steps = chunk.iter().map(|&v| fans[v].len()).max().unwrap_or(0);
+            groups.push([entries.len() as u32, steps as u32, chunk.len() as u32]);
+            let lane = |k: usize| chunk.get(k).copied().unwrap_or(chunk[0]);
+            centres.extend((0..GROUP).map(|k| lane(k) as u32));
+            for l in 0..steps {
+                for k in 0..GROUP {
+                    let v = lane(k);
+                    // Past its end, a fan is padded with its own centre: zero difference vector.
+                    entries.push(fans[v].get(l).copied().unwrap_or(v as u32));
+                }
+            }
+        }
+        let position_count = entries
+            .iter()
+            .map(|&w| w as usize + 1)
+            .max()
+            .unwrap_or(0)
+            .max(count);
+        Self {
+            groups,
+            centres,
+            entries,
+            count,
+            position_count,
+        }
+    }
+
+    /// Number of vertices with a fan (`0..count`).
+    pub fn count(&self) -> usize {
+        self.count
+    }
+
+    /// Number of positions [`VertexFans::normals`] reads.
+    pub fn position_count(&self) -> usize {
+        self.position_count
+    }
+
+    /// Fan entries over all lanes, padding included: the neighbour reads of one call.
+    pub fn entry_count(&self) -> usize {
+        self.entries.len()
+    }
+
+    /// Calls `write(v, normal)` once for every vertex `v < count()` (in no particular order) with
+    /// its normalised area-weighted normal, zero where the sum has no finite, non-zero length
+    /// (as `normalize_or_zero`); allocates nothing. 8 fans at a time with AVX2 + FMA where the
+    /// CPU has them, else one by one.
+    ///
+    /// # Panics
+    /// If `positions.len() < position_count()`.
+    pub fn normals(&self, positions: &[Vec3A], mut write: impl FnMut(usize, Vec3)) {
+        assert!(
+            positions.len() >= self.position_count,
+            "VertexFans::normals: {} positions, fans name {}",
+            positions.len(),
+            self.position_count
+        );
+        #[cfg(target_arch = "x86_64")]
+        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+        {
+            // SAFETY: AVX2 and FMA are checked just above; every centre and entry is below
+            // position_count <= positions.len() (asserted), and each group's entries lie in
+            // `entries` by construction.
+            unsafe { self.normals_avx2(positions, &mut write) };
+            return;
+        }
+        self.normals_portable(positions, &mut write);
+    }
+
+    /// [`VertexFans::normals`] one fan at a time, on any CPU.
+    fn normals_portable(&self, positions: &[Vec3A], write: &mut impl FnMut(usize, Vec3)) {
+        for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
+            let entries = &self.entries[first as usize..][..steps as usize * GROUP];
+            for k in 0..lanes as usize {
+                let v = self.centres[g * GROUP + k] as usize;
+                let p = positions[v];
+                let mut fan = entries.iter().skip(k).step_by(GROUP);
+                let mut acc = Vec3A::ZERO;
+                if let Some(&w0) = fan.next() {
+                    // a x b = (a * b.yzx - a.yzx * b).yzx: sum the inner vectors, rotate at the end.
+                    let mut a = positions[w0 as usize] - p;
+                    let mut a_r = a.yzx();
+                    for &w in fan {
+                        let b = positions[w as usize] - p;
+                        let b_r = b.yzx();
+                        acc += a * b_r - a_r * b;
+                        a = b;
+                        a_r = b_r;
+                    }
+                }
+                write(v, Vec3::from(acc.yzx().normalize_or_zero()));
+            }
+        }
+    }
+
+    /// [`VertexFans::normals`] with the 8 fans of a group in the lanes of AVX registers: per step,
+    /// 8 neighbour loads transposed to x, y, z registers, 8 cross products, one vector square root
+    /// and division per group for the normalisation.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA, and `positions.len() >= self.position_count`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn normals_avx2(&self, positions: &[Vec3A], write: &mut impl FnMut(usize, Vec3)) {
+        use std::arch::x86_64::*;
+        debug_assert!(positions.len() >= self.position_count);
+        let base = positions.as_ptr().cast::<f32>();
+        // 8 positions named by `idx` as x, y, z registers (lane k = idx[k]).
+        // SAFETY (of the caller): every index read below is < position_count <= positions.len().
+        let load8 = |idx: &[u32]| -> (__m256, __m256, __m256) {
+            // SAFETY: idx holds 8 indices below positions.len(); Vec3A is 16 bytes (x, y, z, pad).
+            unsafe {
+                let at = |k: usize| base.add(idx[k] as usize * 4);
+                let r0 = _mm256_loadu2_m128(at(4), at(0));
+                let r1 = _mm256_loadu2_m128(at(5), at(1));
+                let r2 = _mm256_loadu2_m128(at(6), at(2));
+                let r3 = _mm256_loadu2_m128(at(7), at(3));
+                let t0 = _mm256_unpacklo_ps(r0, r1); // x0 x1 y0 y1 | x4 x5 y4 y5
+                let t1 = _mm256_unpackhi_ps(r0, r1); // z0 z1 .. .. | z4 z5 .. ..
+                let t2 = _mm256_unpacklo_ps(r2, r3); // x2 x3 y2 y3 | x6 x7 y6 y7
+                let t3 = _mm256_unpackhi_ps(r2, r3); // z2 z3 .. .. | z6 z7 .. ..
+                (
+                    _mm256_shuffle_ps::<0x44>(t0, t2),
+                    _mm256_shuffle_ps::<0xEE>(t0, t2),
+                    _mm256_shuffle_ps::<0x44>(t1, t3),
+                )
+            }
+        };
+        let mut normals = [Vec3A::ZERO; GROUP];
+        for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
+            let centre = &self.centres[g * GROUP..][..GROUP];
+            let entries = &self.entries[first as usize..][..steps as usize * GROUP];
+            let (px, py, pz) = load8(centre);
+            let (mut sx, mut sy, mut sz) = (
+                _mm256_setzero_ps(),
+                _mm256_setzero_ps(),
+                _mm256_setzero_ps(),
+            );
+            let mut steps = entries.chunks_exact(GROUP);
+            if let Some(e0) = steps.next() {
+                let (qx, qy, qz) = load8(e0);
+                let (mut ax, mut ay, mut az) = (
+                    _mm256_sub_ps(qx, px),
+                    _mm256_sub_ps(qy, py),
+                    _mm256_sub_ps(qz, pz),
+                );
+                for e in steps {
+                    let (qx, qy, qz) = load8(e);
+                    let (bx, by, bz) = (
+                        _mm256_sub_ps(qx, px),
+                        _mm256_sub_ps(qy, py),
+                        _mm256_sub_ps(qz, pz),
+                    );
+                    // a x b, each component one multiply and one fused multiply-subtract.
+                    let cx = _mm256_fmsub_ps(ay, bz, _mm256_mul_ps(az, by));
+                    let cy = _mm256_fmsub_ps(az, bx, _mm256_mul_ps(ax, bz));
+                    let cz = _mm256_fmsub_ps(ax, by, _mm256_mul_ps(ay, bx));
+                    sx = _mm256_add_ps(sx, cx);
+                    sy = _mm256_add_ps(sy, cy);
+                    sz = _mm256_add_ps(sz, cz);
+                    (ax, ay, az) = (bx, by, bz);
+                }
+            }
+            // 1 / length where finite and positive, else 0 (normalize_or_zero).
+            let len2 = _mm256_fmadd_ps(sz, sz, _mm256_fmadd_ps(sy, sy, _mm256_mul_ps(sx, sx)));
+            let inv = _mm256_div_ps(_mm256_set1_ps(1.0), _mm256_sqrt_ps(len2));
+            let ok = _mm256_and_ps(
+                _mm256_cmp_ps::<_CMP_LT_OQ>(inv, _mm256_set1_ps(f32::INFINITY)),
+                _mm256_cmp_ps::<_CMP_GT_OQ>(inv, _mm256_setzero_ps()),
+            );
+            let inv = _mm256_and_ps(inv, ok);
+            let (nx, ny, nz) = (
+                _mm256_mul_ps(sx, inv),
+                _mm256_mul_ps(sy, inv),
+                _mm256_mul_ps(sz, inv),
+            );
+            // Back to one (x, y, z, 0) vector per lane.
+            let zero = _mm256_setzero_ps();
+            let t0 = _mm256_unpacklo_ps(nx, ny); // x0 y0 x1 y1 | x4 y4 x5 y5
+            let t1 = _mm256_unpackhi_ps(nx, ny); // x2 y2 x3 y3 | x6 y6 x7 y7
+            let t2 = _mm256_unpacklo_ps(nz, zero); // z0 0 z1 0 | z4 0 z5 0
+            let t3 = _mm256_unpackhi_ps(nz, zero); // z2 0 z3 0 | z6 0 z7 0
+            let out = normals.as_mut_ptr().cast::<f32>();
+            // SAFETY: `normals` holds 8 Vec3A = 32 f32; lane k goes to out[4k..4k + 4].
+            unsafe {
+                _mm256_storeu2_m128(out.add(16), out, _mm256_shuffle_ps::<0x44>(t0, t2));
+                _mm256_storeu2_m128(out.add(20), out.add(4), _mm256_shuffle_ps::<0xEE>(t0, t2));
+                _mm256_storeu2_m128(out.add(24), out.add(8), _mm256_shuffle_ps::<0x44>(t1, t3));
+                _mm256_storeu2_m128(out.add(28), out.add(12), _mm256_shuffle_ps::<0xEE>(t1, t3));
+            }
+            for (&v, n) in centre.iter().zip(&normals).take(lanes as usize) {
+                write(v as usize, Vec3::from(*n));
+            }
+        }
+    }
+}
+
+/// Per vertex `v < count`, its triangles `(v, w1, w2)` chained into fans `w_0, w_1, ...` (see
+/// [`VertexFans`]), chains joined by `v` itself.
+fn chain_fans(count: usize, vertex_count: usize, triangles: &[[u32; 3]]) -> Vec<Vec<u32>> {
+    let mut pairs: Vec<Vec<(u32, u32)>> = vec![Vec::new(); count];
+    let valid = |t: &&[u32; 3]| t.iter().all(|&v| (v as usize) < vertex_count);
+    for t in triangles.iter().filter(valid) {
+        for c in 0..3 {
+            if let Some(p) = pairs.get_mut(t[c] as usize) {
+                p.push((t[(c + 1) % 3], t[(c + 2) % 3]));
+            }
+        }
+    }
+    let mut used = Vec::new();
+    pairs
+        .iter()
+        .enumerate()
+        .map(|(v, mine)| {
+            let mut fan = Vec::with_capacity(mine.len() + 1);
+            used.clear();
+            used.resize(mine.len(), false);
+            loop {
+                // Start an open chain where one begins (a first neighbour that closes no other
+                // unused triangle), else anywhere (a closed fan).
+                let open = (0..mine.len()).find(|&a| {
+                    !used[a]
+                        && !(0..mine.len()).any(|b| !used[b] && b != a && mine[b].1 == mine[a].0)
+                });
+                let Some(a) = open.or_else(|| (0..mine.len()).find(|&a| !used[a])) else {
+                    break;
+                };
+                if !fan.is_empty() {
+                    fan.push(v as u32); // separator: zero difference vector
+                }
+                used[a] = true;
+                fan.push(mine[a].0);
+                fan.push(mine[a].1);
+                let mut cur = mine[a].1;
+                while let Some(b) = (0..mine.len()).find(|&b| !used[b] && mine[b].0 == cur) {
+                    used[b] = true;
+                    cur = mine[b].1;
+                    fan.push(cur);
+                }
+            }
+            fan
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    use crate::test_meshes::{grid, lcg, tri_lattice};
+
+    /// Area-weighted normals in f64 with, per vertex, the bound on the f32 error of either method:
+    /// each of the `k` triangle cross products at `v` is off by at most `(6 + k) eps L_t^2` (edge
+    /// differences, products and the running sum each rounded; `L_t` the longest edge), and
+    /// normalising a sum `N` perturbed by `delta` moves it by at most `2 |delta| / |N|`, plus a few
+    /// eps for the division itself: `tol_v = 2 (6 + k_v) eps sum_t L_t^2 / |N_v| + 4 eps`.
+    fn reference(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<(glam::DVec3, f64)> {
+        let n = positions.len();
+        let mut sum = vec![glam::DVec3::ZERO; n];
+        let mut scale = vec![0f64; n];
+        let mut k = vec![0usize; n];
+        for t in triangles
+            .iter()
+            .filter(|t| t.iter().all(|&v| (v as usize) < n))
+        {
+            let [a, b, c] = t.map(|v| positions[v as usize].as_dvec3());
+            let nt = (b - a).cross(c - a);
+            let l2 = (b - a)
+                .length_squared()
+                .max((c - a).length_squared())
+                .max((c - b).length_squared());
+            for &v in t {
+                sum[v as usize] += nt;
+                scale[v as usize] += l2;
+                k[v as usize] += 1;
+            }
+        }
+        let eps = f32::EPSILON as f64;
+        sum.iter()
+            .zip(&scale)
+            .zip(&k)
+            .map(|((s, l2), &k)| {
+                let len = s.length();
+                let tol = if len > 0.0 {
+                    2.0 * (6 + k) as f64 * eps * l2 / len + 4.0 * eps
+                } else {
+                    f64::INFINITY
+                };
+                (
+                    if len > 0.0 {
+                        *s / len
+                    } else {
+                        glam::DVec3::ZERO
+                    },
+                    tol,
+                )
+            })
+            .collect()
+    }
+
+    /// Both fan paths (vectorised where the CPU has it, and portable) and `vertex_normals` against
+    /// the f64 reference, every vertex of `0..count` within its stated tolerance.
+    fn check_fans(positions: &[Vec3], triangles: &[[u32; 3]], count: usize) {
+        let truth = reference(positions, triangles);
+        let mut face = vec![Vec3::ZERO; positions.len()];
+        vertex_normals(positions, triangles, &mut face);
+        let pa: Vec<Vec3A> = positions.iter().map(|p| Vec3A::from(*p)).collect();
+        let fans = VertexFans::new(count, positions.len(), triangles);
+        assert_eq!(fans.count(), count);
+        let mut fast = vec![Vec3::NAN; count];
+        let mut seen = vec![0; count];
+        fans.normals(&pa, |v, n| {
+            fast[v] = n;
+            seen[v] += 1;
+        });
+        assert!(seen.iter().all(|&c| c == 1), "each fan vertex written once");
+        let mut portable = vec![Vec3::NAN; count];
+        fans.normals_portable(&pa, &mut |v, n| portable[v] = n);
+        for v in 0..count {
+            let (t, tol) = truth[v];
+            for (what, got) in [
+                ("fans", fast[v]),
+                ("portable", portable[v]),
+                ("face", face[v]),
+            ] {
+                if tol.is_finite() && tol < 0.1 {
+                    let err = (got.as_dvec3() - t).length();
+                    assert!(
+                        err <= tol,
+                        "{what} v={v}: {got} vs {t}, err {err:e} > tol {tol:e}"
+                    );
+                } else {
+                    // Sum (nearly) zero: only ask for a finite result of length 0 or 1.
+                    let l = got.length();
+                    assert!(l == 0.0 || (l - 1.0).abs() < 1e-5, "{what} v={v}: {got}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn fans_match_reference_on_generated_meshes() {
+        // Open sheets (boundary fans), bumps, jitter, and a sheet far from the origin.
+        let g = grid(23, 17, 0.4, 0.3, 3);
+        check_fans(&g.positions, &g.triangles, g.positions.len());
+        let t = tri_lattice(19, 21, 0.25, 5);
+        check_fans(&t.positions, &t.triangles, t.positions.len());
+        let far: Vec<Vec3> = g
+            .positions
+            .iter()
+            .map(|p| *p * 0.01 + Vec3::new(100.0, -50.0, 30.0))
+            .collect();
+        check_fans(&far, &g.triangles, far.len());
+        // Only some vertices with fans; their neighbours beyond `count` are read, not written.
+        check_fans(&g.positions, &g.triangles, 100);
+        // Random triangles over random points: non-manifold fans of any shape.
+        let mut seed = 11u64;
+        let p: Vec<Vec3> = (0..60)
+            .map(|_| Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)))
+            .collect();
+        let tris: Vec<[u32; 3]> = (0..300)
+            .map(|_| [0; 3].map(|_| ((lcg(&mut seed) + 1.0) * 30.0) as u32 % 60))
+            .collect();
+        check_fans(&p, &tris, p.len());
+    }
+
+    #[test]
+    fn fans_match_reference_on_a_closed_mesh() {
+        // A UV sphere: closed fans everywhere, poles of high valence.
+        let (rings, segs) = (12u32, 20u32);
+        let mut p = vec![Vec3::Z, -Vec3::Z];
+        for r in 1..rings {
+            let th = std::f32::consts::PI * r as f32 / rings as f32;
+            for s in 0..segs {
+                let ph = std::f32::consts::TAU * s as f32 / segs as f32;
+                p.push(Vec3::new(
+                    th.sin() * ph.cos(),
+                    th.sin() * ph.sin(),
+                    th.cos(),
+                ));
+            }
+        }
+        let at = |r: u32, s: u32| 2 + (r - 1) * segs + s % segs;
+        let mut t = Vec::new();
+        for s in 0..segs {
+            t.push([0, at(1, s), at(1, s + 1)]);
+            t.push([1, at(rings - 1, s + 1), at(rings - 1, s)]);
+            for r in 1..rings - 1 {
+                t.push([at(r, s), at(r + 1, s), at(r + 1, s + 1)]);
+                t.push([at(r, s), at(r + 1, s + 1), at(r, s + 1)]);
+            }
+        }
+        check_fans(&p, &t, p.len());
+        // Outward: the normal at a vertex of a unit sphere is close to its position.
+        let pa: Vec<Vec3A> = p.iter().map(|q| Vec3A::from(*q)).collect();
+        VertexFans::new(p.len(), p.len(), &t).normals(&pa, |v, n| {
+            assert!(n.dot(p[v]) > 0.95, "v={v}: {n} at {}", p[v]);
+        });
+    }
+
+    #[test]
+    fn fans_give_zero_for_degenerate_isolated_and_bad() {
+        let p = [Vec3::ZERO, Vec3::X, Vec3::new(2.0, 0.0, 0.0), Vec3::ONE];
+        let t = [[0, 1, 2], [0, 1, 7], [1, 1, 2]];
+        let pa: Vec<Vec3A> = p.iter().map(|q| Vec3A::from(*q)).collect();
+        let fans = VertexFans::new(4, 4, &t);
+        assert_eq!(fans.position_count(), 4);
+        let mut out = [Vec3::ONE; 4];
+        fans.normals(&pa, |v, n| out[v] = n);
+        assert!(out.iter().all(|n| *n == Vec3::ZERO), "{out:?}");
+        let mut out = [Vec3::ONE; 4];
+        fans.normals_portable(&pa, &mut |v, n| out[v] = n);
+        assert!(out.iter().all(|n| *n == Vec3::ZERO), "{out:?}");
+        let none = VertexFans::new(0, 0, &[]);
+        none.normals(&[], |_, _| unreachable!("no fans"));
+    }
 
     #[test]
     fn flat_quad_points_up_and_weights_by_area() {
