@@ -38,6 +38,8 @@ enum Command {
     Send(cmd::send::Args),
     /// Render frames of a recording on a rig to PNG (headless wgpu), or a contact sheet.
     Render(cmd::render::Args),
+    /// Watch a recording replayed on a rig, or a live `mimic serve` session, in a window.
+    View(cmd::view::Args),
 }
 
 fn main() -> ExitCode {
@@ -64,6 +66,7 @@ fn main() -> ExitCode {
         Command::Serve(a) => cmd::serve::run(a),
         Command::Send(a) => cmd::send::run(a),
         Command::Render(a) => cmd::render::run(a),
+        Command::View(a) => cmd::view::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

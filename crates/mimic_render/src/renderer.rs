@@ -328,6 +328,11 @@ impl Renderer {
         &self.device
     }
 
+    /// Presents a window's frame drawn with [`Renderer::draw_to`].
+    pub fn present(&self, frame: wgpu::SurfaceTexture) {
+        self.queue.present(frame);
+    }
+
     /// Resizes the target (a window's new inner size); zero sides are clamped to 1.
     pub fn resize(&mut self, width: u32, height: u32) {
         let (width, height) = (width.max(1), height.max(1));

@@ -4,7 +4,7 @@ use crate::cmd::setup::{PipelineArgs, RigArgs, prepare_with};
 use anyhow::{Context, bail};
 use glam::Vec3;
 use mimic_capture::RecordingReader;
-use mimic_render::{Camera, Deform, Image, Renderer, Shading, View};
+use mimic_render::{Camera, Deform, Image, Renderer, SKIN_ALBEDO, Shading, View};
 use mimic_retarget::RetargetSettings;
 use mimic_types::{Fdp, LandmarkFrame};
 use std::path::{Path, PathBuf};
@@ -13,6 +13,40 @@ use std::path::{Path, PathBuf};
 /// occlusion shells (24591-25350, configs/meshes/ict-facekit/SOURCE.md), which its own renderer
 /// draws transparent; opaque, they would cover the eyes.
 const HIDDEN_BY_RIG: &[(&str, &[(u32, u32)])] = &[("ict-face", &[(24591, 25350)])];
+
+/// Materials per rig that keep the skin albedo instead of their MTL colour: ICT-FaceKit's face and
+/// back of the head have a flat grey `Kd` (0.6) that multiplies a skin texture not shipped here.
+const SKIN_MATERIALS_BY_RIG: &[(&str, &[&str])] = &[("ict-face", &["M_Face", "M_BackHead"])];
+
+/// Per-vertex albedo of a rig from its mesh's MTL materials (`Kd`; skin for the rig's skin
+/// materials and for vertices of no material), or `None` when the mesh names no materials.
+pub(crate) fn material_colors(
+    rig_path: &Path,
+    rig_name: &str,
+    triangles: &[[u32; 3]],
+    vertex_count: usize,
+) -> anyhow::Result<Option<Vec<[f32; 3]>>> {
+    let materials = mimic_assets::load_rig_materials(rig_path)?;
+    if materials.materials.is_empty() || materials.triangle_material.len() != triangles.len() {
+        return Ok(None);
+    }
+    let skin: &[&str] = SKIN_MATERIALS_BY_RIG
+        .iter()
+        .find(|(name, _)| *name == rig_name)
+        .map_or(&[], |(_, m)| m);
+    Ok(Some(materials.vertex_colors(
+        vertex_count,
+        triangles,
+        SKIN_ALBEDO,
+        |m| {
+            if skin.contains(&m.name.as_str()) {
+                SKIN_ALBEDO
+            } else {
+                m.diffuse
+            }
+        },
+    )))
+}
 
 /// Arguments of `mimic render`.
 #[derive(clap::Args, Debug)]
@@ -51,9 +85,12 @@ pub struct Args {
     /// Vertex ranges whose triangles are not drawn, e.g. 100-200,300-310, or `none` (default: per rig).
     #[arg(long)]
     pub hide: Option<String>,
+    /// Skin colour everywhere instead of the mesh's material colours (teeth, gums, eyes, lashes).
+    #[arg(long)]
+    pub no_materials: bool,
 }
 
-fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
+pub(crate) fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
     let (w, h) = s
         .split_once('x')
         .with_context(|| format!("--size `{s}`: expected WIDTHxHEIGHT, e.g. 512x512"))?;
@@ -67,7 +104,7 @@ fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
     ))
 }
 
-fn parse_hidden(arg: Option<&str>, rig: &str) -> anyhow::Result<Vec<(u32, u32)>> {
+pub(crate) fn parse_hidden(arg: Option<&str>, rig: &str) -> anyhow::Result<Vec<(u32, u32)>> {
     let Some(s) = arg else {
         return Ok(HIDDEN_BY_RIG
             .iter()
@@ -161,6 +198,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     tracing::info!(adapter = renderer.adapter(), "renderer");
     let basis = prepared.retargeter.basis().clone();
     let gpu = renderer.upload_rig(&rig.mesh.positions, &shown, Some(&basis))?;
+    if !args.no_materials {
+        let rig_path = args.rig.config_dirs().rig_path(&args.rig.rig);
+        let n = rig.mesh.vertex_count();
+        if let Some(colors) = material_colors(&rig_path, &rig.name, &rig.mesh.triangles, n)? {
+            renderer.set_albedo(&gpu, &colors)?;
+        }
+    }
     let pivot = (lo + hi) * 0.5;
     let mut view = View::lit(Camera::front(lo, hi));
     view.shading = shading;
@@ -290,5 +334,39 @@ mod tests {
         assert!(parse_hidden(Some("1-x"), "x").is_err());
         assert_eq!(parse_size("640x480").unwrap(), (640, 480));
         assert!(parse_size("640").is_err());
+    }
+
+    #[test]
+    fn the_hidden_ict_range_is_its_see_through_eye_shells() {
+        let configs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
+        let path = mimic_assets::ConfigDirs::locate(Some(&configs)).rig_path("ict-face");
+        let mats = mimic_assets::load_rig_materials(&path).unwrap();
+        let mesh = mimic_assets::load_obj(&mimic_assets::rig_mesh_path(&path).unwrap()).unwrap();
+        let hidden = parse_hidden(None, "ict-face").unwrap();
+        let in_hidden = |v: &u32| hidden.iter().any(|(a, b)| (*a..=*b).contains(v));
+        for (tri, m) in mesh.triangles.iter().zip(&mats.triangle_material) {
+            let name = &mats.materials[m.unwrap()].name;
+            let shell =
+                ["M_LacrimalFluid", "M_EyeBlend", "M_EyeOcclusion"].contains(&name.as_str());
+            // Shell triangles lie wholly in the range; no other triangle touches it.
+            assert_eq!(tri.iter().all(in_hidden), shell, "{name} {tri:?}");
+            assert_eq!(tri.iter().any(in_hidden), shell, "{name} {tri:?}");
+        }
+        // Colours: gums red, teeth light, the face skin.
+        let colors = material_colors(&path, "ict-face", &mesh.triangles, mesh.vertex_count())
+            .unwrap()
+            .unwrap();
+        let of = |name: &str| {
+            let k = mats.find(name).unwrap();
+            let t = mats
+                .triangle_material
+                .iter()
+                .position(|m| *m == Some(k))
+                .unwrap();
+            colors[mesh.triangles[t][0] as usize]
+        };
+        assert_eq!(of("M_GumsTongue"), [0.30, 0.03, 0.06]);
+        assert_eq!(of("M_Teeth"), [0.8, 0.8, 0.8]);
+        assert_eq!(of("M_Face"), SKIN_ALBEDO);
     }
 }

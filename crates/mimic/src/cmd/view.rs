@@ -1,0 +1,193 @@
+//! `mimic view`: a window replaying a recording through the retargeter, or following a live
+//! `mimic serve` session (`--connect`), drawn with the GPU morph (`crates/mimic_view`).
+
+use crate::cmd::render::{material_colors, parse_hidden, parse_size};
+use crate::cmd::setup::{PipelineArgs, RigArgs};
+use anyhow::{Context, bail};
+use mimic_assets::load_rig;
+use mimic_capture::RecordingReader;
+use mimic_render::Renderer;
+use mimic_retarget::RetargetSettings;
+use mimic_types::{Rig, SolverKind};
+use mimic_view::{Action, HELP, LocalSetup, Look, LookFor, Options, Viewer};
+use std::path::PathBuf;
+use std::time::Duration;
+
+/// Arguments of `mimic view`.
+#[derive(clap::Args, Debug)]
+#[command(after_help = HELP)]
+pub struct Args {
+    /// Recording (v1 JSON Lines) to replay locally at its recorded pace.
+    #[arg(required_unless_present = "connect", conflicts_with = "connect")]
+    pub recording: Option<PathBuf>,
+    /// Follow a live `mimic serve` session as a viewer instead, e.g. 127.0.0.1:7878.
+    #[arg(long)]
+    pub connect: Option<String>,
+    /// Session to follow with --connect.
+    #[arg(long, default_value = "a")]
+    pub session: String,
+    #[command(flatten)]
+    pub rig: RigArgs,
+    #[command(flatten)]
+    pub pipeline: PipelineArgs,
+    /// Window (or headless image) size, WIDTHxHEIGHT.
+    #[arg(long, default_value = "800x800")]
+    pub size: String,
+    /// Start with the head turned by the performer's head rotation (key p).
+    #[arg(long)]
+    pub pose: bool,
+    /// Start with the displacement heat map (key h).
+    #[arg(long)]
+    pub heat: bool,
+    /// Displacement shown hottest by the heat map, rig units (default: 5% of the rig's diagonal).
+    #[arg(long)]
+    pub heat_scale: Option<f32>,
+    /// Vertex ranges whose triangles are not drawn, e.g. 100-200, or `none` (default: per rig).
+    #[arg(long)]
+    pub hide: Option<String>,
+    /// Skin colour everywhere instead of the mesh's material colours.
+    #[arg(long)]
+    pub no_materials: bool,
+    /// No window: run the same loop into an offscreen target for N images (local, on a simulated
+    /// clock at the recording's pace) or until N live frames were drawn, print a summary, exit.
+    #[arg(long, value_name = "N")]
+    pub headless_frames: Option<usize>,
+    /// With --headless-frames: keys pressed one per image from the second on, e.g. space,right,s,h.
+    #[arg(long, value_delimiter = ',', requires = "headless_frames")]
+    pub headless_keys: Vec<String>,
+    /// With --headless-frames: write the last image here (PNG).
+    #[arg(long, requires = "headless_frames")]
+    pub headless_out: Option<PathBuf>,
+    /// With --headless-frames and --connect: give up after this many seconds.
+    #[arg(long, default_value_t = 60.0, requires = "headless_frames")]
+    pub headless_timeout: f64,
+}
+
+/// Colours and hidden parts of a rig, as `mimic render` draws it.
+fn look_of(
+    rig_args: &RigArgs,
+    rig: &Rig,
+    hide: Option<&str>,
+    materials: bool,
+) -> anyhow::Result<Look> {
+    let colors = if materials {
+        let path = rig_args.config_dirs().rig_path(&rig_args.rig);
+        let n = rig.mesh.vertex_count();
+        material_colors(&path, &rig.name, &rig.mesh.triangles, n)?
+    } else {
+        None
+    };
+    Ok(Look {
+        colors,
+        hidden: parse_hidden(hide, &rig.name)?,
+    })
+}
+
+/// Runs `mimic view`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let (width, height) = parse_size(&args.size)?;
+    let keys: Vec<Action> = args
+        .headless_keys
+        .iter()
+        .map(|k| {
+            mimic_view::keys::action_named(k.trim())
+                .with_context(|| format!("--headless-keys: no key `{k}` (see mimic view --help)"))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let options = Options {
+        pose: args.pose,
+        heat: args.heat,
+        heat_scale: args.heat_scale,
+        blocking_builds: args.headless_frames.is_some(),
+    };
+    let mut viewer = match &args.connect {
+        Some(addr) => {
+            let live = mimic_view::client::connect(addr, &args.session)
+                .with_context(|| format!("connecting to {addr}"))?;
+            // Colour a live rig with the local configs' materials when they have that rig.
+            let (rig_args, hide, materials) =
+                (args.rig.clone(), args.hide.clone(), !args.no_materials);
+            let look_for: LookFor = Box::new(move |name: &str, n: usize| {
+                let local = RigArgs {
+                    rig: name.to_string(),
+                    ..rig_args.clone()
+                };
+                match local.load_rig() {
+                    Ok(rig) if rig.mesh.vertex_count() == n => {
+                        look_of(&local, &rig, hide.as_deref(), materials).unwrap_or_else(|e| {
+                            tracing::warn!("rig `{name}`: {e:#}; drawing it in skin colour");
+                            Look::default()
+                        })
+                    }
+                    _ => Look::default(),
+                }
+            });
+            Viewer::live(live, &args.session, look_for, options)
+        }
+        None => {
+            let Some(recording) = &args.recording else {
+                bail!("give a recording, or --connect ADDR");
+            };
+            let header = RecordingReader::open(recording, None)?.header().clone();
+            let layout = args.rig.config_dirs().load_layout_named(&header.layout)?;
+            let rig = load_rig(&args.rig.config_dirs().rig_path(&args.rig.rig))?;
+            let (basis, first, _) = args.rig.build_basis(&rig)?;
+            let mut other = first;
+            other.kind = match first.kind {
+                SolverKind::Rbf => SolverKind::Laplacian,
+                SolverKind::Laplacian => SolverKind::Rbf,
+            };
+            let mut reader = RecordingReader::open(recording, Some(layout.point_count))?;
+            let mut frames = Vec::new();
+            while let Some(item) = reader.next_frame() {
+                // Lines the reader rejects are skipped, as `mimic render` does.
+                if let Ok(rf) = item {
+                    frames.push(rf.frame);
+                }
+            }
+            let look = look_of(&args.rig, &rig, args.hide.as_deref(), !args.no_materials)?;
+            // The GPU computes u = B d and the normals: the pipeline only needs d.
+            let settings = RetargetSettings {
+                positions: false,
+                normals: false,
+                ..args.pipeline.settings()
+            };
+            let setup = LocalSetup {
+                rig,
+                layout,
+                settings,
+                first: (first, basis),
+                other,
+                frames,
+                look,
+            };
+            Viewer::local(setup, options)?
+        }
+    };
+
+    let Some(n) = args.headless_frames else {
+        println!("{HELP}");
+        mimic_view::run_window(viewer, width, height)?;
+        return Ok(());
+    };
+    let renderer = Renderer::new(width, height)?;
+    // A local replay steps at 60 images per simulated second.
+    let report = mimic_view::run_headless(
+        &mut viewer,
+        &renderer,
+        n,
+        &keys,
+        Duration::from_micros(16_667),
+        args.connect.is_some(),
+        Duration::from_secs_f64(args.headless_timeout.max(0.0)),
+    )?;
+    if let (Some(path), Some(image)) = (&args.headless_out, &report.image) {
+        image.save_png(path)?;
+    }
+    println!(
+        "mimic view: {} images, {} new frames, last frame {}, solver {}",
+        report.drawn, report.new_frames, report.last_frame, report.solver
+    );
+    println!("{}", report.title);
+    Ok(())
+}

@@ -1,0 +1,32 @@
+//! Errors of the viewer.
+
+/// What can stop `mimic view`.
+#[derive(Debug, thiserror::Error)]
+pub enum ViewError {
+    /// The renderer failed (no adapter, a size, a buffer).
+    #[error(transparent)]
+    Render(#[from] mimic_render::RenderError),
+    /// Opening the window or its event loop failed.
+    #[error("window: {0}")]
+    Window(String),
+    /// The GPU surface of the window could not be made.
+    #[error("window surface: {0}")]
+    Surface(String),
+    /// Connecting to `mimic serve` failed.
+    #[error("connecting to {addr}: {cause}")]
+    Connect {
+        /// Address given.
+        addr: String,
+        /// What the OS said.
+        cause: std::io::Error,
+    },
+    /// The live rig does not hold together (basis size vs vertices).
+    #[error("live rig `{0}`: the basis does not match its vertices")]
+    BadRig(String),
+    /// Building a basis or a retargeter for the other solver failed.
+    #[error("{0}")]
+    Solver(String),
+    /// The recording has no frames to play.
+    #[error("the recording has no accepted frames")]
+    NoFrames,
+}

@@ -1,0 +1,626 @@
+//! What the window shows, apart from the window: a local replay through the retargeter or a live
+//! feed, the camera, the toggles, and the readout. The window ([`crate::window`]) and the
+//! headless loop ([`crate::headless`]) drive the same [`Viewer`].
+
+use crate::ViewError;
+use crate::client::{Event, Live};
+use crate::keys::Action;
+use crate::orbit::Orbit;
+use crate::playback::Playback;
+use crate::readout::{Readout, Status, write_title};
+use glam::{Mat4, Quat, Vec3};
+use mimic_render::{Deform, Renderer, RigGpu, Shading, View};
+use mimic_retarget::{FrameOutput, RetargetSettings, Retargeter};
+use mimic_solve::{Basis, build_basis};
+use mimic_types::{LandmarkFrame, Layout, Rig, SolverKind, SolverSettings};
+use std::sync::mpsc;
+use std::time::{Duration, Instant};
+
+/// How a rig is drawn: per-vertex colours and vertex ranges whose triangles are left out.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Look {
+    /// One albedo per vertex (linear RGB), or `None` for skin everywhere.
+    pub colors: Option<Vec<[f32; 3]>>,
+    /// Inclusive vertex ranges not drawn (triangles touching them are dropped).
+    pub hidden: Vec<(u32, u32)>,
+}
+
+/// The look of a live rig, from its name and vertex count (e.g. from the local configs).
+pub type LookFor = Box<dyn FnMut(&str, usize) -> Look>;
+
+/// Options shared by both sources.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct Options {
+    /// Start with the head turned by the performer's head rotation.
+    pub pose: bool,
+    /// Start with the heat map on.
+    pub heat: bool,
+    /// Displacement shown hottest, rig units (default: 5% of the rig's diagonal).
+    pub heat_scale: Option<f32>,
+    /// Build the other solver's basis in the foreground when toggled (headless runs: reproducible).
+    pub blocking_builds: bool,
+}
+
+/// A local replay: recording frames, the rig and one retargeter per solver.
+pub struct LocalSetup {
+    /// The rig.
+    pub rig: Rig,
+    /// The source layout.
+    pub layout: Layout,
+    /// Pipeline settings.
+    pub settings: RetargetSettings,
+    /// The solver to start with and its basis, already built.
+    pub first: (SolverSettings, Basis),
+    /// The solver the `s` key switches to (built on first use).
+    pub other: SolverSettings,
+    /// The recording's accepted frames.
+    pub frames: Vec<LandmarkFrame>,
+    /// Colours and hidden parts.
+    pub look: Look,
+}
+
+/// Name of a solver as the title shows it.
+fn solver_label(s: &SolverSettings) -> &'static str {
+    match s.kind {
+        SolverKind::Rbf => "rbf",
+        SolverKind::Laplacian => "laplacian",
+    }
+}
+
+/// One solver of a local replay: its retargeter, its GPU rig and what it computed so far.
+struct Slot {
+    settings: SolverSettings,
+    retargeter: Option<Retargeter>,
+    building: Option<mpsc::Receiver<Result<Retargeter, String>>>,
+    output: Option<FrameOutput>,
+    gpu: Option<RigGpu>,
+    /// `d` of every frame stepped so far, frame-major (`frames x m`).
+    history: Vec<Vec3>,
+    rotations: Vec<Quat>,
+    stepped: usize,
+}
+
+impl Slot {
+    fn new(settings: SolverSettings) -> Self {
+        Self {
+            settings,
+            retargeter: None,
+            building: None,
+            output: None,
+            gpu: None,
+            history: Vec::new(),
+            rotations: Vec::new(),
+            stepped: 0,
+        }
+    }
+
+    fn ready(&mut self, retargeter: Retargeter, frames: usize) {
+        let m = retargeter.basis().control_count();
+        self.output = Some(retargeter.new_output());
+        self.history = vec![Vec3::ZERO; frames * m];
+        self.rotations = vec![Quat::IDENTITY; frames];
+        self.retargeter = Some(retargeter);
+    }
+
+    /// Steps the pipeline through `frame` (the filters and the neutral need every frame before
+    /// it); returns true if it stepped.
+    fn ensure(&mut self, frame: usize, frames: &[LandmarkFrame]) -> bool {
+        let (Some(r), Some(out)) = (self.retargeter.as_mut(), self.output.as_mut()) else {
+            return false;
+        };
+        let m = r.basis().control_count();
+        let stepped = self.stepped <= frame;
+        while self.stepped <= frame && self.stepped < frames.len() {
+            let k = self.stepped;
+            r.step(&frames[k], out);
+            self.history[k * m..(k + 1) * m].copy_from_slice(&out.displacements);
+            self.rotations[k] = out.target_rotation;
+            self.stepped += 1;
+        }
+        stepped
+    }
+}
+
+struct Local {
+    rig: Rig,
+    layout: Layout,
+    settings: RetargetSettings,
+    frames: Vec<LandmarkFrame>,
+    look: Look,
+    triangles: Vec<[u32; 3]>,
+    slots: [Slot; 2],
+    active: usize,
+    clock: Playback,
+    blocking: bool,
+}
+
+struct LiveRig {
+    name: String,
+    gpu: RigGpu,
+    lo: Vec3,
+    hi: Vec3,
+    controls: usize,
+}
+
+struct LiveState {
+    live: Live,
+    session: String,
+    look_for: LookFor,
+    rig: Option<LiveRig>,
+    closed: bool,
+}
+
+enum Source {
+    Local(Box<Local>),
+    Live(Box<LiveState>),
+}
+
+/// The viewer's state: source, shown frame, camera, toggles, readout.
+pub struct Viewer {
+    source: Source,
+    /// The camera (mouse drags and the wheel move it).
+    pub orbit: Orbit,
+    heat: bool,
+    pose: bool,
+    heat_scale: Option<f32>,
+    playing: bool,
+    bounds: (Vec3, Vec3),
+    shown_d: Vec<Vec3>,
+    shown_rotation: Quat,
+    shown_frame: u64,
+    /// When the shown data became ready (stepped, or read off the socket), until presented.
+    fresh_since: Option<Instant>,
+    new_frames: u64,
+    last_tick: Option<Instant>,
+    readout: Readout,
+    title: String,
+    note: String,
+    quit: bool,
+    /// The shown data must be refreshed even if the frame did not change (solver switched).
+    dirty: bool,
+}
+
+fn visible(triangles: &[[u32; 3]], hidden: &[(u32, u32)]) -> Vec<[u32; 3]> {
+    triangles
+        .iter()
+        .filter(|t| {
+            !t.iter()
+                .any(|v| hidden.iter().any(|(a, b)| (*a..=*b).contains(v)))
+        })
+        .copied()
+        .collect()
+}
+
+fn bounds_of(points: &[Vec3]) -> (Vec3, Vec3) {
+    let lo = points
+        .iter()
+        .copied()
+        .fold(Vec3::splat(f32::MAX), Vec3::min);
+    let hi = points
+        .iter()
+        .copied()
+        .fold(Vec3::splat(f32::MIN), Vec3::max);
+    if lo.x > hi.x {
+        (Vec3::splat(-1.0), Vec3::splat(1.0))
+    } else {
+        (lo, hi)
+    }
+}
+
+impl Viewer {
+    fn with_source(source: Source, bounds: (Vec3, Vec3), options: Options) -> Self {
+        Self {
+            source,
+            orbit: Orbit::default(),
+            heat: options.heat,
+            pose: options.pose,
+            heat_scale: options.heat_scale,
+            playing: true,
+            bounds,
+            shown_d: Vec::new(),
+            shown_rotation: Quat::IDENTITY,
+            shown_frame: 0,
+            fresh_since: None,
+            new_frames: 0,
+            last_tick: None,
+            readout: Readout::new(),
+            title: String::new(),
+            note: String::new(),
+            quit: false,
+            dirty: true,
+        }
+    }
+
+    /// A local replay of `setup.frames` at their recorded pace.
+    pub fn local(setup: LocalSetup, options: Options) -> Result<Self, ViewError> {
+        if setup.frames.is_empty() {
+            return Err(ViewError::NoFrames);
+        }
+        let (first_settings, basis) = setup.first;
+        let retargeter = Retargeter::new(&setup.rig, &setup.layout, basis, setup.settings.clone())
+            .map_err(|e| ViewError::Solver(e.to_string()))?;
+        let mut first = Slot::new(first_settings);
+        first.ready(retargeter, setup.frames.len());
+        let times: Vec<i64> = setup.frames.iter().map(|f| f.timestamp_us).collect();
+        let bounds = bounds_of(&setup.rig.mesh.positions);
+        let triangles = visible(&setup.rig.mesh.triangles, &setup.look.hidden);
+        let local = Local {
+            clock: Playback::new(&times),
+            slots: [first, Slot::new(setup.other)],
+            active: 0,
+            triangles,
+            rig: setup.rig,
+            layout: setup.layout,
+            settings: setup.settings,
+            frames: setup.frames,
+            look: setup.look,
+            blocking: options.blocking_builds,
+        };
+        Ok(Self::with_source(
+            Source::Local(Box::new(local)),
+            bounds,
+            options,
+        ))
+    }
+
+    /// A live feed from [`crate::client::connect`].
+    pub fn live(live: Live, session: &str, look_for: LookFor, options: Options) -> Self {
+        let state = LiveState {
+            live,
+            session: session.to_string(),
+            look_for,
+            rig: None,
+            closed: false,
+        };
+        let mut v = Self::with_source(
+            Source::Live(Box::new(state)),
+            (Vec3::splat(-1.0), Vec3::splat(1.0)),
+            options,
+        );
+        v.note = format!("waiting for session {session}");
+        v
+    }
+
+    /// True once the user asked to quit.
+    pub fn should_quit(&self) -> bool {
+        self.quit
+    }
+
+    /// Frames with new data shown so far (stepped locally, or received live).
+    pub fn new_frames(&self) -> u64 {
+        self.new_frames
+    }
+
+    /// Index of the frame shown (local: in the recording; live: the session's `seq`).
+    pub fn shown_frame(&self) -> u64 {
+        self.shown_frame
+    }
+
+    /// The control displacements `d` shown.
+    pub fn shown_displacements(&self) -> &[Vec3] {
+        &self.shown_d
+    }
+
+    /// The solver shown (`live` for a live feed).
+    pub fn solver(&self) -> &'static str {
+        match &self.source {
+            Source::Local(l) => solver_label(&l.slots[l.active].settings),
+            Source::Live(_) => "live",
+        }
+    }
+
+    /// True when the heat map is on.
+    pub fn heat(&self) -> bool {
+        self.heat
+    }
+
+    /// The note shown in the title (waiting, session ended, errors).
+    pub fn note(&self) -> &str {
+        &self.note
+    }
+
+    /// True when a live connection has ended.
+    pub fn closed(&self) -> bool {
+        matches!(&self.source, Source::Live(s) if s.closed)
+    }
+
+    /// Applies a key's action.
+    pub fn action(&mut self, action: Action) -> Result<(), ViewError> {
+        match action {
+            Action::PlayPause => {
+                self.playing = !self.playing;
+                if let Source::Local(l) = &mut self.source {
+                    l.clock.toggle();
+                }
+            }
+            Action::Step(by) => {
+                if let Source::Local(l) = &mut self.source {
+                    l.clock.step(by);
+                }
+            }
+            Action::Restart => {
+                if let Source::Local(l) = &mut self.source {
+                    l.clock.seek(0);
+                }
+            }
+            Action::ToggleSolver => self.toggle_solver()?,
+            Action::ToggleHeat => self.heat = !self.heat,
+            Action::TogglePose => self.pose = !self.pose,
+            Action::ResetCamera => self.orbit = Orbit::default(),
+            Action::Quit => self.quit = true,
+        }
+        Ok(())
+    }
+
+    /// A scrub drag: the frame at `fraction` (0..=1) of the recording (local replays).
+    pub fn scrub_to(&mut self, fraction: f64) {
+        if let Source::Local(l) = &mut self.source {
+            l.clock.seek_fraction(fraction);
+        }
+    }
+
+    fn toggle_solver(&mut self) -> Result<(), ViewError> {
+        let Source::Local(l) = &mut self.source else {
+            self.note = "the solver of a live session is the server's".into();
+            return Ok(());
+        };
+        let other = 1 - l.active;
+        if l.slots[other].retargeter.is_some() {
+            l.active = other;
+            self.note.clear();
+            self.dirty = true;
+            return Ok(());
+        }
+        if l.slots[other].building.is_some() {
+            return Ok(());
+        }
+        let settings = l.slots[other].settings;
+        let (rig, layout, retarget) = (l.rig.clone(), l.layout.clone(), l.settings.clone());
+        let build = move || -> Result<Retargeter, String> {
+            let basis = build_basis(&rig, &settings)
+                .map_err(|e| format!("building the {} basis: {e}", solver_label(&settings)))?;
+            Retargeter::new(&rig, &layout, basis, retarget).map_err(|e| e.to_string())
+        };
+        if l.blocking {
+            let r = build().map_err(ViewError::Solver)?;
+            l.slots[other].ready(r, l.frames.len());
+            l.active = other;
+            self.dirty = true;
+        } else {
+            let (tx, rx) = mpsc::channel();
+            std::thread::spawn(move || {
+                // The viewer may have closed meanwhile: nothing to deliver to then.
+                let _ = tx.send(build());
+            });
+            l.slots[other].building = Some(rx);
+            self.note = format!("building the {} basis", solver_label(&settings));
+        }
+        Ok(())
+    }
+
+    /// Advances to `now`: moves the playback clock and steps the retargeter (local), or takes the
+    /// newest frame and any session events (live); uploads rigs to `renderer` as they come.
+    pub fn update(&mut self, now: Instant, renderer: &Renderer) -> Result<(), ViewError> {
+        let dt = self
+            .last_tick
+            .map_or(Duration::ZERO, |t| now.saturating_duration_since(t));
+        self.last_tick = Some(now);
+        match &mut self.source {
+            Source::Local(l) => {
+                // A basis built in the background: switch to it.
+                let other = 1 - l.active;
+                if let Some(rx) = &l.slots[other].building {
+                    match rx.try_recv() {
+                        Ok(Ok(r)) => {
+                            l.slots[other].building = None;
+                            l.slots[other].ready(r, l.frames.len());
+                            l.active = other;
+                            self.note.clear();
+                            self.dirty = true;
+                        }
+                        Ok(Err(e)) => {
+                            l.slots[other].building = None;
+                            self.note = e;
+                        }
+                        Err(mpsc::TryRecvError::Empty) => {}
+                        Err(mpsc::TryRecvError::Disconnected) => {
+                            l.slots[other].building = None;
+                            self.note = "the basis build stopped".into();
+                        }
+                    }
+                }
+                let frame = l.clock.advance(dt);
+                let slot = &mut l.slots[l.active];
+                if slot.gpu.is_none()
+                    && let Some(r) = &slot.retargeter
+                {
+                    let gpu = renderer.upload_rig(
+                        &l.rig.mesh.positions,
+                        &l.triangles,
+                        Some(r.basis()),
+                    )?;
+                    if let Some(c) = &l.look.colors {
+                        renderer.set_albedo(&gpu, c)?;
+                    }
+                    slot.gpu = Some(gpu);
+                }
+                let started = Instant::now();
+                let stepped = slot.ensure(frame, &l.frames);
+                let m = slot
+                    .retargeter
+                    .as_ref()
+                    .map_or(0, |r| r.basis().control_count());
+                let changed = stepped
+                    || frame as u64 != self.shown_frame
+                    || self.shown_d.len() != m
+                    || self.dirty;
+                if changed && let Some(d) = slot.history.get(frame * m..(frame + 1) * m) {
+                    self.shown_d.clear();
+                    self.shown_d.extend_from_slice(d);
+                    self.shown_rotation = slot.rotations[frame];
+                    self.shown_frame = frame as u64;
+                    self.fresh_since = Some(started);
+                    self.new_frames += 1;
+                    self.dirty = false;
+                }
+                self.playing = l.clock.playing();
+            }
+            Source::Live(s) => {
+                while let Ok(event) = s.live.events.try_recv() {
+                    match event {
+                        Event::Session(v) => {
+                            self.note = format!(
+                                "session {} ({})",
+                                v["session"].as_str().unwrap_or(&s.session),
+                                v["rig"].as_str().unwrap_or("?")
+                            );
+                        }
+                        Event::Rig(msg) => {
+                            let name = msg.meta["name"].as_str().unwrap_or("live").to_string();
+                            let n = msg.rest.len();
+                            let basis = Basis::from_row_major(n, msg.controls, msg.basis)
+                                .ok_or_else(|| ViewError::BadRig(name.clone()))?;
+                            let look = (s.look_for)(&name, n);
+                            let triangles = visible(&msg.triangles, &look.hidden);
+                            let gpu = renderer.upload_rig(&msg.rest, &triangles, Some(&basis))?;
+                            if let Some(c) = &look.colors {
+                                renderer.set_albedo(&gpu, c)?;
+                            }
+                            let (lo, hi) = bounds_of(&msg.rest);
+                            self.bounds = (lo, hi);
+                            self.shown_d.clear();
+                            self.shown_d.resize(msg.controls, Vec3::ZERO);
+                            self.shown_rotation = Quat::IDENTITY;
+                            s.rig = Some(LiveRig {
+                                name,
+                                gpu,
+                                lo,
+                                hi,
+                                controls: msg.controls,
+                            });
+                        }
+                        Event::End(v) => {
+                            self.note = format!(
+                                "session ended ({}), waiting for the next",
+                                v["reason"].as_str().unwrap_or("?")
+                            );
+                        }
+                        Event::ServerError(v) => {
+                            self.note = format!(
+                                "server: {} {}",
+                                v["code"].as_str().unwrap_or("error"),
+                                v["message"].as_str().unwrap_or("")
+                            );
+                        }
+                        Event::Closed(why) => {
+                            s.closed = true;
+                            if self.note.starts_with("server:") {
+                                self.note = format!("{}; {why}", self.note);
+                            } else {
+                                self.note = why;
+                            }
+                        }
+                    }
+                }
+                // Always drain, so resuming shows the newest frame, not a stale one.
+                let newest = s.live.frames.take_latest();
+                if let (true, Some(a), Some(rig)) = (self.playing, newest, &s.rig)
+                    && a.frame.displacements.len() == rig.controls
+                {
+                    self.shown_d.copy_from_slice(&a.frame.displacements);
+                    self.shown_rotation = a.frame.target_rotation;
+                    self.shown_frame = a.frame.seq;
+                    self.fresh_since = Some(a.at);
+                    self.new_frames += 1;
+                    if self.note.starts_with("waiting") || self.note.starts_with("session ended") {
+                        self.note.clear();
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// The rig, deformation and view to draw now, for an image of `aspect` (width / height);
+    /// `None` while there is no rig yet (live, before RIG).
+    pub fn scene(&self, aspect: f32) -> Option<(&RigGpu, Deform<'_>, View)> {
+        let (gpu, (lo, hi)) = match &self.source {
+            Source::Local(l) => (l.slots[l.active].gpu.as_ref()?, self.bounds),
+            Source::Live(s) => {
+                let r = s.rig.as_ref()?;
+                (&r.gpu, (r.lo, r.hi))
+            }
+        };
+        if self.shown_d.len() != gpu.control_count() {
+            return None;
+        }
+        let mut camera = self.orbit.camera(lo, hi);
+        // Keep the rig framed vertically whatever the window's shape: widen the field of view
+        // of a tall window so the head still fits side to side.
+        if aspect < 1.0 {
+            camera.fov_y = 2.0 * ((camera.fov_y * 0.5).tan() / aspect.max(0.05)).atan();
+        }
+        let mut view = View::lit(camera);
+        if self.heat {
+            view.shading = Shading::Displacement {
+                full_scale: self.heat_scale.unwrap_or(0.05 * (hi - lo).length()),
+            };
+        }
+        if self.pose {
+            view.model = View::head_rotation(self.shown_rotation, (lo + hi) * 0.5);
+        } else {
+            view.model = Mat4::IDENTITY;
+        }
+        Some((gpu, Deform::Controls(&self.shown_d), view))
+    }
+
+    /// Records a presented frame; returns the new window title when the readout refreshed.
+    pub fn presented(&mut self) -> Option<&str> {
+        let now = Instant::now();
+        let latency = self
+            .fresh_since
+            .take()
+            .map(|t| now.saturating_duration_since(t));
+        if !self.readout.presented(now, latency) {
+            return None;
+        }
+        Some(self.title())
+    }
+
+    /// The window title now.
+    pub fn title(&mut self) -> &str {
+        let (rig, count): (&str, Option<usize>) = match &self.source {
+            Source::Local(l) => (&l.rig.name, Some(l.frames.len())),
+            Source::Live(s) => (s.rig.as_ref().map_or("-", |r| r.name.as_str()), None),
+        };
+        let status = Status {
+            rig,
+            solver: self.solver(),
+            frame: (self.shown_frame, count),
+            playing: self.playing,
+            heat: self.heat,
+            note: &self.note,
+        };
+        write_title(&mut self.title, &status, &self.readout.shown);
+        &self.title
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hidden_ranges_drop_the_triangles_that_touch_them() {
+        let tris = [[0, 1, 2], [2, 3, 4], [5, 6, 7]];
+        assert_eq!(visible(&tris, &[(3, 3)]), vec![[0, 1, 2], [5, 6, 7]]);
+        assert_eq!(visible(&tris, &[]), tris.to_vec());
+        assert_eq!(visible(&tris, &[(0, 100)]), Vec::<[u32; 3]>::new());
+        let (lo, hi) = bounds_of(&[Vec3::new(1.0, -2.0, 0.0), Vec3::new(-1.0, 3.0, 5.0)]);
+        assert_eq!(
+            (lo, hi),
+            (Vec3::new(-1.0, -2.0, 0.0), Vec3::new(1.0, 3.0, 5.0))
+        );
+        assert_eq!(bounds_of(&[]), (Vec3::splat(-1.0), Vec3::splat(1.0)));
+    }
+}

@@ -1,0 +1,220 @@
+//! The window: winit 0.30's event loop, a wgpu surface on it, input into the [`Viewer`].
+
+use crate::ViewError;
+use crate::keys::action_for;
+use crate::viewer::Viewer;
+use mimic_render::Renderer;
+use std::sync::Arc;
+use std::time::Instant;
+use winit::application::ApplicationHandler;
+use winit::dpi::PhysicalSize;
+use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
+use winit::event_loop::{ActiveEventLoop, ControlFlow, EventLoop};
+use winit::window::{Window, WindowId};
+
+/// Pixels of a pixel-delta wheel event that count as one line.
+const PIXELS_PER_LINE: f32 = 40.0;
+
+/// The window and what draws into it.
+struct Gpu {
+    window: Arc<Window>,
+    surface: wgpu::Surface<'static>,
+    config: wgpu::SurfaceConfiguration,
+    renderer: Renderer,
+}
+
+impl Gpu {
+    fn resize(&mut self, size: PhysicalSize<u32>) {
+        if size.width == 0 || size.height == 0 {
+            return;
+        }
+        self.config.width = size.width;
+        self.config.height = size.height;
+        self.surface.configure(self.renderer.device(), &self.config);
+        self.renderer.resize(size.width, size.height);
+    }
+}
+
+struct App {
+    viewer: Viewer,
+    size: (u32, u32),
+    gpu: Option<Gpu>,
+    error: Option<ViewError>,
+    cursor: Option<(f64, f64)>,
+    orbiting: bool,
+    scrubbing: bool,
+}
+
+impl App {
+    fn fail(&mut self, event_loop: &ActiveEventLoop, e: ViewError) {
+        self.error = Some(e);
+        event_loop.exit();
+    }
+
+    fn open(&mut self, event_loop: &ActiveEventLoop) -> Result<Gpu, ViewError> {
+        let attributes = Window::default_attributes()
+            .with_title("mimic view")
+            .with_inner_size(PhysicalSize::new(self.size.0, self.size.1));
+        let window = Arc::new(
+            event_loop
+                .create_window(attributes)
+                .map_err(|e| ViewError::Window(e.to_string()))?,
+        );
+        let instance =
+            wgpu::Instance::new(wgpu::InstanceDescriptor::new_with_display_handle_from_env(
+                Box::new(event_loop.owned_display_handle()),
+            ));
+        let surface = instance
+            .create_surface(window.clone())
+            .map_err(|e| ViewError::Surface(e.to_string()))?;
+        let size = window.inner_size();
+        let (renderer, config) =
+            Renderer::for_surface(&instance, &surface, size.width, size.height)?;
+        eprintln!("mimic view: adapter {}", renderer.adapter());
+        Ok(Gpu {
+            window,
+            surface,
+            config,
+            renderer,
+        })
+    }
+
+    fn redraw(&mut self) -> Result<(), ViewError> {
+        let Some(gpu) = &mut self.gpu else {
+            return Ok(());
+        };
+        self.viewer.update(Instant::now(), &gpu.renderer)?;
+        let texture = match gpu.surface.get_current_texture() {
+            wgpu::CurrentSurfaceTexture::Success(t)
+            | wgpu::CurrentSurfaceTexture::Suboptimal(t) => t,
+            wgpu::CurrentSurfaceTexture::Timeout | wgpu::CurrentSurfaceTexture::Occluded => {
+                return Ok(());
+            }
+            wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
+                let size = gpu.window.inner_size();
+                gpu.config.width = 0;
+                gpu.resize(size);
+                return Ok(());
+            }
+            wgpu::CurrentSurfaceTexture::Validation => {
+                return Err(ViewError::Surface(
+                    "validation error acquiring a frame".into(),
+                ));
+            }
+        };
+        let target = texture.texture.create_view(&wgpu::TextureViewDescriptor {
+            format: Some(gpu.renderer.format()),
+            ..Default::default()
+        });
+        let (w, h) = gpu.renderer.size();
+        if let Some((rig, deform, view)) = self.viewer.scene(w as f32 / h as f32) {
+            gpu.renderer.draw_to(rig, deform, &view, &target)?;
+        }
+        gpu.window.pre_present_notify();
+        gpu.renderer.present(texture);
+        if let Some(title) = self.viewer.presented() {
+            gpu.window.set_title(title);
+        }
+        Ok(())
+    }
+}
+
+impl ApplicationHandler for App {
+    fn resumed(&mut self, event_loop: &ActiveEventLoop) {
+        if self.gpu.is_some() {
+            return;
+        }
+        match self.open(event_loop) {
+            Ok(gpu) => self.gpu = Some(gpu),
+            Err(e) => self.fail(event_loop, e),
+        }
+    }
+
+    fn window_event(&mut self, event_loop: &ActiveEventLoop, _id: WindowId, event: WindowEvent) {
+        match event {
+            WindowEvent::CloseRequested => event_loop.exit(),
+            WindowEvent::Resized(size) => {
+                if let Some(gpu) = &mut self.gpu {
+                    gpu.resize(size);
+                }
+            }
+            WindowEvent::KeyboardInput { event, .. } if event.state == ElementState::Pressed => {
+                if let Some(action) = action_for(&event.logical_key)
+                    && let Err(e) = self.viewer.action(action)
+                {
+                    self.fail(event_loop, e);
+                    return;
+                }
+                if self.viewer.should_quit() {
+                    event_loop.exit();
+                }
+            }
+            WindowEvent::MouseInput { state, button, .. } => {
+                let down = state == ElementState::Pressed;
+                match button {
+                    MouseButton::Left => self.orbiting = down,
+                    MouseButton::Right => self.scrubbing = down,
+                    _ => {}
+                }
+            }
+            WindowEvent::CursorMoved { position, .. } => {
+                let (x, y) = (position.x, position.y);
+                if let Some((px, py)) = self.cursor
+                    && self.orbiting
+                {
+                    self.viewer.orbit.drag((x - px) as f32, (y - py) as f32);
+                }
+                if self.scrubbing
+                    && let Some(gpu) = &self.gpu
+                {
+                    let width = f64::from(gpu.window.inner_size().width.max(1));
+                    self.viewer.scrub_to(x / width);
+                }
+                self.cursor = Some((x, y));
+            }
+            WindowEvent::CursorLeft { .. } => self.cursor = None,
+            WindowEvent::MouseWheel { delta, .. } => {
+                let lines = match delta {
+                    MouseScrollDelta::LineDelta(_, y) => y,
+                    MouseScrollDelta::PixelDelta(p) => p.y as f32 / PIXELS_PER_LINE,
+                };
+                self.viewer.orbit.wheel(lines);
+            }
+            WindowEvent::RedrawRequested => {
+                if let Err(e) = self.redraw() {
+                    self.fail(event_loop, e);
+                }
+            }
+            _ => {}
+        }
+    }
+
+    fn about_to_wait(&mut self, _event_loop: &ActiveEventLoop) {
+        // Draw continuously; the surface's vsync paces the loop.
+        if let Some(gpu) = &self.gpu {
+            gpu.window.request_redraw();
+        }
+    }
+}
+
+/// Opens a `width x height` window and runs the viewer in it until it is closed.
+pub fn run_window(viewer: Viewer, width: u32, height: u32) -> Result<(), ViewError> {
+    let event_loop = EventLoop::new().map_err(|e| ViewError::Window(e.to_string()))?;
+    event_loop.set_control_flow(ControlFlow::Poll);
+    let mut app = App {
+        viewer,
+        size: (width.max(64), height.max(64)),
+        gpu: None,
+        error: None,
+        cursor: None,
+        orbiting: false,
+        scrubbing: false,
+    };
+    event_loop
+        .run_app(&mut app)
+        .map_err(|e| ViewError::Window(e.to_string()))?;
+    match app.error {
+        Some(e) => Err(e),
+        None => Ok(()),
+    }
+}
