@@ -316,9 +316,9 @@ fn a_flood_is_taken_in_full_and_a_stalled_viewer_drops_exactly_all_but_its_queue
     let t_last = serde_json::from_str::<Value>(&lines[99]).unwrap()["t_us"]
         .as_i64()
         .unwrap();
-    for k in 0..5 {
-        flood.push(retimed(&lines[k], t_last + 3_600_000_000 + k as i64));
-        flood.push(retimed(&lines[k], -1_000_000 - k as i64));
+    for (k, l) in (0i64..).zip(&lines[..5]) {
+        flood.push(retimed(l, t_last + 3_600_000_000 + k));
+        flood.push(retimed(l, -1_000_000 - k));
     }
     let mut t = Tracker::open(&server, "f");
     t.send_lines(&flood);
