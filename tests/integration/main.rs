@@ -11,6 +11,7 @@ mod render;
 mod replay;
 mod serve;
 mod serve_weights;
+mod view;
 
 use std::path::PathBuf;
 use std::process::{Command, Output};

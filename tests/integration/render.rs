@@ -89,6 +89,39 @@ fn ict_neutral_and_expression_match_the_golden_images() {
 }
 
 #[test]
+fn skin_only_neutral_matches_the_library_golden() {
+    if skip() {
+        return;
+    }
+    // `--no-materials` with only the eye shells hidden: the library's plain rest render
+    // (crates/mimic_render/tests/gpu.rs compares against the same golden).
+    let dir = tempfile::tempdir().unwrap();
+    let o = mimic(&[
+        "render",
+        "recordings/a_yn_question.jsonl",
+        "--rig",
+        "ict-face",
+        "--frames",
+        "0",
+        "--size",
+        "256x256",
+        "--no-materials",
+        "--hide",
+        "24591-25350",
+        "-o",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", text(&o).1);
+    let skin = Image::load_png(&dir.path().join("frame_000000.png")).unwrap();
+    check_golden(&skin, "ict_neutral_skin_256.png");
+    // The material colours (eyes, lashes hidden, no skin on the eyeballs) are a visible change.
+    let coloured =
+        Image::load_png(&repo().join("tests/golden_images/ict_neutral_256.png")).unwrap();
+    let change = skin.mean_abs_error(&coloured).unwrap();
+    assert!(change > 0.05, "materials changed nothing: {change}");
+}
+
+#[test]
 fn contact_sheet_has_a_tile_pair_per_frame() {
     if skip() {
         return;

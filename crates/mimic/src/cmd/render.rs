@@ -9,22 +9,44 @@ use mimic_retarget::RetargetSettings;
 use mimic_types::{Fdp, LandmarkFrame};
 use std::path::{Path, PathBuf};
 
-/// Vertex ranges hidden by default per rig: ICT-FaceKit's lacrimal fluid, eye blend and eye
-/// occlusion shells (24591-25350, configs/meshes/ict-facekit/SOURCE.md), which its own renderer
-/// draws transparent; opaque, they would cover the eyes.
-const HIDDEN_BY_RIG: &[(&str, &[(u32, u32)])] = &[("ict-face", &[(24591, 25350)])];
+/// Vertex ranges hidden by default per rig: ICT-FaceKit's parts that its own renderer draws
+/// (partly) see-through (configs/meshes/ict-facekit/SOURCE.md), which opaque would cover the eyes:
+/// the sclera shells (21451-22220, 23021-23790; their texture is clear over the cornea, and the
+/// iris mesh inside them is the whole eyeball), the lacrimal fluid, eye blend and eye occlusion
+/// shells (24591-25350, `Tf 0`) and the alpha-mapped eyelash cards (25351-26718, `Tf 0`).
+const HIDDEN_BY_RIG: &[(&str, &[(u32, u32)])] = &[(
+    "ict-face",
+    &[(21451, 22220), (23021, 23790), (24591, 26718)],
+)];
 
 /// Materials per rig that keep the skin albedo instead of their MTL colour: ICT-FaceKit's face and
 /// back of the head have a flat grey `Kd` (0.6) that multiplies a skin texture not shipped here.
 const SKIN_MATERIALS_BY_RIG: &[(&str, &[&str])] = &[("ict-face", &["M_Face", "M_BackHead"])];
 
+/// Eyeballs per rig, as (eyeball material, white-of-the-eye material): ICT-FaceKit's iris meshes
+/// are whole eyeballs, textured. Here a vertex within [`IRIS_DEGREES`] of the eyeball's front (+z
+/// from the centre of its vertices) takes the eyeball material's `Kd` (the iris), within
+/// [`PUPIL_DEGREES`] black, and the rest the white's `Kd`.
+const EYEBALLS_BY_RIG: &[(&str, &[(&str, &str)])] = &[(
+    "ict-face",
+    &[
+        ("M_IrisLeft", "M_ScleraLeft"),
+        ("M_IrisRight", "M_ScleraRight"),
+    ],
+)];
+/// Half-angle of the iris seen from the eyeball's centre (a 12 mm iris on a 24 mm eye: 30 degrees).
+const IRIS_DEGREES: f32 = 30.0;
+/// Half-angle of the pupil.
+const PUPIL_DEGREES: f32 = 11.0;
+
 /// Per-vertex albedo of a rig from its mesh's MTL materials (`Kd`; skin for the rig's skin
-/// materials and for vertices of no material), or `None` when the mesh names no materials.
+/// materials and for vertices of no material; eyeballs as [`EYEBALLS_BY_RIG`] says), or `None`
+/// when the mesh names no materials.
 pub(crate) fn material_colors(
     rig_path: &Path,
     rig_name: &str,
+    positions: &[Vec3],
     triangles: &[[u32; 3]],
-    vertex_count: usize,
 ) -> anyhow::Result<Option<Vec<[f32; 3]>>> {
     let materials = mimic_assets::load_rig_materials(rig_path)?;
     if materials.materials.is_empty() || materials.triangle_material.len() != triangles.len() {
@@ -34,18 +56,53 @@ pub(crate) fn material_colors(
         .iter()
         .find(|(name, _)| *name == rig_name)
         .map_or(&[], |(_, m)| m);
-    Ok(Some(materials.vertex_colors(
-        vertex_count,
-        triangles,
-        SKIN_ALBEDO,
-        |m| {
-            if skin.contains(&m.name.as_str()) {
-                SKIN_ALBEDO
+    let mut colors = materials.vertex_colors(positions.len(), triangles, SKIN_ALBEDO, |m| {
+        if skin.contains(&m.name.as_str()) {
+            SKIN_ALBEDO
+        } else {
+            m.diffuse
+        }
+    });
+    let eyeballs: &[(&str, &str)] = EYEBALLS_BY_RIG
+        .iter()
+        .find(|(name, _)| *name == rig_name)
+        .map_or(&[], |(_, e)| e);
+    for (ball, white) in eyeballs {
+        let (Some(b), Some(w)) = (materials.find(ball), materials.find(white)) else {
+            continue;
+        };
+        let mut vertices: Vec<u32> = triangles
+            .iter()
+            .zip(&materials.triangle_material)
+            .filter(|(_, m)| **m == Some(b))
+            .flat_map(|(t, _)| t.iter().copied())
+            .collect();
+        vertices.sort_unstable();
+        vertices.dedup();
+        let points: Vec<Vec3> = vertices
+            .iter()
+            .filter_map(|&v| positions.get(v as usize).copied())
+            .collect();
+        if points.is_empty() {
+            continue;
+        }
+        let centre = points.iter().copied().sum::<Vec3>() / points.len() as f32;
+        let (iris, pupil) = (
+            IRIS_DEGREES.to_radians().cos(),
+            PUPIL_DEGREES.to_radians().cos(),
+        );
+        for (&v, p) in vertices.iter().zip(&points) {
+            let cos = (*p - centre).normalize_or_zero().dot(Vec3::Z);
+            colors[v as usize] = if cos >= pupil {
+                [0.02, 0.02, 0.02]
+            } else if cos >= iris {
+                materials.materials[b].diffuse
             } else {
-                m.diffuse
-            }
-        },
-    )))
+                materials.materials[w].diffuse
+            };
+        }
+    }
+    Ok(Some(colors))
 }
 
 /// Arguments of `mimic render`.
@@ -200,8 +257,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let gpu = renderer.upload_rig(&rig.mesh.positions, &shown, Some(&basis))?;
     if !args.no_materials {
         let rig_path = args.rig.config_dirs().rig_path(&args.rig.rig);
-        let n = rig.mesh.vertex_count();
-        if let Some(colors) = material_colors(&rig_path, &rig.name, &rig.mesh.triangles, n)? {
+        let (p, t) = (&rig.mesh.positions, &rig.mesh.triangles);
+        if let Some(colors) = material_colors(&rig_path, &rig.name, p, t)? {
             renderer.set_albedo(&gpu, &colors)?;
         }
     }
@@ -328,7 +385,7 @@ mod tests {
         assert!(parse_hidden(Some("none"), "ict-face").unwrap().is_empty());
         assert_eq!(
             parse_hidden(None, "ict-face").unwrap(),
-            vec![(24591, 25350)]
+            vec![(21451, 22220), (23021, 23790), (24591, 26718)]
         );
         assert!(parse_hidden(None, "candide3").unwrap().is_empty());
         assert!(parse_hidden(Some("1-x"), "x").is_err());
@@ -353,7 +410,7 @@ mod tests {
             assert_eq!(tri.iter().any(in_hidden), shell, "{name} {tri:?}");
         }
         // Colours: gums red, teeth light, the face skin.
-        let colors = material_colors(&path, "ict-face", &mesh.triangles, mesh.vertex_count())
+        let colors = material_colors(&path, "ict-face", &mesh.positions, &mesh.triangles)
             .unwrap()
             .unwrap();
         let of = |name: &str| {
@@ -368,5 +425,21 @@ mod tests {
         assert_eq!(of("M_GumsTongue"), [0.30, 0.03, 0.06]);
         assert_eq!(of("M_Teeth"), [0.8, 0.8, 0.8]);
         assert_eq!(of("M_Face"), SKIN_ALBEDO);
+        // Each eyeball: a black pupil, an iris of the iris Kd, the rest the sclera's Kd.
+        for ball in ["M_IrisLeft", "M_IrisRight"] {
+            let k = mats.find(ball).unwrap();
+            let mut seen: Vec<[f32; 3]> = Vec::new();
+            for (t, m) in mesh.triangles.iter().zip(&mats.triangle_material) {
+                if *m == Some(k) {
+                    for &v in t {
+                        if !seen.contains(&colors[v as usize]) {
+                            seen.push(colors[v as usize]);
+                        }
+                    }
+                }
+            }
+            seen.sort_by(|a, b| a[0].total_cmp(&b[0]));
+            assert_eq!(seen, vec![[0.02; 3], [0.2; 3], [0.6; 3]], "{ball}");
+        }
     }
 }

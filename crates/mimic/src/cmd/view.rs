@@ -72,8 +72,7 @@ fn look_of(
 ) -> anyhow::Result<Look> {
     let colors = if materials {
         let path = rig_args.config_dirs().rig_path(&rig_args.rig);
-        let n = rig.mesh.vertex_count();
-        material_colors(&path, &rig.name, &rig.mesh.triangles, n)?
+        material_colors(&path, &rig.name, &rig.mesh.positions, &rig.mesh.triangles)?
     } else {
         None
     };
