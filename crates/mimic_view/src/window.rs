@@ -43,6 +43,7 @@ struct App {
     cursor: Option<(f64, f64)>,
     orbiting: bool,
     scrubbing: bool,
+    print_readout: bool,
 }
 
 impl App {
@@ -92,7 +93,6 @@ impl App {
             }
             wgpu::CurrentSurfaceTexture::Outdated | wgpu::CurrentSurfaceTexture::Lost => {
                 let size = gpu.window.inner_size();
-                gpu.config.width = 0;
                 gpu.resize(size);
                 return Ok(());
             }
@@ -114,6 +114,9 @@ impl App {
         gpu.renderer.present(texture);
         if let Some(title) = self.viewer.presented() {
             gpu.window.set_title(title);
+            if self.print_readout {
+                eprintln!("{title}");
+            }
         }
         Ok(())
     }
@@ -197,8 +200,14 @@ impl ApplicationHandler for App {
     }
 }
 
-/// Opens a `width x height` window and runs the viewer in it until it is closed.
-pub fn run_window(viewer: Viewer, width: u32, height: u32) -> Result<(), ViewError> {
+/// Opens a `width x height` window and runs the viewer in it until it is closed; with
+/// `print_readout` the title line also goes to stderr at each refresh.
+pub fn run_window(
+    viewer: Viewer,
+    width: u32,
+    height: u32,
+    print_readout: bool,
+) -> Result<(), ViewError> {
     let event_loop = EventLoop::new().map_err(|e| ViewError::Window(e.to_string()))?;
     event_loop.set_control_flow(ControlFlow::Poll);
     let mut app = App {
@@ -209,6 +218,7 @@ pub fn run_window(viewer: Viewer, width: u32, height: u32) -> Result<(), ViewErr
         cursor: None,
         orbiting: false,
         scrubbing: false,
+        print_readout,
     };
     event_loop
         .run_app(&mut app)

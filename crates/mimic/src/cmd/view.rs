@@ -48,6 +48,9 @@ pub struct Args {
     /// Skin colour everywhere instead of the mesh's material colours.
     #[arg(long)]
     pub no_materials: bool,
+    /// Also print the title's readout (fps, latency) to stderr at each refresh.
+    #[arg(long)]
+    pub print_readout: bool,
     /// No window: run the same loop into an offscreen target for N images (local, on a simulated
     /// clock at the recording's pace) or until N live frames were drawn, print a summary, exit.
     #[arg(long, value_name = "N")]
@@ -166,7 +169,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let Some(n) = args.headless_frames else {
         println!("{HELP}");
-        mimic_view::run_window(viewer, width, height)?;
+        mimic_view::run_window(viewer, width, height, args.print_readout)?;
         return Ok(());
     };
     let renderer = Renderer::new(width, height)?;
