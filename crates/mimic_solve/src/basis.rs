@@ -17,15 +17,54 @@ const BLOCK: usize = 3 * LANES;
 ///
 /// The same matrix serves x, y and z. Rows of frozen vertices are zero. Besides the row-major
 /// matrix ([`Basis::as_slice`], [`Basis::row`]) it keeps a column-blocked copy for
-/// [`Basis::apply`] (blocks of 24 rows, each column of a block contiguous), so a basis takes
-/// twice `n * m * 4` bytes.
+/// [`Basis::apply`]: blocks of 24 rows, each column of a block contiguous, columns that are zero
+/// over the whole block left out (frozen vertices, controls of other face regions). That copy
+/// takes at most `n * m * 4` bytes more, and on a head rig far less.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Basis {
     vertex_count: usize,
     control_count: usize,
     data: Vec<f32>,
-    /// `blocked[(b * m + j) * BLOCK + r] = B[b * BLOCK + r, j]`, zero past the last row.
-    blocked: Vec<f32>,
+    /// The column-blocked copy that `apply` reads.
+    blocked: Blocked,
+}
+
+/// `B` in blocks of [`BLOCK`] rows, keeping only the columns that are non-zero in the block.
+#[derive(Clone, Debug, PartialEq)]
+struct Blocked {
+    /// Block `b` keeps columns `cols[starts[b]..starts[b + 1]]`; `ceil(n / BLOCK) + 1` offsets.
+    starts: Vec<u32>,
+    /// Column index of each kept column (each `< m`).
+    cols: Vec<u32>,
+    /// `values[k * BLOCK + r] = B[b * BLOCK + r, cols[k]]` for kept column `k` of block `b`, zero
+    /// past the last row.
+    values: Vec<f32>,
+}
+
+impl Blocked {
+    fn new(data: &[f32], n: usize, m: usize) -> Self {
+        let blocks = n.div_ceil(BLOCK);
+        let mut starts = Vec::with_capacity(blocks + 1);
+        let mut cols = Vec::new();
+        let mut values = Vec::new();
+        starts.push(0);
+        for b in 0..blocks {
+            let rows = b * BLOCK..((b + 1) * BLOCK).min(n);
+            for j in 0..m {
+                if rows.clone().any(|i| data[i * m + j] != 0.0) {
+                    cols.push(j as u32);
+                    values.extend(rows.clone().map(|i| data[i * m + j]));
+                    values.resize(cols.len() * BLOCK, 0.0);
+                }
+            }
+            starts.push(cols.len() as u32);
+        }
+        Self {
+            starts,
+            cols,
+            values,
+        }
+    }
 }
 
 impl Basis {
@@ -38,14 +77,7 @@ impl Basis {
         if vertex_count.checked_mul(control_count)? != data.len() {
             return None;
         }
-        let m = control_count;
-        let mut blocked = vec![0f32; vertex_count.div_ceil(BLOCK) * BLOCK * m];
-        for (i, row) in data.chunks_exact(m.max(1)).enumerate().take(vertex_count) {
-            let (b, r) = (i / BLOCK, i % BLOCK);
-            for (j, w) in row.iter().enumerate() {
-                blocked[(b * m + j) * BLOCK + r] = *w;
-            }
-        }
+        let blocked = Blocked::new(&data, vertex_count, control_count);
         Some(Self {
             vertex_count,
             control_count,
@@ -114,10 +146,9 @@ impl Basis {
         #[cfg(target_arch = "x86_64")]
         if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
         {
-            // SAFETY: AVX2 and FMA are checked just above; blocked.len() ==
-            // ceil(n / BLOCK) * BLOCK * m by construction, out.len() == n (asserted), and
-            // 0 < m <= STACK_CONTROLS here.
-            unsafe { apply_blocked_avx2_fma(&self.blocked, m, &dx, &dy, &dz, out) };
+            // SAFETY: AVX2 and FMA are checked just above; `blocked` was built for n rows and m
+            // columns, out.len() == n (asserted), and 0 < m <= STACK_CONTROLS here.
+            unsafe { apply_blocked_avx2_fma(&self.blocked, &dx, &dy, &dz, out) };
             return;
         }
         apply_soa::<false>(&self.data, m, &dx[..m], &dy[..m], &dz[..m], out);
@@ -158,29 +189,27 @@ impl Basis {
     }
 }
 
-/// `u = B d` over the column-blocked copy: per block of 24 rows and per control `j`, `d_j`'s
+/// `u = B d` over the column-blocked copy: per block of 24 rows and per kept control `j`, `d_j`'s
 /// coordinates are broadcast and multiply-added with the block's column `j` (3 registers) into 9
-/// accumulators (rows x axes); no horizontal sums, no partial chunk (38 controls are 38 steps).
-/// The accumulators are transposed to (x, y, z) triples 8 rows at a time.
+/// accumulators (rows x axes); no horizontal sums, no partial chunk, and columns that are zero
+/// over the block cost nothing. The accumulators are transposed to (x, y, z) triples 8 rows at a
+/// time. Skipping an all-zero column only drops `+0` terms, so the result equals the dense sum
+/// for finite `d`.
 ///
 /// # Safety
-/// The CPU must support AVX2 and FMA; `0 < m <= STACK_CONTROLS`,
-/// `blocked.len() == out.len().div_ceil(BLOCK) * BLOCK * m`, and `dx`, `dy`, `dz` hold
-/// `STACK_CONTROLS` values.
+/// The CPU must support AVX2 and FMA; `blocked` must have been built for `out.len()` rows and
+/// at most `STACK_CONTROLS` columns, and `dx`, `dy`, `dz` hold `STACK_CONTROLS` values.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
 unsafe fn apply_blocked_avx2_fma(
-    blocked: &[f32],
-    m: usize,
+    blocked: &Blocked,
     dx: &[f32; STACK_CONTROLS],
     dy: &[f32; STACK_CONTROLS],
     dz: &[f32; STACK_CONTROLS],
     out: &mut [Vec3],
 ) {
     use std::arch::x86_64::*;
-    debug_assert!(m > 0 && m <= STACK_CONTROLS);
-    debug_assert_eq!(blocked.len(), out.len().div_ceil(BLOCK) * BLOCK * m);
-    let (px, py, pz) = (dx.as_ptr(), dy.as_ptr(), dz.as_ptr());
+    assert_eq!(blocked.starts.len(), out.len().div_ceil(BLOCK) + 1);
     // The last, partial block is written through this buffer.
     let mut spare = [Vec3::ZERO; BLOCK];
     for (b, rows) in out.chunks_mut(BLOCK).enumerate() {
@@ -190,23 +219,26 @@ unsafe fn apply_blocked_avx2_fma(
         } else {
             spare.as_mut_ptr().cast()
         };
-        // SAFETY: block b spans blocked[b * BLOCK * m .. (b + 1) * BLOCK * m] (length asserted
-        // above); column j of it is the BLOCK values at offset j * BLOCK; j < m <= STACK_CONTROLS
-        // for the d arrays; dst points at BLOCK Vec3 = 3 * BLOCK f32 (the block's rows when the
+        let kept = blocked.starts[b] as usize..blocked.starts[b + 1] as usize;
+        let values = &blocked.values[kept.start * BLOCK..kept.end * BLOCK];
+        // SAFETY: `values` holds BLOCK values per kept column (sliced with bounds checks), read
+        // 24 at a time from `col`, which advances by BLOCK per column; the d arrays are read with
+        // bounds checks; dst points at BLOCK Vec3 = 3 * BLOCK f32 (the block's rows when the
         // block is full, else `spare`), and Vec3 is repr(C) x, y, z.
         unsafe {
-            let mut col = blocked.as_ptr().add(b * BLOCK * m);
+            let mut col = values.as_ptr();
             let mut acc = [_mm256_setzero_ps(); 9];
-            for j in 0..m {
+            for &j in &blocked.cols[kept] {
+                let j = j as usize;
                 let c = [
                     _mm256_loadu_ps(col),
                     _mm256_loadu_ps(col.add(LANES)),
                     _mm256_loadu_ps(col.add(2 * LANES)),
                 ];
                 let dv = [
-                    _mm256_broadcast_ss(&*px.add(j)),
-                    _mm256_broadcast_ss(&*py.add(j)),
-                    _mm256_broadcast_ss(&*pz.add(j)),
+                    _mm256_broadcast_ss(&dx[j]),
+                    _mm256_broadcast_ss(&dy[j]),
+                    _mm256_broadcast_ss(&dz[j]),
                 ];
                 for g in 0..3 {
                     for a in 0..3 {
@@ -534,6 +566,48 @@ mod tests {
                         "row pairs: n={n} m={m} i={i} k={k}"
                     );
                 }
+            }
+        }
+    }
+
+    #[test]
+    fn apply_skips_zero_columns_exactly() {
+        // Rows in bands with disjoint non-zero columns (like face regions), frozen rows between,
+        // 70 rows = 2 full blocks and a partial one: equal to the row-pair kernel's dense sums up
+        // to reassociation, and exactly zero on frozen rows.
+        let (n, m) = (70usize, 38usize);
+        let mut seed = 3u64;
+        let data: Vec<f32> = (0..n * m)
+            .map(|k| {
+                let (i, j) = (k / m, k % m);
+                let w = lcg(&mut seed);
+                match i {
+                    0..=19 if j < 10 => w,
+                    20..=29 => 0.0,
+                    30..=59 if (10..30).contains(&j) => w,
+                    60.. if j >= 30 || j == 3 => w,
+                    _ => 0.0,
+                }
+            })
+            .collect();
+        let b = Basis::from_row_major(n, m, data.clone()).unwrap();
+        assert!(b.blocked.cols.len() < 3 * m, "zero columns left out");
+        let d: Vec<Vec3> = (0..m)
+            .map(|_| Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)))
+            .collect();
+        let mut out = vec![Vec3::NAN; n];
+        b.apply(&d, &mut out);
+        for i in 0..n {
+            let r: glam::DVec3 = (0..m)
+                .map(|j| d[j].as_dvec3() * data[i * m + j] as f64)
+                .sum();
+            let tol = (m * m) as f64 * f32::EPSILON as f64;
+            assert!(
+                (out[i].as_dvec3() - r).abs().max_element() <= tol,
+                "row {i}"
+            );
+            if (20..30).contains(&i) {
+                assert_eq!(out[i], Vec3::ZERO);
             }
         }
     }
