@@ -129,6 +129,103 @@ impl MovingPatch {
 mod tests {
     use super::*;
 
+    /// Deterministic pseudo-random value in [-1, 1) (64-bit LCG).
+    fn lcg(seed: &mut u64) -> f32 {
+        *seed = seed
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+    }
+
+    #[test]
+    fn patch_on_the_ict_head_equals_full_apply_and_reference_normals() {
+        // The real mesh (26 719 vertices, open boundaries, eye and mouth holes, separate shells),
+        // a synthetic basis moving the front of the face with 5 controls (rows behind z = 2 cm
+        // frozen), a random frame.
+        let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../configs/meshes/ict-facekit/generic_neutral_mesh.obj");
+        let mesh = mimic_assets::load_obj(&path).expect("ICT neutral mesh");
+        let (n, m) = (mesh.positions.len(), 5usize);
+        let mut seed = 17u64;
+        let data: Vec<f32> = mesh
+            .positions
+            .iter()
+            .flat_map(|p| {
+                let front = p.z > 2.0;
+                (0..m)
+                    .map(|_| {
+                        if front {
+                            0.5 + 0.5 * lcg(&mut seed)
+                        } else {
+                            0.0
+                        }
+                    })
+                    .collect::<Vec<_>>()
+            })
+            .collect();
+        let basis = Basis::from_row_major(n, m, data).unwrap();
+        let mut patch = MovingPatch::new(&basis, &mesh.triangles, &mesh.positions);
+        assert!(patch.moving_count() > 1000 && patch.moving_count() < n);
+        let d: Vec<Vec3> = (0..m)
+            .map(|_| Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)) * 0.5)
+            .collect();
+        let mut u = vec![Vec3::ZERO; n];
+        basis.apply(&d, &mut u);
+        let full: Vec<Vec3> = mesh
+            .positions
+            .iter()
+            .zip(&u)
+            .map(|(p, u)| *p + *u)
+            .collect();
+        let mut full_n = vec![Vec3::ZERO; n];
+        mimic_solve::vertex_normals(&full, &mesh.triangles, &mut full_n);
+        let mut pos = mesh.positions.clone();
+        let mut nrm = vec![Vec3::ZERO; n];
+        mimic_solve::vertex_normals(&pos, &mesh.triangles, &mut nrm);
+        patch.deform(&d, &mesh.positions, &mut pos);
+        patch.normals(&mut nrm);
+        assert_eq!(pos, full);
+        // Tolerance per vertex: both are f32 area-weighted sums of the same k cross products,
+        // taken at different corners; each is within (6 + k) eps sum_t L_t^2 of the exact sum (L_t
+        // the triangle's longest edge), so after normalising the two differ by at most
+        // 4 (6 + k) eps sum_t L_t^2 / |N| + 16 eps (|N| the exact sum's length, here in f64).
+        let mut sum = vec![glam::DVec3::ZERO; n];
+        let mut scale = vec![0f64; n];
+        let mut k = vec![0usize; n];
+        for t in &mesh.triangles {
+            let [a, b, c] = t.map(|v| full[v as usize].as_dvec3());
+            let l2 = (b - a)
+                .length_squared()
+                .max((c - a).length_squared())
+                .max((c - b).length_squared());
+            for &v in t {
+                sum[v as usize] += (b - a).cross(c - a);
+                scale[v as usize] += l2;
+                k[v as usize] += 1;
+            }
+        }
+        let eps = f32::EPSILON as f64;
+        let mut compared = 0;
+        for v in 0..n {
+            let len = sum[v].length();
+            let tol = 4.0 * (6 + k[v]) as f64 * eps * scale[v] / len + 16.0 * eps;
+            if len > 0.0 && tol < 0.1 {
+                let err = (nrm[v].as_dvec3() - full_n[v].as_dvec3()).length();
+                assert!(
+                    err <= tol,
+                    "v={v}: {} vs {}, {err:e} > {tol:e}",
+                    nrm[v],
+                    full_n[v]
+                );
+                compared += 1;
+            }
+        }
+        assert!(
+            compared > n * 9 / 10,
+            "{compared} of {n} vertices well conditioned"
+        );
+    }
+
     #[test]
     fn patch_equals_full_apply_and_full_normals() {
         // A 6 x 6 grid, 2 controls, rows of the left half zero (frozen).

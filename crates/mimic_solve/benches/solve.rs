@@ -1,5 +1,6 @@
-//! Criterion benchmarks of mimic_solve: per-frame apply (with naive baselines in the same process),
-//! basis setup for RBF and Laplacian, vertex normals, Kabsch and morph fit.
+//! Criterion benchmarks of mimic_solve: per-frame apply (with the previous row-pair kernel, the
+//! blocked kernel on a matrix with no zero to skip, and naive baselines in the same process), basis
+//! setup for RBF and Laplacian, vertex normals (face scatter and vertex fans), Kabsch and morph fit.
 //!
 //! Inputs are generated meshes (a curved sheet, like a face patch) of about 3k, 30k and 100k
 //! vertices with 38 controls spread over them; everything is built outside the timed closures.
@@ -9,6 +10,7 @@ use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use glam::Vec3;
 use mimic_solve::kabsch::fit_similarity;
 use mimic_solve::morph_fit::MorphFit;
+use mimic_solve::normals::VertexFans;
 use mimic_solve::{Basis, build_basis, vertex_normals};
 use mimic_types::{
     Fdp, LaplacianWeights, Mesh, RbfDistance, RbfKernel, RegionBands, Rig, RigControl, SolverKind,
@@ -160,6 +162,22 @@ fn bench_apply(c: &mut Criterion) {
         g.bench_with_input(BenchmarkId::new("basis", n), &n, |bch, _| {
             bch.iter(|| b.apply(black_box(&d), black_box(&mut out)))
         });
+        g.bench_with_input(BenchmarkId::new("row_pairs", n), &n, |bch, _| {
+            bch.iter(|| b.apply_row_pairs(black_box(&d), black_box(&mut out)))
+        });
+        // The same matrix with every weight made non-zero: the blocked kernel with nothing to skip.
+        let dense = Basis::from_row_major(
+            n,
+            m,
+            b.as_slice()
+                .iter()
+                .map(|w| if *w == 0.0 { 1e-30 } else { *w })
+                .collect(),
+        )
+        .unwrap();
+        g.bench_with_input(BenchmarkId::new("basis_dense", n), &n, |bch, _| {
+            bch.iter(|| dense.apply(black_box(&d), black_box(&mut out)))
+        });
         g.bench_with_input(BenchmarkId::new("naive_aos", n), &n, |bch, _| {
             bch.iter(|| apply_naive_aos(black_box(&b), black_box(&d), black_box(&mut out)))
         });
@@ -186,6 +204,11 @@ fn bench_apply(c: &mut Criterion) {
                     &mut normals,
                 )
             })
+        });
+        let fans = VertexFans::new(n, n, &r.mesh.triangles);
+        let pa: Vec<glam::Vec3A> = r.mesh.positions.iter().map(|p| (*p).into()).collect();
+        g.bench_with_input(BenchmarkId::new("normals_fans", n), &n, |bch, _| {
+            bch.iter(|| fans.normals(black_box(&pa), |v, nv| normals[v] = nv))
         });
     }
     g.finish();

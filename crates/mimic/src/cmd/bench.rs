@@ -73,25 +73,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
 
-    // Baseline in the same process: the dense product over every vertex of the rig and
-    // full-mesh normals, as a pipeline without the moving-part restriction would do.
+    // Baselines in the same process: the dense product over every vertex of the rig and
+    // full-mesh normals, as a pipeline without the moving-part restriction would do, each with the
+    // current kernel and with the previous one (row-pair product, face-by-face scatter normals).
     let n = p.rig.mesh.vertex_count();
     let basis = p.retargeter.basis();
     let d = out.displacements.clone();
     let mut u = vec![Vec3::ZERO; n];
     let mut normals = vec![Vec3::ZERO; n];
+    let fans = mimic_solve::normals::VertexFans::new(n, n, &p.rig.mesh.triangles);
+    let mut u_a = vec![glam::Vec3A::ZERO; n];
     let baseline_steps = (args.steps / 4).max(50);
-    let mut base_apply = Vec::with_capacity(baseline_steps);
-    let mut base_normals = Vec::with_capacity(baseline_steps);
+    let mut base: [Vec<u32>; 4] = Default::default();
+    let ns = |t: Instant| u32::try_from(t.elapsed().as_nanos()).unwrap_or(u32::MAX);
     for _ in 0..baseline_steps {
         let t = Instant::now();
         basis.apply(&d, &mut u);
-        let t1 = Instant::now();
+        base[0].push(ns(t));
+        let t = Instant::now();
+        basis.apply_row_pairs(&d, &mut u);
+        base[1].push(ns(t));
+        let t = Instant::now();
         mimic_solve::vertex_normals(&u, &p.rig.mesh.triangles, &mut normals);
-        base_normals.push(u32::try_from(t1.elapsed().as_nanos()).unwrap_or(u32::MAX));
-        base_apply.push(u32::try_from((t1 - t).as_nanos()).unwrap_or(u32::MAX));
+        base[2].push(ns(t));
+        u_a.iter_mut().zip(&u).for_each(|(a, b)| *a = (*b).into());
+        let t = Instant::now();
+        fans.normals(&u_a, |v, nv| normals[v] = nv);
+        base[3].push(ns(t));
     }
     std::hint::black_box(&normals);
+    let [ba, ba_pairs, bn, bn_fans] = base.map(|mut v| median_p99_us(&mut v).0);
 
     let mut stages = serde_json::Map::new();
     for s in Stage::ALL {
@@ -99,8 +110,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         stages.insert(s.name().into(), json!({"median_us": m, "p99_us": p99}));
     }
     let (step_m, step_p99) = median_p99_us(&mut step_ns);
-    let (ba, _) = median_p99_us(&mut base_apply);
-    let (bn, _) = median_p99_us(&mut base_normals);
     let deform_m = stages["deform"]["median_us"].as_f64().unwrap_or(0.0);
     let normals_m = stages["normals"]["median_us"].as_f64().unwrap_or(0.0);
     let fit = crate::cmd::import_fit::fit_throughput(&args.recording)?;
@@ -116,9 +125,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "stages": stages,
         "step": {"median_us": step_m, "p99_us": step_p99, "frames_per_second": if step_m > 0.0 { 1e6 / step_m } else { 0.0 }},
         "baseline": {
-            "what": "dense B d over every vertex plus full-mesh normals, same process",
+            "what": "dense B d over every vertex plus full-mesh normals, same process; apply and normals_fans with the current kernels, apply_row_pairs and normals with the previous ones",
             "apply_median_us": ba,
+            "apply_row_pairs_median_us": ba_pairs,
             "normals_median_us": bn,
+            "normals_fans_median_us": bn_fans,
+            "apply_kernel_speedup": if ba > 0.0 { ba_pairs / ba } else { 0.0 },
+            "normals_kernel_speedup": if bn_fans > 0.0 { bn / bn_fans } else { 0.0 },
             "deform_speedup": if deform_m > 0.0 { ba / deform_m } else { 0.0 },
             "normals_speedup": if normals_m > 0.0 { bn / normals_m } else { 0.0 },
         },
@@ -146,7 +159,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "step",
             1e6 / step_m.max(1e-9)
         );
-        println!("  baseline: full apply {ba:.1} us, full normals {bn:.1} us");
+        println!(
+            "  baseline, every vertex: apply {ba:.1} us (previous row-pair kernel {ba_pairs:.1} us), normals by fans {bn_fans:.1} us (face scatter {bn:.1} us)"
+        );
         if let Some(f) = &fit {
             println!(
                 "  fit CANDIDE-3 to the recording: {:.0} frames/s ({} frames, median residual {:.2} px)",
