@@ -2,6 +2,10 @@
 
 use tokio::io::{AsyncBufRead, AsyncBufReadExt};
 
+/// Capacity a reader keeps between lines: a longer line's buffer is given back once it is done,
+/// so a connection holds the message limit only while it is reading such a line.
+pub const KEPT_CAPACITY: usize = 64 * 1024;
+
 /// What [`LineReader::next_line`] found.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Line {
@@ -53,10 +57,16 @@ impl<R: AsyncBufRead + Unpin> LineReader<R> {
         &self.buf
     }
 
+    /// Empties the line buffer, giving back capacity beyond [`KEPT_CAPACITY`].
+    fn reset(&mut self) {
+        self.buf.clear();
+        self.buf.shrink_to(KEPT_CAPACITY);
+    }
+
     /// Reads the next line.
     pub async fn next_line(&mut self) -> std::io::Result<Line> {
         if self.ready {
-            self.buf.clear();
+            self.reset();
             self.ready = false;
         }
         loop {
@@ -77,7 +87,7 @@ impl<R: AsyncBufRead + Unpin> LineReader<R> {
             if !self.skipping {
                 if self.buf.len() + take > self.limit {
                     self.skipping = true;
-                    self.buf.clear();
+                    self.reset();
                 } else {
                     self.buf.extend_from_slice(&chunk[..take]);
                 }
@@ -112,5 +122,22 @@ mod tests {
         assert_eq!(r.next_line().await.unwrap(), Line::Partial);
         assert_eq!(r.line(), b"ef");
         assert_eq!(r.next_line().await.unwrap(), Line::Eof);
+    }
+
+    #[tokio::test]
+    async fn a_long_line_gives_its_buffer_back() {
+        let mut data = vec![b'x'; 600_000];
+        data.push(b'\n');
+        data.extend_from_slice(&[b'y'; 2_000_000]);
+        data.extend_from_slice(b"\nok\n");
+        let mut r = LineReader::new(tokio::io::BufReader::new(data.as_slice()), 1 << 20);
+        assert_eq!(r.next_line().await.unwrap(), Line::Complete);
+        assert_eq!(r.line().len(), 600_001);
+        // Too long: skipped, and the half-read part's buffer given back.
+        assert_eq!(r.next_line().await.unwrap(), Line::TooLong);
+        assert!(r.buf.capacity() <= KEPT_CAPACITY, "{}", r.buf.capacity());
+        assert_eq!(r.next_line().await.unwrap(), Line::Complete);
+        assert_eq!(r.line(), b"ok\n");
+        assert!(r.buf.capacity() <= KEPT_CAPACITY, "{}", r.buf.capacity());
     }
 }
