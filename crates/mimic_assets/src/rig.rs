@@ -147,6 +147,37 @@ kind = "laplacian"
     }
 
     #[test]
+    fn solver_kernel_and_top_split_parse() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = write_rig(
+            dir.path(),
+            "[[controls]]\nfdp = \"8.3\"\nvertex = 1\nregion = \"bottom\"\n",
+        );
+        let text = std::fs::read_to_string(&path).unwrap().replace(
+            "kind = \"laplacian\"",
+            "kernel = { kind = \"matern32\", radius = 2.0 }\ntop_split = { at = 4.6, band = 1.0, lower_kernel = { kind = \"exponential\", radius = 1.0 } }",
+        );
+        let rig = parse_rig(&path, &text).unwrap();
+        assert_eq!(
+            rig.solver.kernel,
+            mimic_types::RbfKernel::Matern32 { radius: 2.0 }
+        );
+        assert_eq!(
+            rig.solver.top_split,
+            Some(mimic_types::TopSplit {
+                at: 4.6,
+                band: 1.0,
+                upper_kernel: None,
+                lower_kernel: Some(mimic_types::RbfKernel::Exponential { radius: 1.0 }),
+            })
+        );
+        // Without the key there is no split (other rigs keep one top solve).
+        assert_eq!(load_rig(&path).unwrap().solver.top_split, None);
+        let bad = text.replace("band = 1.0,", "bnad = 1.0,");
+        assert!(parse_rig(&path, &bad).is_err());
+    }
+
+    #[test]
     fn control_vertex_out_of_range_names_file_and_line() {
         let dir = tempfile::tempdir().unwrap();
         let path = write_rig(

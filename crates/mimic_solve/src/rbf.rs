@@ -22,6 +22,10 @@ pub fn kernel_value(kernel: RbfKernel, r: f64) -> f64 {
             let t = r / radius;
             (-t * t).exp()
         }
+        RbfKernel::Matern32 { radius } => {
+            let t = 3f64.sqrt() * r / radius;
+            (1.0 + t) * (-t).exp()
+        }
         RbfKernel::ThinPlate => {
             if r <= 0.0 {
                 0.0
@@ -35,7 +39,9 @@ pub fn kernel_value(kernel: RbfKernel, r: f64) -> f64 {
 /// Checks that the kernel is usable: positive finite radius, and thin-plate only with the affine term.
 pub fn check_kernel(kernel: RbfKernel, affine: bool) -> Result<(), SolveError> {
     match kernel {
-        RbfKernel::Exponential { radius } | RbfKernel::Gaussian { radius } => {
+        RbfKernel::Exponential { radius }
+        | RbfKernel::Gaussian { radius }
+        | RbfKernel::Matern32 { radius } => {
             if !(radius.is_finite() && radius > 0.0) {
                 return Err(SolveError::InvalidSetting(format!(
                     "RBF kernel radius {radius} must be finite and > 0 (rig units)"
@@ -311,13 +317,42 @@ mod tests {
         (mesh.positions, centres, fdps)
     }
 
-    const KERNELS: [(RbfKernel, bool); 5] = [
+    const KERNELS: [(RbfKernel, bool); 7] = [
         (RbfKernel::Exponential { radius: 0.3 }, false),
         (RbfKernel::Exponential { radius: 0.3 }, true),
+        (RbfKernel::Matern32 { radius: 0.3 }, false),
+        (RbfKernel::Matern32 { radius: 0.3 }, true),
         (RbfKernel::Gaussian { radius: 0.4 }, false),
         (RbfKernel::Gaussian { radius: 0.4 }, true),
         (RbfKernel::ThinPlate, true),
     ];
+
+    #[test]
+    fn kernel_values_match_closed_forms() {
+        // Matern 3/2 at r = 0 is 1 with zero slope; at r = s / sqrt(3) it is 2 / e; the exponential
+        // at r = s is 1 / e; every kernel with a radius decays with r.
+        let s = 0.7;
+        let m = RbfKernel::Matern32 { radius: s };
+        assert_eq!(kernel_value(m, 0.0), 1.0);
+        let at = kernel_value(m, s / 3f64.sqrt());
+        assert!((at - 2.0 / std::f64::consts::E).abs() < 1e-15, "{at}");
+        // Flat top: phi(h) = 1 - 3 h^2 / (2 s^2) + O(h^3), so the slope at 0 vanishes.
+        let h = 1e-4;
+        assert!((1.0 - kernel_value(m, h)) / h < 1e-3);
+        let e = kernel_value(RbfKernel::Exponential { radius: s }, s);
+        assert!((e - 1.0 / std::f64::consts::E).abs() < 1e-15);
+        for k in [
+            m,
+            RbfKernel::Exponential { radius: s },
+            RbfKernel::Gaussian { radius: s },
+        ] {
+            assert!(
+                (1..50).all(
+                    |i| kernel_value(k, i as f64 * 0.1) > kernel_value(k, i as f64 * 0.1 + 0.1)
+                )
+            );
+        }
+    }
 
     #[test]
     fn columns_are_the_identity_at_the_controls() {

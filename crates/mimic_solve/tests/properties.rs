@@ -133,6 +133,7 @@ impl Case {
             weights: self.weights,
             constraint_weight: 10.0,
             regions: self.regions,
+            ..SolverSettings::default()
         }
     }
 }

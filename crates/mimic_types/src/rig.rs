@@ -137,8 +137,37 @@ pub enum RbfKernel {
         /// Width in rig units.
         radius: f64,
     },
+    /// Matern 3/2: `(1 + sqrt(3) r / radius) exp(-sqrt(3) r / radius)`; like the exponential
+    /// but flat at `r = 0`, so the interpolant has no kink at the controls.
+    Matern32 {
+        /// Length scale in rig units.
+        radius: f64,
+    },
     /// `r^2 log r` (needs the affine term to be well posed).
     ThinPlate,
+}
+
+impl RbfKernel {
+    /// The kernel's length scale in rig units (`None` for thin-plate, which has none).
+    pub fn radius(self) -> Option<f64> {
+        match self {
+            RbfKernel::Exponential { radius }
+            | RbfKernel::Gaussian { radius }
+            | RbfKernel::Matern32 { radius } => Some(radius),
+            RbfKernel::ThinPlate => None,
+        }
+    }
+
+    /// The same family with length scale `radius` (thin-plate becomes exponential).
+    pub fn with_radius(self, radius: f64) -> Self {
+        match self {
+            RbfKernel::Gaussian { .. } => RbfKernel::Gaussian { radius },
+            RbfKernel::Matern32 { .. } => RbfKernel::Matern32 { radius },
+            RbfKernel::Exponential { .. } | RbfKernel::ThinPlate => {
+                RbfKernel::Exponential { radius }
+            }
+        }
+    }
 }
 
 impl Default for RbfKernel {
@@ -190,6 +219,40 @@ pub struct SolverSettings {
     pub constraint_weight: f64,
     /// Solve top / middle / bottom separately and blend them.
     pub regions: bool,
+    /// RBF with regions: split the top region into lids (below) and brows (above); `None` keeps
+    /// one top solve. The Laplacian ignores it.
+    pub top_split: Option<TopSplit>,
+}
+
+/// Splits the top region's RBF in two at a height: the top controls at or above `at` (brows)
+/// drive the vertices above it, those below (lids, eye corners) the vertices below, blended
+/// linearly over `band` within the top region's own weight. Keeps a blink from lifting into
+/// the brows and a brow raise from pulling the lids. Each half may have its own kernel.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TopSplit {
+    /// Height (rig units) of the split, between the highest lid and the lowest brow control.
+    pub at: f32,
+    /// Full width (rig units) of the linear blend across the split; 0 gives a hard border.
+    #[serde(default)]
+    pub band: f32,
+    /// Kernel of the upper (brow) half; `None` uses the solver's kernel.
+    #[serde(default)]
+    pub upper_kernel: Option<RbfKernel>,
+    /// Kernel of the lower (lid) half; `None` uses the solver's kernel.
+    #[serde(default)]
+    pub lower_kernel: Option<RbfKernel>,
+}
+
+impl TopSplit {
+    /// Share of the upper (brow) part at height `y`, in `[0, 1]`.
+    pub fn upper_share(&self, y: f32) -> f32 {
+        if self.band <= 0.0 {
+            if y >= self.at { 1.0 } else { 0.0 }
+        } else {
+            ((y - self.at) / self.band + 0.5).clamp(0.0, 1.0)
+        }
+    }
 }
 
 impl Default for SolverSettings {
@@ -202,6 +265,46 @@ impl Default for SolverSettings {
             weights: LaplacianWeights::MeanValue,
             constraint_weight: 10.0,
             regions: true,
+            top_split: None,
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn top_split_share_ramps_across_the_band() {
+        let s = TopSplit {
+            at: 4.0,
+            band: 1.0,
+            upper_kernel: None,
+            lower_kernel: None,
+        };
+        assert_eq!(s.upper_share(3.0), 0.0);
+        assert_eq!(s.upper_share(3.5), 0.0);
+        assert_eq!(s.upper_share(4.0), 0.5);
+        assert_eq!(s.upper_share(4.25), 0.75);
+        assert_eq!(s.upper_share(5.0), 1.0);
+        let hard = TopSplit { band: 0.0, ..s };
+        assert_eq!((hard.upper_share(3.99), hard.upper_share(4.0)), (0.0, 1.0));
+    }
+
+    #[test]
+    fn kernel_radius_round_trips() {
+        for k in [
+            RbfKernel::Exponential { radius: 2.0 },
+            RbfKernel::Gaussian { radius: 2.0 },
+            RbfKernel::Matern32 { radius: 2.0 },
+        ] {
+            assert_eq!(k.radius(), Some(2.0));
+            assert_eq!(k.with_radius(3.0).radius(), Some(3.0));
+            assert_eq!(
+                std::mem::discriminant(&k.with_radius(3.0)),
+                std::mem::discriminant(&k)
+            );
+        }
+        assert_eq!(RbfKernel::ThinPlate.radius(), None);
     }
 }

@@ -11,7 +11,7 @@ use glam::Vec3;
 use mimic_assets::{load_obj, load_rig};
 use mimic_solve::build_basis;
 use mimic_types::{
-    LaplacianWeights, RbfDistance, RbfKernel, Region, Rig, SolverKind, SolverSettings,
+    LaplacianWeights, RbfDistance, RbfKernel, Region, Rig, SolverKind, SolverSettings, TopSplit,
 };
 use serde_json::{Value, json};
 use std::path::PathBuf;
@@ -44,6 +44,8 @@ pub enum KernelArg {
     Exponential,
     /// `exp(-(r / radius)^2)`.
     Gaussian,
+    /// Matern 3/2, `(1 + sqrt(3) r / radius) exp(-sqrt(3) r / radius)`.
+    Matern32,
     /// `r^2 log r` (turns the affine term on).
     ThinPlate,
 }
@@ -104,6 +106,20 @@ pub struct Args {
     /// Region blend band width in rig units (default: the rig's).
     #[arg(long)]
     pub band: Option<f32>,
+    /// Split the top region into lids and brows at this height (rig units), or `off` (default:
+    /// the rig's).
+    #[arg(long, value_parser = parse_split)]
+    pub top_split: Option<Split>,
+    /// Blend band of the top split in rig units (default: the rig's, or 1).
+    #[arg(long)]
+    pub top_split_band: Option<f32>,
+    /// Kernel of the upper (brow) half of the top split as `family:radius` (`exponential`,
+    /// `gaussian`, `matern32`; e.g. `matern32:2`), or `off` for the solver's (default: the rig's).
+    #[arg(long, value_parser = parse_kernel)]
+    pub upper_kernel: Option<KernelChoice>,
+    /// Kernel of the lower (lid) half of the top split, as `--upper-kernel` (default: the rig's).
+    #[arg(long, value_parser = parse_kernel)]
+    pub lower_kernel: Option<KernelChoice>,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -121,6 +137,45 @@ pub struct Args {
     /// true displacement), for plotting where the error is.
     #[arg(long)]
     pub dump: Option<PathBuf>,
+}
+
+/// A number, or `off`.
+#[derive(Clone, Copy, Debug)]
+pub struct Split(Option<f64>);
+
+/// Parses a finite number or `off`.
+fn parse_split(text: &str) -> Result<Split, String> {
+    if text == "off" {
+        return Ok(Split(None));
+    }
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(Split(Some(v))),
+        _ => Err(format!("`{text}`: expected a number or `off`")),
+    }
+}
+
+/// A kernel with its radius, or `off`.
+#[derive(Clone, Copy, Debug)]
+pub struct KernelChoice(Option<RbfKernel>);
+
+/// Parses `family:radius` (`exponential`, `gaussian`, `matern32`) or `off`.
+fn parse_kernel(text: &str) -> Result<KernelChoice, String> {
+    if text == "off" {
+        return Ok(KernelChoice(None));
+    }
+    let (family, radius) = text
+        .split_once(':')
+        .ok_or_else(|| format!("`{text}`: expected family:radius (e.g. matern32:2) or `off`"))?;
+    let radius: f64 = radius
+        .parse()
+        .map_err(|e| format!("`{text}`: radius: {e}"))?;
+    let kernel = match family {
+        "exponential" => RbfKernel::Exponential { radius },
+        "gaussian" => RbfKernel::Gaussian { radius },
+        "matern32" => RbfKernel::Matern32 { radius },
+        _ => return Err(format!("`{text}`: unknown kernel family `{family}`")),
+    };
+    Ok(KernelChoice(Some(kernel)))
 }
 
 /// Inclusive vertex index ranges.
@@ -213,28 +268,39 @@ fn settings(rig: &Rig, args: &Args) -> SolverSettings {
     if let Some(r) = args.regions {
         s.regions = matches!(r, OnOff::On);
     }
-    let radius = args.radius.or(match s.kernel {
-        RbfKernel::Exponential { radius } | RbfKernel::Gaussian { radius } => Some(radius),
-        RbfKernel::ThinPlate => None,
-    });
+    let radius = args.radius.or(s.kernel.radius());
     if let Some(k) = args.kernel {
+        let radius = radius.unwrap_or(1.0);
         s.kernel = match k {
-            KernelArg::Exponential => RbfKernel::Exponential {
-                radius: radius.unwrap_or(1.0),
-            },
-            KernelArg::Gaussian => RbfKernel::Gaussian {
-                radius: radius.unwrap_or(1.0),
-            },
+            KernelArg::Exponential => RbfKernel::Exponential { radius },
+            KernelArg::Gaussian => RbfKernel::Gaussian { radius },
+            KernelArg::Matern32 => RbfKernel::Matern32 { radius },
             KernelArg::ThinPlate => {
                 s.affine = true;
                 RbfKernel::ThinPlate
             }
         };
     } else if let Some(r) = args.radius {
-        s.kernel = match s.kernel {
-            RbfKernel::Gaussian { .. } => RbfKernel::Gaussian { radius: r },
-            _ => RbfKernel::Exponential { radius: r },
-        };
+        s.kernel = s.kernel.with_radius(r);
+    }
+    if let Some(Split(at)) = args.top_split {
+        s.top_split = at.map(|at| TopSplit {
+            at: at as f32,
+            band: s.top_split.map_or(1.0, |t| t.band),
+            upper_kernel: s.top_split.and_then(|t| t.upper_kernel),
+            lower_kernel: s.top_split.and_then(|t| t.lower_kernel),
+        });
+    }
+    if let Some(split) = s.top_split.as_mut() {
+        if let Some(band) = args.top_split_band {
+            split.band = band;
+        }
+        if let Some(KernelChoice(k)) = args.upper_kernel {
+            split.upper_kernel = k;
+        }
+        if let Some(KernelChoice(k)) = args.lower_kernel {
+            split.lower_kernel = k;
+        }
     }
     if let Some(a) = args.affine {
         s.affine = matches!(a, OnOff::On);
@@ -269,6 +335,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let basis = build_basis(&rig, &settings)
         .with_context(|| format!("building the basis of {}", args.rig.display()))?;
     let setup_ms = started.elapsed().as_secs_f64() * 1e3;
+    // Noise gain: the largest row sum of |B|, i.e. how much a per-control error (tracking noise,
+    // inconsistent neighbouring controls) can be amplified at one vertex (1 for a partition of unity).
+    let noise_gain = (0..basis.vertex_count())
+        .map(|i| basis.row(i).iter().map(|w| w.abs() as f64).sum::<f64>())
+        .fold(0f64, f64::max);
     let blend = matches!(args.solver, Some(SolverArg::Blendshapes))
         .then(|| {
             crate::cmd::morph::EvalBlend::load(&args.rig, &rig, args.leave_one_out, args.ridge)
@@ -328,6 +399,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "band": rig.regions.band,
         "vertices": args.vertices.as_ref().map(|r| r.0.iter().map(|(a, b)| json!([a, b])).collect::<Vec<_>>()),
         "setup_ms": setup_ms,
+        "noise_gain": noise_gain,
         "blendshape_weights": blend.is_some().then_some(&weights),
         "median_ratio": median,
         "max_ratio": ratios.last().copied().unwrap_or(f64::NAN),
@@ -342,11 +414,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "rig {} ({}), solver {:?}, regions {}, kernel {:?}, affine {}, distance {:?}, weights {:?}, constraint weight {}, band {}; setup {:.0} ms",
+        "rig {} ({}), solver {:?}, regions {}, top split {:?}, kernel {:?}, affine {}, distance {:?}, weights {:?}, constraint weight {}, band {}; setup {:.0} ms",
         args.rig.display(),
         rig.units,
         settings.kind,
         settings.regions,
+        settings.top_split,
         settings.kernel,
         settings.affine,
         settings.distance,
@@ -384,7 +457,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("weights for {shape}: {w}");
     }
     println!(
-        "median ratio {median:.3}, max ratio {:.3}",
+        "median ratio {median:.3}, max ratio {:.3}, noise gain {noise_gain:.2}",
         ratios.last().copied().unwrap_or(f64::NAN)
     );
     Ok(())
@@ -464,6 +537,19 @@ mod tests {
         assert!(r.contains(0) && r.contains(9408) && !r.contains(9409) && r.contains(12000));
         assert!(r.contains(20000) && !r.contains(20001));
         assert!(parse_ranges("5-1").is_err() && parse_ranges("a-3").is_err());
+    }
+
+    #[test]
+    fn parses_kernels_and_splits() {
+        assert!(matches!(
+            parse_kernel("matern32:2"),
+            Ok(KernelChoice(Some(RbfKernel::Matern32 { radius }))) if radius == 2.0
+        ));
+        assert!(matches!(parse_kernel("off"), Ok(KernelChoice(None))));
+        assert!(parse_kernel("matern32").is_err() && parse_kernel("cubic:1").is_err());
+        assert!(matches!(parse_split("4.6"), Ok(Split(Some(v))) if v == 4.6));
+        assert!(matches!(parse_split("off"), Ok(Split(None))));
+        assert!(parse_split("inf").is_err() && parse_split("x").is_err());
     }
 
     #[test]

@@ -71,12 +71,7 @@ impl RigArgs {
             s.regions = r == Switch::On;
         }
         if let Some(radius) = self.radius {
-            s.kernel = match s.kernel {
-                mimic_types::RbfKernel::Gaussian { .. } => {
-                    mimic_types::RbfKernel::Gaussian { radius }
-                }
-                _ => mimic_types::RbfKernel::Exponential { radius },
-            };
+            s.kernel = s.kernel.with_radius(radius);
         }
         s
     }
