@@ -2,97 +2,19 @@
 //! weights"): named ARKit-style weights in, the morph basis's control values and blended
 //! positions out, bad frames answered while the session goes on.
 
+use crate::loopback::{Serve, connect, read_json_line, read_message};
 use crate::repo;
 use glam::Vec3;
-use mimic_stream::wire::{ViewerMessage, decode_viewer_message};
+use mimic_stream::wire::ViewerMessage;
 use serde_json::Value;
-use std::io::{BufRead, BufReader, Read, Write};
+use std::io::{BufRead, BufReader, Write};
 use std::net::{Shutdown, TcpStream};
-use std::process::{Child, Command, Stdio};
-use std::time::{Duration, Instant};
-
-/// A `mimic serve` child on 127.0.0.1:0 (killed on drop).
-struct Serve {
-    child: Child,
-    tcp: String,
-}
-
-impl Serve {
-    fn start(args: &[&str]) -> Serve {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_mimic"))
-            .args(["serve", "--listen", "127.0.0.1:0", "--no-udp"])
-            .args(args)
-            .current_dir(repo())
-            .env_remove("RUST_LOG")
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
-        let mut first = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut first)
-            .unwrap();
-        let words: Vec<&str> = first.split_whitespace().collect();
-        assert!(
-            words.len() >= 4 && words[2] == "tcp",
-            "serve said {first:?}"
-        );
-        Serve {
-            child,
-            tcp: words[3].to_string(),
-        }
-    }
-
-    fn connect(&self) -> TcpStream {
-        let s = TcpStream::connect(&self.tcp).unwrap();
-        s.set_read_timeout(Some(Duration::from_secs(60))).unwrap();
-        s
-    }
-
-    fn stats(&self) -> Value {
-        let mut s = self.connect();
-        s.write_all(b"{\"type\":\"stats\"}\n").unwrap();
-        read_json_line(&mut BufReader::new(s))
-    }
-
-    fn wait_for(&self, what: &str, ok: impl Fn(&Value) -> bool) -> Value {
-        let deadline = Instant::now() + Duration::from_secs(20);
-        loop {
-            let s = self.stats();
-            if ok(&s) {
-                return s;
-            }
-            assert!(
-                Instant::now() < deadline,
-                "timed out waiting for {what}: {s}"
-            );
-            std::thread::sleep(Duration::from_millis(20));
-        }
-    }
-}
-
-impl Drop for Serve {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn read_json_line(r: &mut impl BufRead) -> Value {
-    let mut line = String::new();
-    r.read_line(&mut line).unwrap();
-    serde_json::from_str(&line).unwrap_or_else(|e| panic!("{e}: {line:?}"))
-}
 
 /// Viewer messages up to and including END.
 fn read_viewer(s: &mut TcpStream) -> Vec<ViewerMessage> {
     let mut out = Vec::new();
     loop {
-        let mut len = [0u8; 4];
-        s.read_exact(&mut len).unwrap();
-        let mut body = vec![0u8; u32::from_le_bytes(len) as usize];
-        s.read_exact(&mut body).unwrap();
-        let m = decode_viewer_message(body[0], &body[1..]).unwrap();
+        let m = read_message(s).expect("viewer message");
         let end = matches!(m, ViewerMessage::End(_));
         out.push(m);
         if end {
@@ -128,13 +50,13 @@ fn blend(rest: &[Vec3], targets: &[mimic_types::MorphTarget], w: &[f64]) -> Vec<
 
 #[test]
 fn a_weights_stream_reaches_viewers_as_the_blend_and_bad_frames_are_answered() {
-    let serve = Serve::start(&["--also-rig", "candide3"]);
+    let serve = Serve::start(&["--no-udp", "--also-rig", "candide3"]);
     let (rest, targets) = ict_targets();
     let names: Vec<String> = targets.iter().map(|t| t.name.clone()).collect();
     let k = names.len();
 
     let viewer = |positions: bool| {
-        let mut s = serve.connect();
+        let mut s = connect(&serve.tcp);
         let hello =
             format!("{{\"type\":\"viewer\",\"session\":\"w\",\"positions\":{positions}}}\n");
         s.write_all(hello.as_bytes()).unwrap();
@@ -143,7 +65,7 @@ fn a_weights_stream_reaches_viewers_as_the_blend_and_bad_frames_are_answered() {
     let (mut vp, mut vd) = (viewer(true), viewer(false));
     serve.wait_for("two viewers", |s| s["viewers_active"] == 2);
 
-    let mut tracker = serve.connect();
+    let mut tracker = connect(&serve.tcp);
     let mut replies = BufReader::new(tracker.try_clone().unwrap());
     tracker
         .write_all(
@@ -312,7 +234,7 @@ fn a_weights_stream_reaches_viewers_as_the_blend_and_bad_frames_are_answered() {
     );
 
     // A rig without morph targets refuses a weights session at its hello.
-    let mut t = serve.connect();
+    let mut t = connect(&serve.tcp);
     t.write_all(b"{\"mode\":\"weights\",\"rig\":\"candide3\"}\n")
         .unwrap();
     let mut r = BufReader::new(t);
@@ -329,7 +251,7 @@ fn a_weights_stream_reaches_viewers_as_the_blend_and_bad_frames_are_answered() {
 
 #[test]
 fn send_weights_csv_drives_a_weights_session() {
-    let serve = Serve::start(&[]);
+    let serve = Serve::start(&["--no-udp"]);
     let dir = std::env::temp_dir().join(format!("mimic-send-weights-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let csv = dir.join("w.csv");
