@@ -394,7 +394,7 @@ mod tests {
     }
 
     #[test]
-    fn the_hidden_ict_range_is_its_see_through_eye_shells() {
+    fn the_hidden_ict_ranges_are_its_see_through_eye_parts() {
         let configs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
         let path = mimic_assets::ConfigDirs::locate(Some(&configs)).rig_path("ict-face");
         let mats = mimic_assets::load_rig_materials(&path).unwrap();
@@ -403,9 +403,16 @@ mod tests {
         let in_hidden = |v: &u32| hidden.iter().any(|(a, b)| (*a..=*b).contains(v));
         for (tri, m) in mesh.triangles.iter().zip(&mats.triangle_material) {
             let name = &mats.materials[m.unwrap()].name;
-            let shell =
-                ["M_LacrimalFluid", "M_EyeBlend", "M_EyeOcclusion"].contains(&name.as_str());
-            // Shell triangles lie wholly in the range; no other triangle touches it.
+            let shell = [
+                "M_ScleraLeft",
+                "M_ScleraRight",
+                "M_LacrimalFluid",
+                "M_EyeBlend",
+                "M_EyeOcclusion",
+                "M_EyeLashes",
+            ]
+            .contains(&name.as_str());
+            // Their triangles lie wholly in the ranges; no other triangle touches them.
             assert_eq!(tri.iter().all(in_hidden), shell, "{name} {tri:?}");
             assert_eq!(tri.iter().any(in_hidden), shell, "{name} {tri:?}");
         }
