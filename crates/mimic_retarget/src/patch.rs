@@ -17,6 +17,8 @@ pub(crate) struct MovingPatch {
     compact: Basis,
     /// Scratch for the compact product.
     u: Vec<Vec3>,
+    /// Rest position of each moving row, in `rows` order.
+    rest_rows: Vec<Vec3A>,
     /// Vertices the normal pass reads, by local index: first the moving rows (in `rows` order),
     /// then the other vertices whose normal can change (corners of triangles with a moving
     /// vertex), then the other corners of their triangles.
@@ -84,6 +86,10 @@ impl MovingPatch {
         let fans = VertexFans::new(normal_count, local_vertices.len(), &local_triangles);
         Self {
             u: vec![Vec3::ZERO; rows.len()],
+            rest_rows: rows
+                .iter()
+                .map(|&i| Vec3A::from(rest[i as usize]))
+                .collect(),
             rows,
             compact,
             local_positions: local_vertices
@@ -100,14 +106,18 @@ impl MovingPatch {
         self.rows.len()
     }
 
-    /// `positions[i] = rest[i] + (B d)_i` for every moving vertex; others are left as they are.
-    /// The new positions are also kept for [`MovingPatch::normals`].
-    pub(crate) fn deform(&mut self, d: &[Vec3], rest: &[Vec3], positions: &mut [Vec3]) {
+    /// `positions[i] = rest[i] + (B d)_i` for every moving vertex (`rest` as given to
+    /// [`MovingPatch::new`]); others are left as they are. The new positions are also kept for
+    /// [`MovingPatch::normals`].
+    pub(crate) fn deform(&mut self, d: &[Vec3], positions: &mut [Vec3]) {
         self.compact.apply(d, &mut self.u);
-        for ((&i, u), local) in self.rows.iter().zip(&self.u).zip(&mut self.local_positions) {
-            let p = rest[i as usize] + *u;
-            positions[i as usize] = p;
-            *local = Vec3A::from(p);
+        let moved = self.rows.iter().zip(&self.u).zip(&self.rest_rows);
+        for (((&i, u), rest), local) in moved.zip(&mut self.local_positions) {
+            let p = *rest + Vec3A::from(*u);
+            *local = p;
+            if let Some(out) = positions.get_mut(i as usize) {
+                *out = Vec3::from(p);
+            }
         }
     }
 
@@ -182,7 +192,7 @@ mod tests {
         let mut pos = mesh.positions.clone();
         let mut nrm = vec![Vec3::ZERO; n];
         mimic_solve::vertex_normals(&pos, &mesh.triangles, &mut nrm);
-        patch.deform(&d, &mesh.positions, &mut pos);
+        patch.deform(&d, &mut pos);
         patch.normals(&mut nrm);
         assert_eq!(pos, full);
         // Tolerance per vertex: both are f32 area-weighted sums of the same k cross products,
@@ -264,7 +274,7 @@ mod tests {
         let mut pos = positions.clone();
         let mut nrm = vec![Vec3::ZERO; g * g];
         mimic_solve::vertex_normals(&pos, &triangles, &mut nrm);
-        patch.deform(&d, &positions, &mut pos);
+        patch.deform(&d, &mut pos);
         patch.normals(&mut nrm);
         assert_eq!(pos, full);
         for (a, b) in nrm.iter().zip(&full_n) {

@@ -447,8 +447,7 @@ impl Retargeter {
             let t = Instant::now();
             return (t, t);
         }
-        self.patch
-            .deform(&out.displacements, &self.rest, &mut out.positions);
+        self.patch.deform(&out.displacements, &mut out.positions);
         let t4 = Instant::now();
         if self.settings.normals {
             self.patch.normals(&mut out.normals);
