@@ -156,6 +156,36 @@ fn vec4s(v: &[Vec3], w: f32) -> Vec<[f32; 4]> {
     v.iter().map(|p| [p.x, p.y, p.z, w]).collect()
 }
 
+/// Writes `v` into `buffer` from offset 0 as vec4s with `w` as the fourth component, without a
+/// heap allocation of ours (chunks go through a stack array into wgpu's staging view); an empty
+/// `v` writes one zero vec4 (the rest pose of a rig with no controls).
+fn write_vec4s(queue: &wgpu::Queue, buffer: &wgpu::Buffer, v: &[Vec3], w: f32) {
+    const CHUNK: usize = 256;
+    const VEC4: usize = std::mem::size_of::<[f32; 4]>();
+    let len = v.len().max(1);
+    let Some(size) = wgpu::BufferSize::new((len * VEC4) as u64) else {
+        return;
+    };
+    // None only when validation fails (reported through the device's error handler).
+    let Some(mut view) = queue.write_buffer_with(buffer, 0, size) else {
+        return;
+    };
+    if v.is_empty() {
+        view.slice(..)
+            .copy_from_slice(bytemuck::bytes_of(&[0f32; 4]));
+        return;
+    }
+    let mut chunk = [[0f32; 4]; CHUNK];
+    for (i, part) in v.chunks(CHUNK).enumerate() {
+        for (c, p) in chunk.iter_mut().zip(part) {
+            *c = [p.x, p.y, p.z, w];
+        }
+        let start = i * CHUNK * VEC4;
+        view.slice(start..start + part.len() * VEC4)
+            .copy_from_slice(bytemuck::cast_slice(&chunk[..part.len()]));
+    }
+}
+
 impl Renderer {
     /// Creates a device on the first adapter wgpu finds (a GPU, or Mesa's lavapipe) and a
     /// `width x height` target.
@@ -604,18 +634,10 @@ impl Renderer {
             }
             Deform::Positions { positions, normals } => {
                 check("positions vs vertices", positions.len(), n)?;
-                self.queue.write_buffer(
-                    &rig.positions,
-                    0,
-                    bytemuck::cast_slice(&vec4s(positions, 1.0)),
-                );
+                write_vec4s(&self.queue, &rig.positions, positions, 1.0);
                 if let Some(nrm) = normals {
                     check("normals vs vertices", nrm.len(), n)?;
-                    self.queue.write_buffer(
-                        &rig.normals,
-                        0,
-                        bytemuck::cast_slice(&vec4s(nrm, 0.0)),
-                    );
+                    write_vec4s(&self.queue, &rig.normals, nrm, 0.0);
                 }
                 (&[], false, normals.is_none())
             }
@@ -625,13 +647,15 @@ impl Renderer {
             .write_buffer(&rig.uniform, 0, bytemuck::bytes_of(&u));
         if morph {
             // Rest: zero displacements (the buffer may hold the last frame's).
-            let controls = if d.is_empty() {
-                vec![[0f32; 4]; rig.control_count().max(1)]
+            if d.is_empty() && rig.control_count() > 0 {
+                if let Some(size) = wgpu::BufferSize::new((rig.control_count() * 16) as u64)
+                    && let Some(mut view) = self.queue.write_buffer_with(&rig.controls, 0, size)
+                {
+                    view.slice(..).fill(0);
+                }
             } else {
-                vec4s(d, 0.0)
-            };
-            self.queue
-                .write_buffer(&rig.controls, 0, bytemuck::cast_slice(&controls));
+                write_vec4s(&self.queue, &rig.controls, d, 0.0);
+            }
         }
         let groups = rig.vertex_count.div_ceil(WORKGROUP);
         let mut pass = encoder.begin_compute_pass(&wgpu::ComputePassDescriptor {
