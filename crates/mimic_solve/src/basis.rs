@@ -135,17 +135,9 @@ impl Basis {
             apply_aos(&self.data, m, d, out);
             return;
         }
-        let mut dx = [0f32; STACK_CONTROLS];
-        let mut dy = [0f32; STACK_CONTROLS];
-        let mut dz = [0f32; STACK_CONTROLS];
-        for (j, v) in d.iter().enumerate() {
-            dx[j] = v.x;
-            dy[j] = v.y;
-            dz[j] = v.z;
-        }
+        let [dx, dy, dz] = split_axes(d);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
+        if avx2_fma() {
             // SAFETY: AVX2 and FMA are checked just above; `blocked` was built for n rows and m
             // columns, out.len() == n (asserted), and 0 < m <= STACK_CONTROLS here.
             unsafe { apply_blocked_avx2_fma(&self.blocked, &dx, &dy, &dz, out) };
@@ -169,17 +161,9 @@ impl Basis {
             self.apply(d, out);
             return;
         }
-        let mut dx = [0f32; STACK_CONTROLS];
-        let mut dy = [0f32; STACK_CONTROLS];
-        let mut dz = [0f32; STACK_CONTROLS];
-        for (j, v) in d.iter().enumerate() {
-            dx[j] = v.x;
-            dy[j] = v.y;
-            dz[j] = v.z;
-        }
+        let [dx, dy, dz] = split_axes(d);
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
+        if avx2_fma() {
             // SAFETY: AVX2 and FMA are checked just above; data.len() == n * m by construction,
             // 0 < m <= STACK_CONTROLS here, and the stack arrays are zero past m.
             unsafe { apply_avx2_fma(&self.data, m, &dx, &dy, &dz, out) };
@@ -187,6 +171,23 @@ impl Basis {
         }
         apply_soa::<false>(&self.data, m, &dx[..m], &dy[..m], &dz[..m], out);
     }
+}
+
+/// `d` split by axis into stack arrays, zero past `d.len()`; callers keep `d.len() <= STACK_CONTROLS`.
+fn split_axes(d: &[Vec3]) -> [[f32; STACK_CONTROLS]; 3] {
+    let mut axes = [[0f32; STACK_CONTROLS]; 3];
+    for (j, v) in d.iter().enumerate().take(STACK_CONTROLS) {
+        axes[0][j] = v.x;
+        axes[1][j] = v.y;
+        axes[2][j] = v.z;
+    }
+    axes
+}
+
+/// Whether this CPU runs the AVX2 + FMA kernels (runtime-detected, cached by std).
+#[cfg(target_arch = "x86_64")]
+pub(crate) fn avx2_fma() -> bool {
+    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
 }
 
 /// `u = B d` over the column-blocked copy: per block of 24 rows and per kept control `j`, `d_j`'s

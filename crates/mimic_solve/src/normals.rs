@@ -137,8 +137,7 @@ impl VertexFans {
             self.position_count
         );
         #[cfg(target_arch = "x86_64")]
-        if std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
-        {
+        if crate::basis::avx2_fma() {
             // SAFETY: AVX2 and FMA are checked just above; every centre and entry is below
             // position_count <= positions.len() (asserted), and each group's entries lie in
             // `entries` by construction.
