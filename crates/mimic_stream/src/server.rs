@@ -576,6 +576,48 @@ fn future_line(line_no: u64, t_us: i64, jump_us: u64, allowed_us: u64) -> String
     )
 }
 
+/// Sends frame `seq` to the viewers of session `r`: pose and `d` to those that asked for `d`, the
+/// full positions (filled by `fill` from `d`, only when some viewer wants them) to the others;
+/// then records the frame's arrival-to-broadcast latency.
+fn broadcast(
+    shared: &Shared,
+    r: &SessionRecord,
+    seq: u64,
+    out: &mimic_retarget::FrameOutput,
+    positions: &mut [Vec3],
+    fill: impl FnOnce(&[Vec3], &mut [Vec3]),
+    arrival: Instant,
+) {
+    let (want_d, want_positions) = {
+        let hubs = lock(&shared.hubs);
+        hubs.get(&r.name).map_or((false, false), |h| {
+            (
+                h.viewers.iter().any(|v| !v.positions),
+                h.viewers.iter().any(|v| v.positions),
+            )
+        })
+    };
+    let d_message = want_d.then(|| Arc::new(encode_frame(seq, out, None)));
+    let p_message = want_positions.then(|| {
+        fill(&out.displacements, positions);
+        Arc::new(encode_frame(seq, out, Some(positions)))
+    });
+    {
+        let hubs = lock(&shared.hubs);
+        if let Some(h) = hubs.get(&r.name) {
+            for v in &h.viewers {
+                let m = if v.positions { &p_message } else { &d_message };
+                if let Some(m) = m {
+                    v.queue.push_frame(m.clone());
+                }
+            }
+        }
+    }
+    let us = u64::try_from(arrival.elapsed().as_micros()).unwrap_or(u64::MAX);
+    tracing::trace!(session = %r.name, seq, us, "broadcast");
+    lock(&r.latency).record(us);
+}
+
 impl Pipeline {
     /// Retargets one frame and broadcasts it; late frames and frames from the future are
     /// dropped and counted.
@@ -605,38 +647,16 @@ impl Pipeline {
         if udp {
             r.udp_frames.bump();
         }
-        let (want_d, want_positions) = {
-            let hubs = lock(&self.shared.hubs);
-            hubs.get(&r.name).map_or((false, false), |h| {
-                (
-                    h.viewers.iter().any(|v| !v.positions),
-                    h.viewers.iter().any(|v| v.positions),
-                )
-            })
-        };
-        let d_message = want_d.then(|| Arc::new(encode_frame(seq, &self.out, None)));
-        let p_message = want_positions.then(|| {
-            self.rig.deform(
-                &self.out.displacements,
-                &mut self.scratch,
-                &mut self.positions,
-            );
-            Arc::new(encode_frame(seq, &self.out, Some(&self.positions)))
-        });
-        {
-            let hubs = lock(&self.shared.hubs);
-            if let Some(h) = hubs.get(&r.name) {
-                for v in &h.viewers {
-                    let m = if v.positions { &p_message } else { &d_message };
-                    if let Some(m) = m {
-                        v.queue.push_frame(m.clone());
-                    }
-                }
-            }
-        }
-        let us = u64::try_from(arrival.elapsed().as_micros()).unwrap_or(u64::MAX);
-        tracing::trace!(session = %r.name, seq, us, "broadcast");
-        lock(&r.latency).record(us);
+        let (rig, scratch) = (&self.rig, &mut self.scratch);
+        broadcast(
+            &self.shared,
+            r,
+            seq,
+            &self.out,
+            &mut self.positions,
+            |d, positions| rig.deform(d, scratch, positions),
+            arrival,
+        );
         Outcome::Accepted
     }
 

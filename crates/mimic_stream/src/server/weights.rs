@@ -3,13 +3,14 @@
 //! morph targets and reach viewers as the morph basis's control values (`d[3k + a] = w_k e_a`),
 //! or as positions `P0 + sum_k w_k dP_k`.
 
-use super::{Hub, SessionRecord, Shared, check_time, future_line, go_live, lock, refuse, reply};
+use super::{
+    SessionRecord, Shared, broadcast, check_time, future_line, go_live, lock, refuse, reply,
+};
 use crate::catalog::RigEntry;
 use crate::lines::{Line, LineReader};
 use crate::timing::{FrameClock, TimeProblem};
 use crate::wire::{
-    ErrorCode, KIND_END, KIND_SESSION, encode_frame, encode_json, error_line, parse_weight_frame,
-    warning_line,
+    ErrorCode, KIND_END, KIND_SESSION, encode_json, error_line, parse_weight_frame, warning_line,
 };
 use glam::{Quat, Vec3};
 use mimic_retarget::{FrameOutput, FrameStatus};
@@ -102,37 +103,17 @@ impl WeightsPipeline {
         r.tracked.bump();
         let seq = r.frames.get();
         r.frames.bump();
-        let (want_d, want_positions) = {
-            let hubs = lock(&self.shared.hubs);
-            hubs.get(&r.name).map_or((false, false), |h: &Hub| {
-                (
-                    h.viewers.iter().any(|v| !v.positions),
-                    h.viewers.iter().any(|v| v.positions),
-                )
-            })
-        };
-        let d_message = want_d.then(|| Arc::new(encode_frame(seq, &self.out, None)));
-        let p_message = want_positions.then(|| {
-            morph.blend(
-                &self.rig.rig.mesh.positions,
-                &self.weights,
-                &mut self.positions,
-            );
-            Arc::new(encode_frame(seq, &self.out, Some(&self.positions)))
-        });
-        {
-            let hubs = lock(&self.shared.hubs);
-            if let Some(h) = hubs.get(&r.name) {
-                for v in &h.viewers {
-                    let m = if v.positions { &p_message } else { &d_message };
-                    if let Some(m) = m {
-                        v.queue.push_frame(m.clone());
-                    }
-                }
-            }
-        }
-        let us = u64::try_from(arrival.elapsed().as_micros()).unwrap_or(u64::MAX);
-        lock(&r.latency).record(us);
+        let rest = &self.rig.rig.mesh.positions;
+        let weights = &self.weights;
+        broadcast(
+            &self.shared,
+            &r,
+            seq,
+            &self.out,
+            &mut self.positions,
+            |_, positions| morph.blend(rest, weights, positions),
+            arrival,
+        );
         warnings
     }
 }
