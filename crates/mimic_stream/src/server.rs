@@ -731,6 +731,51 @@ fn reply(tx: &mpsc::Sender<String>, record: &SessionRecord, line: String) {
     }
 }
 
+/// Counts and answers a tracker that sent nothing for `settings.idle_timeout`.
+fn reply_idle_timeout(
+    tx: &mpsc::Sender<String>,
+    record: &SessionRecord,
+    settings: &ServerSettings,
+    line_no: u64,
+) {
+    record.malformed.bump();
+    let message = format!(
+        "nothing received for {} s",
+        settings.idle_timeout.as_secs_f64()
+    );
+    reply(
+        tx,
+        record,
+        error_line(ErrorCode::IdleTimeout, line_no, &message),
+    );
+}
+
+/// Counts and answers malformed line `line_no`; true when it makes `max_errors_in_a_row` in a
+/// row (the closing error is sent too) and the session must end.
+fn reply_malformed(
+    tx: &mpsc::Sender<String>,
+    record: &SessionRecord,
+    settings: &ServerSettings,
+    errors_in_a_row: &mut u32,
+    line_no: u64,
+    code: ErrorCode,
+    message: &str,
+) -> bool {
+    record.malformed.bump();
+    *errors_in_a_row += 1;
+    reply(tx, record, error_line(code, line_no, message));
+    if *errors_in_a_row < settings.max_errors_in_a_row {
+        return false;
+    }
+    let closing = format!("{errors_in_a_row} malformed messages in a row; closing");
+    reply(
+        tx,
+        record,
+        error_line(ErrorCode::TooManyErrors, line_no, &closing),
+    );
+    true
+}
+
 /// Makes `record` the live tracker of session `name`: viewers already waiting get the session and
 /// rig messages, and the session joins the stats list, which keeps every live session and at most
 /// `ended_sessions_kept` ended ones. Returns false, changing nothing, when the session already has
@@ -970,9 +1015,7 @@ async fn tracker(
                     p50_us = s.latency.p50_us, p99_us = s.latency.p99_us, "session counters");
             }
             _ = sleep_until(last_activity + settings.idle_timeout) => {
-                record.malformed.bump();
-                reply(&reply_tx, &record, error_line(ErrorCode::IdleTimeout, line_no,
-                    &format!("nothing received for {} s", settings.idle_timeout.as_secs_f64())));
+                reply_idle_timeout(&reply_tx, &record, settings, line_no);
                 break "idle_timeout".into();
             }
             read = lines.next_line() => {
@@ -1007,13 +1050,8 @@ async fn tracker(
                     }
                 };
                 if let Some(problem) = problem {
-                    record.malformed.bump();
-                    errors_in_a_row += 1;
                     let code = ErrorCode::of_problem(&problem);
-                    reply(&reply_tx, &record, error_line(code, line_no, &problem.to_string()));
-                    if errors_in_a_row >= settings.max_errors_in_a_row {
-                        reply(&reply_tx, &record, error_line(ErrorCode::TooManyErrors, line_no,
-                            &format!("{errors_in_a_row} malformed messages in a row; closing")));
+                    if reply_malformed(&reply_tx, &record, settings, &mut errors_in_a_row, line_no, code, &problem.to_string()) {
                         break "too_many_errors".into();
                     }
                 }

@@ -5,6 +5,7 @@
 
 use super::{
     SessionRecord, Shared, broadcast, check_time, future_line, go_live, lock, refuse, reply,
+    reply_idle_timeout, reply_malformed,
 };
 use crate::catalog::RigEntry;
 use crate::lines::{Line, LineReader};
@@ -240,9 +241,7 @@ pub(super) async fn session(
             biased;
             _ = stop.changed() => break "shutdown".into(),
             _ = sleep_until(last_activity + settings.idle_timeout) => {
-                record.malformed.bump();
-                reply(&reply_tx, &record, error_line(ErrorCode::IdleTimeout, line_no,
-                    &format!("nothing received for {} s", settings.idle_timeout.as_secs_f64())));
+                reply_idle_timeout(&reply_tx, &record, settings, line_no);
                 break "idle_timeout".into();
             }
             read = lines.next_line() => {
@@ -278,15 +277,10 @@ pub(super) async fn session(
                         }
                     }
                 };
-                if let Some((code, message)) = problem {
-                    record.malformed.bump();
-                    errors_in_a_row += 1;
-                    reply(&reply_tx, &record, error_line(code, line_no, &message));
-                    if errors_in_a_row >= settings.max_errors_in_a_row {
-                        reply(&reply_tx, &record, error_line(ErrorCode::TooManyErrors, line_no,
-                            &format!("{errors_in_a_row} malformed messages in a row; closing")));
-                        break "too_many_errors".into();
-                    }
+                if let Some((code, message)) = problem
+                    && reply_malformed(&reply_tx, &record, settings, &mut errors_in_a_row, line_no, code, &message)
+                {
+                    break "too_many_errors".into();
                 }
             }
         }
