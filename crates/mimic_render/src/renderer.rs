@@ -259,11 +259,23 @@ impl Renderer {
 
         let compute_src = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("compute.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("shaders/compute.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl(
+                concat!(
+                    include_str!("shaders/frame.wgsl"),
+                    include_str!("shaders/compute.wgsl")
+                )
+                .into(),
+            ),
         });
         let render_src = device.create_shader_module(wgpu::ShaderModuleDescriptor {
             label: Some("render.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("shaders/render.wgsl").into()),
+            source: wgpu::ShaderSource::Wgsl(
+                concat!(
+                    include_str!("shaders/frame.wgsl"),
+                    include_str!("shaders/render.wgsl")
+                )
+                .into(),
+            ),
         });
         let compute = |entry: &str| {
             device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {

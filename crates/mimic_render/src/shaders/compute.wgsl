@@ -1,17 +1,6 @@
 // Per-frame compute passes: the morph P = P0 + sum_j B[i, j] d_j, then area-weighted vertex normals.
+// `Frame` and its uniform at binding 0 are declared in frame.wgsl, which is prepended.
 
-struct Frame {
-    view_proj: mat4x4<f32>,
-    model: mat4x4<f32>,
-    // xyz: direction towards the light (world), w: ambient term.
-    light: vec4<f32>,
-    // x: heat-map full-scale displacement (target units).
-    params: vec4<f32>,
-    // x: shading mode, y: control for the weight heat map, z: vertex count, w: control count.
-    modes: vec4<u32>,
-}
-
-@group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> rest: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> basis: array<f32>;
 @group(0) @binding(3) var<storage, read_write> morphed: array<vec4<f32>>;

@@ -1,15 +1,7 @@
 // Draws the morphed rig: fetches vertex i of the morphed positions and normals by index, applies the
 // head pose and the camera, and shades with diffuse + ambient light or a heat map.
+// `Frame` and its uniform at binding 0 are declared in frame.wgsl, which is prepended.
 
-struct Frame {
-    view_proj: mat4x4<f32>,
-    model: mat4x4<f32>,
-    light: vec4<f32>,
-    params: vec4<f32>,
-    modes: vec4<u32>,
-}
-
-@group(0) @binding(0) var<uniform> frame: Frame;
 @group(0) @binding(1) var<storage, read> rest: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> basis: array<f32>;
 @group(0) @binding(3) var<storage, read> positions: array<vec4<f32>>;
