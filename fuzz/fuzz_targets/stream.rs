@@ -1,11 +1,11 @@
-//! Fuzzes the live service's decoders: the first line of a TCP connection (`parse_hello`), a
-//! weight frame line (`parse_weight_frame`), a UDP frame packet (`decode_udp_frame`) and a viewer
-//! message (`decode_viewer_message`, kind byte first). A decoded UDP frame must survive its own
-//! encoder unchanged.
+//! Fuzzes the live service's decoders in `mimic_wire`: the first line of a TCP connection
+//! (`parse_hello`), a weight frame line (`parse_weight_frame`), a UDP frame packet
+//! (`decode_udp_frame`) and a viewer message (`decode_viewer_message`, kind byte first). A decoded
+//! UDP frame must survive its own encoder unchanged.
 #![no_main]
 
 use libfuzzer_sys::fuzz_target;
-use mimic_stream::wire::{
+use mimic_wire::{
     decode_udp_frame, decode_viewer_message, encode_udp_frame, parse_hello, parse_weight_frame,
 };
 

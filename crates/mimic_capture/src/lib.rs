@@ -3,12 +3,14 @@
 //! Entry points: [`RecordingReader`] / [`RecordingWriter`] / [`summarize`] (the JSON Lines
 //! format of `docs/recording-format.md`), [`gfe::import_gfe`] and [`openface::import_openface`]
 //! (importers), [`Replay`] (frames at their recorded pace on `tokio::time`).
-//! Depends on mimic_types, glam, serde and tokio's timer only: no networking, no rendering.
+//! Depends on mimic_types, glam, serde and tokio's timer only (for [`Replay`], the default
+//! `replay` feature): no networking, no rendering.
 
 pub mod gfe;
 mod imported;
 pub mod openface;
 pub mod recording;
+#[cfg(feature = "replay")]
 pub mod replay;
 
 pub use imported::Imported;
@@ -17,6 +19,7 @@ pub use recording::{
     RecordingReader, RecordingSummary, RecordingWriter, RejectCounts, WriteError, parse_frame_line,
     summarize, summarize_lenient,
 };
+#[cfg(feature = "replay")]
 pub use replay::{
     FileSource, FrameSource, MemorySource, Pace, Replay, ReplayError, ReplayFrame, ReplayOptions,
     ReplayStart,

@@ -6,6 +6,7 @@
 
 use glam::{Vec3, Vec3A};
 use mimic_solve::Basis;
+use mimic_solve::basis::MovingRows;
 use mimic_solve::normals::VertexFans;
 
 /// Moving rows of a basis and the neighbourhood whose normals follow them.
@@ -35,17 +36,10 @@ impl MovingPatch {
     /// positions of every vertex of the mesh (`basis.vertex_count()` of them).
     pub(crate) fn new(basis: &Basis, triangles: &[[u32; 3]], rest: &[Vec3]) -> Self {
         let n = basis.vertex_count().min(rest.len());
-        let m = basis.control_count();
-        let rows: Vec<u32> = (0..n)
-            .filter(|&i| basis.row(i).iter().any(|w| *w != 0.0))
-            .map(|i| i as u32)
-            .collect();
-        let mut data = Vec::with_capacity(rows.len() * m);
-        for &i in &rows {
-            data.extend_from_slice(basis.row(i as usize));
-        }
-        let compact = Basis::from_row_major(rows.len(), m, data)
-            .unwrap_or_else(|| unreachable!("rows.len() * m values were copied"));
+        let MovingRows {
+            rows,
+            basis: compact,
+        } = basis.moving_rows(n);
         let mut moving = vec![false; n];
         rows.iter().for_each(|&i| moving[i as usize] = true);
         let mut in_normal_set = vec![false; n];

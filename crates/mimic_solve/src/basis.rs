@@ -29,6 +29,16 @@ pub struct Basis {
     blocked: Blocked,
 }
 
+/// The rows of a basis that are not all zero ([`Basis::moving_rows`]): on a head rig the face, the
+/// only vertices a frame can move (the back of the head, teeth and eyeballs are frozen).
+#[derive(Clone, Debug, PartialEq)]
+pub struct MovingRows {
+    /// Vertex index of each moving row, ascending.
+    pub rows: Vec<u32>,
+    /// `B` restricted to `rows`: its row `k` is row `rows[k]` of `B`.
+    pub basis: Basis,
+}
+
 /// `B` in blocks of [`BLOCK`] rows, keeping only the columns that are non-zero in the block.
 #[derive(Clone, Debug, PartialEq)]
 struct Blocked {
@@ -105,6 +115,23 @@ impl Basis {
     /// The whole matrix, row-major (`n * m` values), e.g. for upload to the GPU.
     pub fn as_slice(&self) -> &[f32] {
         &self.data
+    }
+
+    /// The rows among the first `limit` that are not all zero (the vertices a frame can move),
+    /// and `B` restricted to them.
+    pub fn moving_rows(&self, limit: usize) -> MovingRows {
+        let (n, m) = (self.vertex_count.min(limit), self.control_count);
+        let rows: Vec<u32> = (0..n)
+            .filter(|&i| self.row(i).iter().any(|w| *w != 0.0))
+            .map(|i| i as u32)
+            .collect();
+        let mut data = Vec::with_capacity(rows.len() * m);
+        for &i in &rows {
+            data.extend_from_slice(self.row(i as usize));
+        }
+        let basis = Self::from_row_major(rows.len(), m, data)
+            .unwrap_or_else(|| unreachable!("rows.len() * m values were copied"));
+        MovingRows { rows, basis }
     }
 
     /// Displacements `out[i] = sum_j B[i, j] * d[j]`; allocates nothing.
@@ -505,6 +532,26 @@ mod tests {
             .wrapping_mul(6364136223846793005)
             .wrapping_add(1442695040888963407);
         ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
+    }
+
+    #[test]
+    fn moving_rows_keep_the_non_zero_rows_in_order() {
+        // Rows 0 and 3 are zero, row 2 has one non-zero weight.
+        let data = vec![0.0, 0.0, 0.5, -1.0, 0.0, 0.25, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0];
+        let b = Basis::from_row_major(4, 3, data).unwrap();
+        let moving = b.moving_rows(usize::MAX);
+        assert_eq!(moving.rows, vec![1, 2]);
+        assert_eq!(moving.basis.vertex_count(), 2);
+        assert_eq!(moving.basis.row(0), b.row(1));
+        assert_eq!(moving.basis.row(1), b.row(2));
+        // The limit cuts the rows looked at.
+        assert_eq!(b.moving_rows(2).rows, vec![1]);
+        // The compact product is the full product at the moving rows.
+        let d = [Vec3::new(1.0, 2.0, 3.0), Vec3::splat(-0.5), Vec3::X];
+        let (mut full, mut compact) = (vec![Vec3::ZERO; 4], vec![Vec3::ZERO; 2]);
+        b.apply(&d, &mut full);
+        moving.basis.apply(&d, &mut compact);
+        assert_eq!(compact, vec![full[1], full[2]]);
     }
 
     #[test]

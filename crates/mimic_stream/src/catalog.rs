@@ -1,11 +1,12 @@
 //! The rigs and layouts a server offers; each rig's basis is built once and shared by its sessions.
 
 use crate::queue::Message;
-use crate::wire::{encode_morph_rig, encode_rig};
 use glam::Vec3;
 use mimic_retarget::WeightMap;
 use mimic_solve::Basis;
+use mimic_solve::basis::MovingRows;
 use mimic_types::{Layout, MorphTarget, Rig};
+use mimic_wire::{encode_morph_rig, encode_rig};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
@@ -93,10 +94,8 @@ pub struct RigEntry {
     pub rig: Rig,
     /// `B` (n x m), shared by every session on this rig.
     pub basis: Arc<Basis>,
-    /// Vertices with a non-zero row of `B`.
-    moving: Vec<u32>,
-    /// `B` restricted to `moving`.
-    moving_basis: Basis,
+    /// Vertices with a non-zero row of `B`, and `B` restricted to them.
+    moving: MovingRows,
     /// The rig message viewers get once.
     pub message: Message,
     /// Morph targets, when the rig has `[[morph_targets]]` (weights sessions need them).
@@ -116,22 +115,12 @@ impl RigEntry {
                 controls: m,
             });
         }
-        let moving: Vec<u32> = (0..n)
-            .filter(|&i| basis.row(i).iter().any(|w| *w != 0.0))
-            .map(|i| i as u32)
-            .collect();
-        let mut data = Vec::with_capacity(moving.len() * m);
-        for &i in &moving {
-            data.extend_from_slice(basis.row(i as usize));
-        }
-        let moving_basis = Basis::from_row_major(moving.len(), m, data)
-            .unwrap_or_else(|| unreachable!("moving.len() * m values were copied"));
+        let moving = basis.moving_rows(n);
         let message = Arc::new(encode_rig(&rig, &basis));
         Ok(Self {
             rig,
             basis: Arc::new(basis),
             moving,
-            moving_basis,
             message,
             morph: None,
         })
@@ -179,9 +168,9 @@ impl RigEntry {
     /// `positions = rest + B d`, over the moving rows only (`positions` starts as the rest mesh
     /// and frozen vertices are never written).
     pub fn deform(&self, d: &[Vec3], scratch: &mut Vec<Vec3>, positions: &mut [Vec3]) {
-        scratch.resize(self.moving.len(), Vec3::ZERO);
-        self.moving_basis.apply(d, scratch);
-        for (&v, u) in self.moving.iter().zip(scratch.iter()) {
+        scratch.resize(self.moving.rows.len(), Vec3::ZERO);
+        self.moving.basis.apply(d, scratch);
+        for (&v, u) in self.moving.rows.iter().zip(scratch.iter()) {
             let v = v as usize;
             if let (Some(p), Some(r)) = (positions.get_mut(v), self.rig.mesh.positions.get(v)) {
                 *p = *r + *u;

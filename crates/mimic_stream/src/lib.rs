@@ -13,8 +13,9 @@
 //! idle time, reply and UDP queues, and viewer queues, which drop their oldest frame (counted per
 //! viewer) so a slow viewer never slows a session. With a record folder, every accepted frame of
 //! a landmark session is also written, flushed per frame, to that session's v1 recording. Wire
-//! encoding lives in [`wire`].
-//! Depends on mimic_types, mimic_solve, mimic_retarget, mimic_capture and tokio; no renderer.
+//! encoding lives in the `mimic_wire` crate (re-exported as [`wire`]).
+//! Depends on mimic_types, mimic_solve, mimic_retarget, mimic_capture, mimic_wire and tokio; no
+//! renderer.
 
 mod catalog;
 mod lines;
@@ -24,7 +25,9 @@ mod server;
 mod settings;
 mod stats;
 mod timing;
-pub mod wire;
+
+/// The wire protocol (`docs/protocol.md`), from the `mimic_wire` crate.
+pub use mimic_wire as wire;
 
 pub use catalog::{Catalog, CatalogError, MorphSet, RigEntry};
 pub use server::{HELLO_MAX_BYTES, Server};

@@ -1,12 +1,12 @@
 //! `mimic view --connect`: a viewer of a live `mimic serve` session on a background thread.
 //!
 //! The thread sends the viewer hello, reads length-prefixed messages (`docs/protocol.md`,
-//! decoded by `mimic_stream::wire`), passes SESSION, RIG, END and ERROR through an unbounded
+//! decoded by `mimic_wire`), passes SESSION, RIG, END and ERROR through an unbounded
 //! channel (rare, never dropped) and frames through a [`Latest`] queue (newest wins), each
 //! stamped with its arrival time.
 
 use crate::latest::Latest;
-use mimic_stream::wire::{FrameMessage, RigMessage, ViewerMessage, decode_viewer_message};
+use mimic_wire::{FrameMessage, RigMessage, ViewerMessage, decode_viewer_message};
 use std::io::{BufReader, Read, Write};
 use std::net::TcpStream;
 use std::sync::Arc;
@@ -115,7 +115,7 @@ pub fn read_messages<R: Read>(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use mimic_stream::wire::{KIND_END, KIND_SESSION, encode_json};
+    use mimic_wire::{KIND_END, KIND_SESSION, encode_json};
 
     #[test]
     fn messages_are_sorted_into_events_and_frames() {

@@ -1,0 +1,173 @@
+//! Admission: why a connection is refused ([`Refusal`]), how it is told, and how an admitted
+//! tracker becomes a live session (session limit, id, name, hub).
+
+use super::session::{Protocol, Session};
+use super::state::{SessionRecord, Shared};
+use crate::catalog::RigEntry;
+use crate::queue::Message;
+use mimic_wire::{ErrorCode, HelloError, KIND_SESSION, encode_json, error_line};
+use serde_json::{Value, json};
+use std::sync::Arc;
+use std::sync::atomic::Ordering;
+use tokio::io::{AsyncWrite, AsyncWriteExt};
+use tokio::time::timeout;
+
+/// Why a connection is refused before its session (or viewer) starts; the text is the reply's
+/// `message`.
+#[derive(Debug, thiserror::Error)]
+pub(crate) enum Refusal {
+    /// Nothing arrived for the idle timeout before the hello.
+    #[error("no hello")]
+    NoHello,
+    /// The hello is longer than the hello limit.
+    #[error("hello longer than {limit} bytes")]
+    HelloTooLong {
+        /// The hello limit (bytes).
+        limit: usize,
+    },
+    /// The first line is no hello.
+    #[error("{0}")]
+    BadHello(HelloError),
+    /// The header names a layout the server does not have.
+    #[error("no layout `{layout}`")]
+    UnknownLayout {
+        /// The layout asked for.
+        layout: String,
+    },
+    /// The hello names a rig the server does not have.
+    #[error("no rig `{rig}`; this server has {have:?}")]
+    UnknownRig {
+        /// The rig asked for (empty for the default).
+        rig: String,
+        /// The rigs the server has.
+        have: Vec<String>,
+    },
+    /// The header's point count is not the layout's.
+    #[error("header says {header} points, layout `{layout}` has {points}")]
+    PointCount {
+        /// Points the header says.
+        header: usize,
+        /// The layout.
+        layout: String,
+        /// Points the layout has.
+        points: usize,
+    },
+    /// The rig cannot be driven by the layout (the retargeter refused).
+    #[error("{0}")]
+    LayoutUnusable(String),
+    /// A weights session names a rig without morph targets.
+    #[error("rig `{rig}` has no [[morph_targets]]: a weights session needs a blendshape rig")]
+    NoMorphTargets {
+        /// The rig.
+        rig: String,
+    },
+    /// The session limit is reached.
+    #[error("at most {max} sessions")]
+    TooManySessions {
+        /// The limit.
+        max: usize,
+    },
+    /// The viewer limit is reached.
+    #[error("at most {max} viewers")]
+    TooManyViewers {
+        /// The limit.
+        max: usize,
+    },
+    /// The session already has a tracker.
+    #[error("session `{session}` already has a tracker")]
+    SessionBusy {
+        /// The session name.
+        session: String,
+    },
+}
+
+impl Refusal {
+    /// The error code on the wire.
+    pub(crate) fn code(&self) -> ErrorCode {
+        match self {
+            Refusal::NoHello => ErrorCode::IdleTimeout,
+            Refusal::HelloTooLong { .. } => ErrorCode::TooLong,
+            Refusal::BadHello(_) => ErrorCode::BadHello,
+            Refusal::UnknownLayout { .. }
+            | Refusal::PointCount { .. }
+            | Refusal::LayoutUnusable(_) => ErrorCode::UnknownLayout,
+            Refusal::UnknownRig { .. } => ErrorCode::UnknownRig,
+            Refusal::NoMorphTargets { .. } => ErrorCode::NoMorphTargets,
+            Refusal::TooManySessions { .. } => ErrorCode::TooManySessions,
+            Refusal::TooManyViewers { .. } => ErrorCode::TooManyViewers,
+            Refusal::SessionBusy { .. } => ErrorCode::SessionBusy,
+        }
+    }
+
+    /// The refusal as a viewer's ERROR message JSON: `{"code","message"}`.
+    pub(crate) fn json(&self) -> Value {
+        json!({"code": self.code().name(), "message": self.to_string()})
+    }
+}
+
+/// Writes `bytes` and shuts the write side; errors writing are the peer's problem.
+pub(crate) async fn write_and_close<W: AsyncWrite + Unpin>(w: &mut W, bytes: &[u8]) {
+    let _ = timeout(std::time::Duration::from_secs(2), async {
+        let _ = w.write_all(bytes).await;
+        let _ = w.shutdown().await;
+    })
+    .await;
+}
+
+/// Counts a refused line connection and answers it with the refusal's error line (line 1).
+pub(crate) async fn refuse<W: AsyncWrite + Unpin>(shared: &Shared, w: &mut W, refusal: Refusal) {
+    shared.refused.bump();
+    let line = error_line(refusal.code(), 1, &refusal.to_string());
+    write_and_close(w, line.as_bytes()).await;
+}
+
+/// What a protocol's own checks of a hello admitted.
+#[derive(Debug)]
+pub(crate) struct Admission<A> {
+    /// The session name the hello asked for (default: `s<id>`).
+    pub(crate) session: Option<String>,
+    /// The rig the session drives.
+    pub(crate) rig: Arc<RigEntry>,
+    /// What the stats call the session's layout.
+    pub(crate) layout: String,
+    /// The RIG message its viewers get.
+    pub(crate) rig_message: Message,
+    /// What the protocol keeps for [`Protocol::start`].
+    pub(crate) admitted: A,
+}
+
+/// Admits a tracker: the protocol's checks, then the session limit, an id and a name, and the
+/// session's hub (refused when the name already has a tracker). The session's replies go to
+/// `replies`.
+pub(crate) fn open<P: Protocol>(
+    shared: &Arc<Shared>,
+    hello: P::Hello,
+    replies: tokio::sync::mpsc::Sender<String>,
+) -> Result<(Session, P::Admitted), Refusal> {
+    let a = P::admit(shared, hello)?;
+    let settings = &shared.settings;
+    if shared.sessions_active.fetch_add(1, Ordering::AcqRel) >= settings.max_sessions {
+        shared.sessions_active.fetch_sub(1, Ordering::AcqRel);
+        return Err(Refusal::TooManySessions {
+            max: settings.max_sessions,
+        });
+    }
+    let id = shared.next_session.fetch_add(1, Ordering::Relaxed);
+    let name = a.session.unwrap_or_else(|| format!("s{id}"));
+    let record = Arc::new(SessionRecord::new(id, &name, a.rig.name(), &a.layout));
+    let description = P::describe(&a.admitted, &a.rig, &name, id);
+    let session_message = Arc::new(encode_json(KIND_SESSION, &description));
+    if !shared.go_live(&name, &record, session_message, &a.rig_message) {
+        shared.sessions_active.fetch_sub(1, Ordering::AcqRel);
+        return Err(Refusal::SessionBusy { session: name });
+    }
+    let session = Session {
+        shared: shared.clone(),
+        record,
+        id,
+        name,
+        rig: a.rig,
+        replies,
+    };
+    Ok((session, a.admitted))
+}

@@ -1,0 +1,368 @@
+//! Landmark sessions: a tracker whose hello is a recording header and whose lines are recording
+//! frame lines (and, after the welcome, UDP frame packets). Every accepted frame is retargeted,
+//! broadcast and, when the server records, written to the session's recording.
+
+use super::admission::{Admission, Refusal};
+use super::session::{LineOutcome, Protocol, Session, future_line, is_blank};
+use super::state::{Shared, lock};
+use super::udp::Route;
+use crate::catalog::RigEntry;
+use crate::record::{RecordCounters, Recorder, SessionLabel};
+use crate::settings::ServerSettings;
+use crate::stats::SessionSnapshot;
+use crate::timing::{FrameClock, TimeProblem};
+use glam::Vec3;
+use mimic_capture::{FrameProblem, RecordedFrame, RecordingHeader, parse_frame_line};
+use mimic_retarget::{FrameOutput, FrameStatus, RetargetSettings, Retargeter};
+use mimic_types::LandmarkFrame;
+use serde_json::{Map, Value, json};
+use std::hash::{BuildHasher, Hasher};
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Instant;
+use tokio::sync::mpsc;
+
+/// What a tracker's first line asked for, and who it is.
+#[derive(Debug)]
+pub(crate) struct LandmarkHello {
+    /// The recording header.
+    pub(crate) header: Box<RecordingHeader>,
+    /// Session name asked for.
+    pub(crate) session: Option<String>,
+    /// Rig asked for.
+    pub(crate) rig: Option<String>,
+    /// The tracker's address (named in the recording).
+    pub(crate) peer: Option<SocketAddr>,
+}
+
+/// What admission found: the header, the layout and a retargeter for the rig.
+#[derive(Debug)]
+pub(crate) struct Admitted {
+    header: Box<RecordingHeader>,
+    peer: Option<SocketAddr>,
+    layout: String,
+    point_count: usize,
+    retargeter: Retargeter,
+}
+
+/// What became of a frame handed to a session.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+enum Outcome {
+    /// Retargeted and broadcast (counted in `frames`).
+    Accepted,
+    /// Dropped for its timestamp (counted in `late` or `future`).
+    Refused(TimeProblem),
+    /// Wrong point count or refused by the pipeline (counted in `malformed`).
+    Malformed,
+}
+
+/// A session's recording: off, on, or asked for but not started (its frames count as lost).
+#[derive(Debug)]
+enum Recording {
+    Off,
+    On(Recorder),
+    Failed(Arc<RecordCounters>),
+}
+
+impl Recording {
+    /// Starts a session's recording when the server records; a failure is logged, and the
+    /// session's accepted frames are then counted as `record_lost`.
+    async fn start(s: &Session, header: &RecordingHeader, peer: Option<SocketAddr>) -> Self {
+        let settings = s.settings();
+        let Some(dir) = settings.record_dir.as_ref() else {
+            return Recording::Off;
+        };
+        let who = SessionLabel {
+            name: &s.name,
+            id: s.id,
+            rig: s.rig.name(),
+            peer,
+        };
+        let started = Recorder::start(
+            dir,
+            header,
+            &who,
+            settings.record_queue_frames,
+            s.record.record.clone(),
+            s.shared.recordings_open.clone(),
+        )
+        .await;
+        match started {
+            Ok(r) => {
+                *lock(&s.record.recording) = Some(r.path().display().to_string());
+                tracing::info!(session = %s.name, path = %r.path().display(), "recording");
+                Recording::On(r)
+            }
+            Err(e) => {
+                tracing::error!(session = %s.name, "not recorded; its accepted frames count as record_lost: {e}");
+                Recording::Failed(s.record.record.clone())
+            }
+        }
+    }
+
+    /// Hands an accepted frame to the recording, if the server records.
+    async fn frame(&self, outcome: Outcome, f: RecordedFrame) {
+        if outcome != Outcome::Accepted {
+            return;
+        }
+        match self {
+            Recording::Off => {}
+            Recording::On(r) => r.record(f).await,
+            Recording::Failed(c) => c.lost.bump(),
+        }
+    }
+}
+
+/// A landmark session's frame path.
+#[derive(Debug)]
+pub(crate) struct Landmark {
+    retargeter: Retargeter,
+    out: FrameOutput,
+    positions: Vec<Vec3>,
+    scratch: Vec<Vec3>,
+    clock: FrameClock,
+    layout: String,
+    point_count: usize,
+    multi_thread: bool,
+    recording: Recording,
+    udp: mpsc::Receiver<(Instant, LandmarkFrame)>,
+}
+
+impl Landmark {
+    /// Retargets one frame and broadcasts it; late frames and frames from the future are
+    /// dropped and counted.
+    fn accept(
+        &mut self,
+        s: &Session,
+        frame: &LandmarkFrame,
+        arrival: Instant,
+        udp: bool,
+    ) -> Outcome {
+        if let Err(p) = s.check_time(&mut self.clock, frame.timestamp_us, arrival) {
+            return Outcome::Refused(p);
+        }
+        let status = if self.retargeter.source_to_target().is_none() && self.multi_thread {
+            // Finishing the neutral fits the source-to-target map (a consensus search of up to
+            // tens of milliseconds): let the runtime move other sessions off this worker meanwhile.
+            tokio::task::block_in_place(|| self.retargeter.step(frame, &mut self.out))
+        } else {
+            self.retargeter.step(frame, &mut self.out)
+        };
+        let r = &s.record;
+        match status {
+            FrameStatus::Tracked => r.tracked.bump(),
+            FrameStatus::Calibrating => r.calibrating.bump(),
+            FrameStatus::Lost => r.lost.bump(),
+            FrameStatus::Rejected => {
+                r.malformed.bump();
+                return Outcome::Malformed;
+            }
+        }
+        let seq = s.next_seq(udp);
+        let (rig, scratch) = (&s.rig, &mut self.scratch);
+        s.broadcast(
+            seq,
+            &self.out,
+            &mut self.positions,
+            |d, positions| rig.deform(d, scratch, positions),
+            arrival,
+        );
+        Outcome::Accepted
+    }
+
+    /// A UDP frame: checked against the layout (no reply over UDP), accepted and recorded.
+    async fn accept_udp(&mut self, s: &Session, frame: LandmarkFrame, arrival: Instant) {
+        let count = frame.points.len();
+        let outcome = if (frame.tracked || count > 0) && count != self.point_count {
+            s.record.malformed.bump();
+            Outcome::Malformed
+        } else {
+            self.accept(s, &frame, arrival, true)
+        };
+        let f = RecordedFrame::unlabelled(frame);
+        self.recording.frame(outcome, f).await;
+    }
+}
+
+/// The key a session's UDP packets must carry.
+fn udp_key(shared: &Shared, id: u32) -> u32 {
+    let mut h = shared.keys.build_hasher();
+    h.write_u32(id);
+    h.write_u128(shared.started.elapsed().as_nanos());
+    h.finish() as u32
+}
+
+impl Protocol for Landmark {
+    type Hello = LandmarkHello;
+    type Admitted = Admitted;
+    type Event = (Instant, LandmarkFrame);
+    const KIND: &'static str = "landmark";
+
+    fn admit(shared: &Shared, hello: LandmarkHello) -> Result<Admission<Admitted>, Refusal> {
+        let LandmarkHello {
+            header,
+            session,
+            rig,
+            peer,
+        } = hello;
+        let Some(layout) = shared.catalog.layout(&header.layout) else {
+            return Err(Refusal::UnknownLayout {
+                layout: header.layout.clone(),
+            });
+        };
+        let Some(entry) = shared.catalog.rig(rig.as_deref()).cloned() else {
+            return Err(Refusal::UnknownRig {
+                rig: rig.unwrap_or_default(),
+                have: shared.catalog.rig_names(),
+            });
+        };
+        if let Some(c) = header.point_count
+            && c != layout.point_count
+        {
+            return Err(Refusal::PointCount {
+                header: c,
+                layout: layout.name.clone(),
+                points: layout.point_count,
+            });
+        }
+        let retarget = RetargetSettings {
+            positions: false,
+            normals: false,
+            ..shared.settings.retarget.clone()
+        };
+        let retargeter = Retargeter::new(&entry.rig, layout, entry.basis.clone(), retarget)
+            .map_err(|e| Refusal::LayoutUnusable(e.to_string()))?;
+        Ok(Admission {
+            session,
+            rig_message: entry.message.clone(),
+            rig: entry,
+            layout: layout.name.clone(),
+            admitted: Admitted {
+                header,
+                peer,
+                layout: layout.name.clone(),
+                point_count: layout.point_count,
+                retargeter,
+            },
+        })
+    }
+
+    fn describe(a: &Admitted, rig: &RigEntry, name: &str, id: u32) -> Value {
+        json!({
+            "session": name, "session_id": id, "rig": rig.name(), "layout": a.layout,
+            "vertices": rig.rig.mesh.vertex_count(), "controls": rig.rig.controls.len(),
+            "source": a.header.source, "rate_hz": a.header.rate_hz,
+        })
+    }
+
+    async fn start(a: Admitted, s: &Session) -> (Self, Value) {
+        let settings = s.settings();
+        let mut recorded_header = (*a.header).clone();
+        recorded_header.point_count = Some(a.point_count);
+        let recording = Recording::start(s, &recorded_header, a.peer).await;
+        let key = udp_key(&s.shared, s.id);
+        let (udp_tx, udp) = mpsc::channel(settings.udp_queue_frames.max(1));
+        lock(&s.shared.routes).insert(
+            s.id,
+            Route {
+                key,
+                tx: udp_tx,
+                record: s.record.clone(),
+            },
+        );
+        let welcome = json!({
+            "type": "welcome", "session": s.name, "session_id": s.id, "udp_key": key,
+            "rig": s.rig.name(), "layout": a.layout, "points": a.point_count,
+            "max_message_bytes": settings.max_message_bytes,
+        });
+        tracing::info!(session = %s.name, id = s.id, rig = s.rig.name(), layout = %a.layout, "session started");
+        let landmark = Landmark {
+            positions: s.rig.rig.mesh.positions.clone(),
+            scratch: Vec::new(),
+            out: a.retargeter.new_output(),
+            retargeter: a.retargeter,
+            clock: s.clock(),
+            layout: a.layout,
+            point_count: a.point_count,
+            multi_thread: tokio::runtime::Handle::current().runtime_flavor()
+                == tokio::runtime::RuntimeFlavor::MultiThread,
+            recording,
+            udp,
+        };
+        (landmark, welcome)
+    }
+
+    async fn next_event(&mut self) -> (Instant, LandmarkFrame) {
+        match self.udp.recv().await {
+            Some(packet) => packet,
+            // The route holds the sender until the session ends.
+            None => std::future::pending().await,
+        }
+    }
+
+    async fn on_event(&mut self, s: &Session, (arrival, frame): (Instant, LandmarkFrame)) {
+        self.accept_udp(s, frame, arrival).await;
+    }
+
+    async fn on_line(
+        &mut self,
+        s: &Session,
+        line: &[u8],
+        complete: bool,
+        line_no: u64,
+        arrival: Instant,
+    ) -> LineOutcome {
+        if is_blank(line) {
+            return LineOutcome::Skipped;
+        }
+        match parse_frame_line(line, complete, Some(self.point_count), &self.layout) {
+            Ok(rf) => {
+                let outcome = self.accept(s, &rf.frame, arrival, false);
+                if let Outcome::Refused(TimeProblem::Future {
+                    jump_us,
+                    allowed_us,
+                }) = outcome
+                {
+                    s.reply(future_line(
+                        line_no,
+                        rf.frame.timestamp_us,
+                        jump_us,
+                        allowed_us,
+                    ));
+                }
+                self.recording.frame(outcome, rf).await;
+                LineOutcome::Frame
+            }
+            Err(problem) => LineOutcome::Malformed(
+                mimic_wire::ErrorCode::of_problem(&problem),
+                problem.to_string(),
+            ),
+        }
+    }
+
+    fn too_long(limit: usize) -> String {
+        FrameProblem::TooLong { limit }.to_string()
+    }
+
+    async fn finish(mut self, s: &Session) {
+        // Flush what was accepted: UDP frames already queued are retargeted and broadcast too.
+        lock(&s.shared.routes).remove(&s.id);
+        while let Ok((arrival, frame)) = self.udp.try_recv() {
+            self.accept_udp(s, frame, arrival).await;
+        }
+        // Every accepted frame is in the recording (written, flushed, synced) before the session
+        // is reported ended.
+        if let Recording::On(r) = self.recording {
+            r.finish().await;
+        }
+    }
+
+    fn summary(settings: &ServerSettings, end: &SessionSnapshot, bye: bool) -> Map<String, Value> {
+        let mut m = Map::new();
+        if bye {
+            let recorded = settings.record_dir.is_some().then_some(end.recorded);
+            m.insert("recorded".into(), json!(recorded));
+        }
+        m
+    }
+}

@@ -1,0 +1,115 @@
+//! Viewers: join a hub by session name, get its messages through a drop-oldest queue, leave.
+
+use super::admission::{Refusal, write_and_close};
+use super::state::{Shared, lock};
+use crate::lines::LineReader;
+use crate::queue::ViewerQueue;
+use crate::stats::ViewerSnapshot;
+use mimic_wire::{KIND_ERROR, encode_json};
+use std::sync::Arc;
+use std::sync::atomic::{AtomicBool, Ordering};
+use tokio::io::{AsyncWriteExt, BufReader};
+use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
+use tokio::time::timeout;
+
+/// One connected viewer.
+#[derive(Debug)]
+pub(crate) struct Viewer {
+    pub(crate) id: u64,
+    pub(crate) session: String,
+    pub(crate) positions: bool,
+    pub(crate) queue: ViewerQueue,
+    pub(crate) connected: AtomicBool,
+}
+
+impl Viewer {
+    /// The viewer's counters as the stats report them.
+    pub(crate) fn snapshot(&self) -> ViewerSnapshot {
+        ViewerSnapshot {
+            id: self.id,
+            session: self.session.clone(),
+            positions: self.positions,
+            frames_sent: self.queue.sent.get(),
+            frames_dropped: self.queue.dropped.get(),
+            queued: self.queue.queued() as u64,
+            connected: self.connected.load(Ordering::Relaxed),
+        }
+    }
+}
+
+/// A viewer: attach to the hub, forward its queue, detach.
+pub(crate) async fn viewer(
+    shared: Arc<Shared>,
+    lines: LineReader<BufReader<OwnedReadHalf>>,
+    mut w: OwnedWriteHalf,
+    session: String,
+    positions: bool,
+) {
+    let settings = &shared.settings;
+    if shared.viewers_active.fetch_add(1, Ordering::AcqRel) >= settings.max_viewers {
+        shared.viewers_active.fetch_sub(1, Ordering::AcqRel);
+        shared.refused.bump();
+        let refusal = Refusal::TooManyViewers {
+            max: settings.max_viewers,
+        };
+        write_and_close(&mut w, &encode_json(KIND_ERROR, &refusal.json())).await;
+        return;
+    }
+    let v = Arc::new(Viewer {
+        id: shared.next_viewer.fetch_add(1, Ordering::Relaxed),
+        session: session.clone(),
+        positions,
+        queue: ViewerQueue::new(settings.viewer_queue_frames),
+        connected: AtomicBool::new(true),
+    });
+    {
+        let mut hubs = lock(&shared.hubs);
+        let hub = hubs.entry(session.clone()).or_default();
+        if let Some(live) = &hub.live {
+            v.queue.push_control(live.session_message.clone(), true);
+            v.queue.push_control(live.rig_message.clone(), false);
+            lock(&live.record.viewers).push(v.clone());
+        }
+        hub.viewers.push(v.clone());
+    }
+    tracing::info!(viewer = v.id, session = %session, positions, "viewer joined");
+    // The viewer sends nothing after its hello; reading (and discarding, through the reader's
+    // fixed buffer) tells us when it goes away.
+    let watcher = {
+        let v = v.clone();
+        let mut r = lines.into_inner();
+        tokio::spawn(async move {
+            let _ = tokio::io::copy(&mut r, &mut tokio::io::sink()).await;
+            v.queue.abandon();
+        })
+    };
+    while let Some(m) = v.queue.pop().await {
+        match timeout(settings.viewer_write_timeout, w.write_all(&m)).await {
+            Ok(Ok(())) => {}
+            _ => {
+                v.queue.abandon();
+                break;
+            }
+        }
+    }
+    let _ = timeout(std::time::Duration::from_secs(1), w.shutdown()).await;
+    watcher.abort();
+    v.connected.store(false, Ordering::Relaxed);
+    {
+        let mut hubs = lock(&shared.hubs);
+        if let Some(hub) = hubs.get_mut(&session) {
+            hub.viewers.retain(|x| !Arc::ptr_eq(x, &v));
+            if hub.viewers.is_empty() && hub.live.is_none() {
+                hubs.remove(&session);
+            }
+        }
+    }
+    shared.viewers_active.fetch_sub(1, Ordering::AcqRel);
+    tracing::info!(
+        viewer = v.id,
+        session = %session,
+        sent = v.queue.sent.get(),
+        dropped = v.queue.dropped.get(),
+        "viewer left"
+    );
+}

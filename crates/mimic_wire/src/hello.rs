@@ -1,0 +1,306 @@
+//! The first line of a TCP connection (hellos) and the frame lines of a weights tracker.
+
+use crate::code::ErrorCode;
+use mimic_capture::RecordingHeader;
+use serde_json::Value;
+
+/// What the first line of a TCP connection asks for.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Hello {
+    /// A tracker: the recording header, with the optional `session` and `rig` fields.
+    Tracker {
+        /// The header (layout, rate, ...).
+        header: Box<RecordingHeader>,
+        /// Session name to open (default: one the server makes up).
+        session: Option<String>,
+        /// Rig to drive (default: the server's default rig).
+        rig: Option<String>,
+    },
+    /// A tracker that sends named blendshape weights (`{"mode":"weights"}`), not landmarks.
+    Weights {
+        /// Session name to open (default: one the server makes up).
+        session: Option<String>,
+        /// Rig to drive (default: the server's default rig); it must have morph targets.
+        rig: Option<String>,
+        /// Frame rate the tracker announces, if any.
+        rate_hz: Option<f64>,
+        /// Source the tracker announces (e.g. `arkit`), if any.
+        source: Option<String>,
+    },
+    /// A viewer joining a session.
+    Viewer {
+        /// Session name.
+        session: String,
+        /// Also send full vertex positions each frame.
+        positions: bool,
+    },
+    /// A request for the counters, answered with one JSON line.
+    Stats,
+    /// An HTTP `GET` (only `/stats` is served).
+    HttpGet {
+        /// The request path.
+        path: String,
+    },
+}
+
+/// Why a first line is not a valid hello.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum HelloError {
+    /// Not JSON, or not an object.
+    #[error(
+        "the first line must be a JSON object (a recording header or a viewer/stats hello): {0}"
+    )]
+    NotJson(String),
+    /// A recording header that fails its checks.
+    #[error("bad recording header: {0}")]
+    BadHeader(String),
+    /// A session name that is empty, too long or has odd characters.
+    #[error("bad session name `{0}`: 1 to 64 characters of A-Z a-z 0-9 _ . -")]
+    BadSessionName(String),
+    /// An object that is none of the known hellos.
+    #[error("unknown hello: expected `format: mimic-recording`, `type: viewer` or `type: stats`")]
+    Unknown,
+}
+
+/// True for a session name of 1 to 64 characters from `A-Z a-z 0-9 _ . -`.
+pub fn valid_session_name(s: &str) -> bool {
+    (1..=64).contains(&s.len())
+        && s.bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'.' | b'-'))
+}
+
+/// Parses the first line of a connection (without its newline).
+pub fn parse_hello(line: &[u8]) -> Result<Hello, HelloError> {
+    let line = trim_end(line);
+    if let Some(rest) = line.strip_prefix(b"GET ") {
+        let path = rest.split(|b| *b == b' ').next().unwrap_or_default();
+        return Ok(Hello::HttpGet {
+            path: String::from_utf8_lossy(path).into_owned(),
+        });
+    }
+    let v: Value = serde_json::from_slice(line).map_err(|e| HelloError::NotJson(e.to_string()))?;
+    let Value::Object(obj) = &v else {
+        return Err(HelloError::NotJson("not an object".into()));
+    };
+    if obj.contains_key("format") {
+        let header: RecordingHeader =
+            serde_json::from_value(v.clone()).map_err(|e| HelloError::BadHeader(e.to_string()))?;
+        header.check().map_err(HelloError::BadHeader)?;
+        let text = |k: &str| {
+            header
+                .extra
+                .get(k)
+                .and_then(Value::as_str)
+                .map(str::to_string)
+        };
+        let session = text("session");
+        if let Some(s) = &session
+            && !valid_session_name(s)
+        {
+            return Err(HelloError::BadSessionName(s.clone()));
+        }
+        let rig = text("rig");
+        return Ok(Hello::Tracker {
+            header: Box::new(header),
+            session,
+            rig,
+        });
+    }
+    if obj.get("mode").and_then(Value::as_str) == Some("weights") {
+        let text = |k: &str| obj.get(k).and_then(Value::as_str).map(str::to_string);
+        let session = text("session");
+        if let Some(s) = &session
+            && !valid_session_name(s)
+        {
+            return Err(HelloError::BadSessionName(s.clone()));
+        }
+        return Ok(Hello::Weights {
+            session,
+            rig: text("rig"),
+            rate_hz: obj.get("rate_hz").and_then(Value::as_f64),
+            source: text("source"),
+        });
+    }
+    match obj.get("type").and_then(Value::as_str) {
+        Some("viewer") => {
+            let session = obj
+                .get("session")
+                .and_then(Value::as_str)
+                .unwrap_or_default()
+                .to_string();
+            if !valid_session_name(&session) {
+                return Err(HelloError::BadSessionName(session));
+            }
+            let positions = obj
+                .get("positions")
+                .and_then(Value::as_bool)
+                .unwrap_or(false);
+            Ok(Hello::Viewer { session, positions })
+        }
+        Some("stats") => Ok(Hello::Stats),
+        _ => Err(HelloError::Unknown),
+    }
+}
+
+/// One weight frame line: `{"t_us": .., "weights": {"name": value, ..}}`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WeightFrame {
+    /// Capture time (µs, the tracker's clock).
+    pub timestamp_us: i64,
+    /// `(name, value)` pairs in line order; values as sent (finite, not yet clamped).
+    pub weights: Vec<(String, f64)>,
+}
+
+/// Why a weight frame line is rejected.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+pub enum WeightFrameError {
+    /// Not JSON (JSON has no NaN: a `NaN` literal lands here), not an object, or no integer `t_us`.
+    #[error("{0}")]
+    Json(String),
+    /// `weights` missing or not an object, or a value that is not a number.
+    #[error("{0}")]
+    Weight(String),
+}
+
+impl WeightFrameError {
+    /// The error code the session answers with.
+    pub fn code(&self) -> ErrorCode {
+        match self {
+            WeightFrameError::Json(_) => ErrorCode::BadJson,
+            WeightFrameError::Weight(_) => ErrorCode::BadWeight,
+        }
+    }
+}
+
+/// Parses a weight frame line (without its newline).
+pub fn parse_weight_frame(line: &[u8]) -> Result<WeightFrame, WeightFrameError> {
+    let v: Value = serde_json::from_slice(trim_end(line))
+        .map_err(|e| WeightFrameError::Json(format!("invalid JSON: {e}")))?;
+    let Value::Object(obj) = v else {
+        return Err(WeightFrameError::Json(
+            "a weight frame is a JSON object".into(),
+        ));
+    };
+    let timestamp_us = obj
+        .get("t_us")
+        .and_then(Value::as_i64)
+        .ok_or_else(|| WeightFrameError::Json("`t_us` must be an integer (µs)".into()))?;
+    let Some(Value::Object(map)) = obj.get("weights") else {
+        return Err(WeightFrameError::Weight(
+            "`weights` must be an object of name: number".into(),
+        ));
+    };
+    let mut weights = Vec::with_capacity(map.len());
+    for (name, value) in map {
+        match value.as_f64() {
+            Some(x) if x.is_finite() => weights.push((name.clone(), x)),
+            _ => {
+                return Err(WeightFrameError::Weight(format!(
+                    "weight `{name}` is {value}, not a number"
+                )));
+            }
+        }
+    }
+    Ok(WeightFrame {
+        timestamp_us,
+        weights,
+    })
+}
+
+fn trim_end(b: &[u8]) -> &[u8] {
+    let mut end = b.len();
+    while end > 0 && matches!(b[end - 1], b'\n' | b'\r') {
+        end -= 1;
+    }
+    &b[..end]
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn hello_kinds() {
+        let h = br#"{"format":"mimic-recording","version":1,"layout":"ibug68","units":"m","source":"x","rate_hz":30,"session":"a","rig":"candide3"}"#;
+        match parse_hello(h).unwrap() {
+            Hello::Tracker {
+                header,
+                session,
+                rig,
+            } => {
+                assert_eq!(header.layout, "ibug68");
+                assert_eq!(session.as_deref(), Some("a"));
+                assert_eq!(rig.as_deref(), Some("candide3"));
+            }
+            other => panic!("{other:?}"),
+        }
+        assert_eq!(
+            parse_hello(br#"{"type":"viewer","session":"a","positions":true}"#).unwrap(),
+            Hello::Viewer {
+                session: "a".into(),
+                positions: true
+            }
+        );
+        assert_eq!(
+            parse_hello(b"{\"type\":\"stats\"}\r\n").unwrap(),
+            Hello::Stats
+        );
+        assert_eq!(
+            parse_hello(b"GET /stats HTTP/1.1\r\n").unwrap(),
+            Hello::HttpGet {
+                path: "/stats".into()
+            }
+        );
+        assert!(matches!(parse_hello(b"hello"), Err(HelloError::NotJson(_))));
+        assert!(matches!(
+            parse_hello(br#"{"type":"viewer","session":"a b"}"#),
+            Err(HelloError::BadSessionName(_))
+        ));
+        assert!(matches!(
+            parse_hello(br#"{"format":"mimic-recording","version":2,"layout":"x","units":"m","source":"x","rate_hz":30}"#),
+            Err(HelloError::BadHeader(_))
+        ));
+    }
+
+    #[test]
+    fn weights_hello_and_frames() {
+        assert_eq!(
+            parse_hello(br#"{"mode":"weights","session":"w","rig":"ict-face","rate_hz":60}"#)
+                .unwrap(),
+            Hello::Weights {
+                session: Some("w".into()),
+                rig: Some("ict-face".into()),
+                rate_hz: Some(60.0),
+                source: None,
+            }
+        );
+        assert!(matches!(
+            parse_hello(br#"{"mode":"weights","session":"a b"}"#),
+            Err(HelloError::BadSessionName(_))
+        ));
+        let f = parse_weight_frame(br#"{"t_us":7,"weights":{"jawOpen":0.5,"x":2}}"#).unwrap();
+        assert_eq!(f.timestamp_us, 7);
+        assert_eq!(
+            f.weights,
+            vec![("jawOpen".to_string(), 0.5), ("x".to_string(), 2.0)]
+        );
+        let code = |l: &[u8]| parse_weight_frame(l).unwrap_err().code();
+        // JSON has no NaN: the literal is a JSON error.
+        assert_eq!(
+            code(br#"{"t_us":7,"weights":{"jawOpen":NaN}}"#),
+            ErrorCode::BadJson
+        );
+        assert_eq!(code(br#"{"weights":{}}"#), ErrorCode::BadJson);
+        assert_eq!(code(br#"[1]"#), ErrorCode::BadJson);
+        assert_eq!(
+            code(br#"{"t_us":7,"weights":{"jawOpen":"a"}}"#),
+            ErrorCode::BadWeight
+        );
+        assert_eq!(
+            code(br#"{"t_us":7,"weights":{"jawOpen":null}}"#),
+            ErrorCode::BadWeight
+        );
+        assert_eq!(code(br#"{"t_us":7,"weights":[0.5]}"#), ErrorCode::BadWeight);
+        assert_eq!(code(br#"{"t_us":7}"#), ErrorCode::BadWeight);
+    }
+}

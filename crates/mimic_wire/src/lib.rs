@@ -1,0 +1,28 @@
+//! mimic's wire protocol (`docs/protocol.md`): the first line of a TCP connection (hellos), a
+//! tracker's frame and reply lines, the length-prefixed binary messages viewers get, and UDP frame
+//! packets.
+//!
+//! Pure functions over bytes: encoders return `Vec<u8>` (or a reply `String`), decoders take
+//! `&[u8]` and return a value or an error naming the packet and field. No sockets and no tokio, so
+//! a viewer ([`decode_viewer_message`]) or a fuzz target decodes frames without the server.
+//! Depends on mimic_types, mimic_solve (`Basis`), mimic_retarget (`FrameOutput`) and
+//! mimic_capture's recording header (without its tokio replay).
+
+mod bytes;
+mod code;
+mod hello;
+mod udp;
+mod viewer;
+
+pub use bytes::DecodeError;
+pub use code::{ErrorCode, error_line, warning_line};
+pub use hello::{
+    Hello, HelloError, WeightFrame, WeightFrameError, parse_hello, parse_weight_frame,
+    valid_session_name,
+};
+pub use udp::{UDP_HEADER_BYTES, UDP_MAGIC, UdpFrame, decode_udp_frame, encode_udp_frame};
+pub use viewer::{
+    FRAME_FIXED_BYTES, FrameMessage, KIND_END, KIND_ERROR, KIND_FRAME, KIND_RIG, KIND_SESSION,
+    RigMessage, ViewerMessage, decode_viewer_message, encode_frame, encode_json, encode_morph_rig,
+    encode_rig, status_byte,
+};
