@@ -11,22 +11,11 @@ pub enum Hello {
     Tracker {
         /// The header (layout, rate, ...).
         header: Box<RecordingHeader>,
-        /// Session name to open (default: one the server makes up).
-        session: Option<String>,
-        /// Rig to drive (default: the server's default rig).
-        rig: Option<String>,
+        /// Its `session` and `rig` fields.
+        request: SessionRequest,
     },
     /// A tracker that sends named blendshape weights (`{"mode":"weights"}`), not landmarks.
-    Weights {
-        /// Session name to open (default: one the server makes up).
-        session: Option<String>,
-        /// Rig to drive (default: the server's default rig); it must have morph targets.
-        rig: Option<String>,
-        /// Frame rate the tracker announces, if any.
-        rate_hz: Option<f64>,
-        /// Source the tracker announces (e.g. `arkit`), if any.
-        source: Option<String>,
-    },
+    Weights(WeightsHello),
     /// A viewer joining a session.
     Viewer {
         /// Session name.
@@ -41,6 +30,42 @@ pub enum Hello {
         /// The request path.
         path: String,
     },
+}
+
+/// What every tracker hello asks for: a session name and a rig, both optional.
+#[derive(Clone, Debug, Default, PartialEq, Eq)]
+pub struct SessionRequest {
+    /// Session name to open (default: one the server makes up).
+    pub session: Option<String>,
+    /// Rig to drive (default: the server's default rig).
+    pub rig: Option<String>,
+}
+
+impl SessionRequest {
+    /// The `session` and `rig` fields as `text` reads them; a bad session name is refused.
+    fn read(text: impl Fn(&str) -> Option<String>) -> Result<Self, HelloError> {
+        let session = text("session");
+        if let Some(s) = &session
+            && !valid_session_name(s)
+        {
+            return Err(HelloError::BadSessionName(s.clone()));
+        }
+        Ok(Self {
+            session,
+            rig: text("rig"),
+        })
+    }
+}
+
+/// The hello of a tracker that sends named blendshape weights (`{"mode":"weights"}`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct WeightsHello {
+    /// Session and rig; the rig must have morph targets.
+    pub request: SessionRequest,
+    /// Frame rate the tracker announces, if any.
+    pub rate_hz: Option<f64>,
+    /// Source the tracker announces (e.g. `arkit`), if any.
+    pub source: Option<String>,
 }
 
 /// Why a first line is not a valid hello.
@@ -93,33 +118,19 @@ pub fn parse_hello(line: &[u8]) -> Result<Hello, HelloError> {
                 .and_then(Value::as_str)
                 .map(str::to_string)
         };
-        let session = text("session");
-        if let Some(s) = &session
-            && !valid_session_name(s)
-        {
-            return Err(HelloError::BadSessionName(s.clone()));
-        }
-        let rig = text("rig");
+        let request = SessionRequest::read(text)?;
         return Ok(Hello::Tracker {
             header: Box::new(header),
-            session,
-            rig,
+            request,
         });
     }
     if obj.get("mode").and_then(Value::as_str) == Some("weights") {
         let text = |k: &str| obj.get(k).and_then(Value::as_str).map(str::to_string);
-        let session = text("session");
-        if let Some(s) = &session
-            && !valid_session_name(s)
-        {
-            return Err(HelloError::BadSessionName(s.clone()));
-        }
-        return Ok(Hello::Weights {
-            session,
-            rig: text("rig"),
+        return Ok(Hello::Weights(WeightsHello {
+            request: SessionRequest::read(text)?,
             rate_hz: obj.get("rate_hz").and_then(Value::as_f64),
             source: text("source"),
-        });
+        }));
     }
     match obj.get("type").and_then(Value::as_str) {
         Some("viewer") => {
@@ -223,14 +234,10 @@ mod tests {
     fn hello_kinds() {
         let h = br#"{"format":"mimic-recording","version":1,"layout":"ibug68","units":"m","source":"x","rate_hz":30,"session":"a","rig":"candide3"}"#;
         match parse_hello(h).unwrap() {
-            Hello::Tracker {
-                header,
-                session,
-                rig,
-            } => {
+            Hello::Tracker { header, request } => {
                 assert_eq!(header.layout, "ibug68");
-                assert_eq!(session.as_deref(), Some("a"));
-                assert_eq!(rig.as_deref(), Some("candide3"));
+                assert_eq!(request.session.as_deref(), Some("a"));
+                assert_eq!(request.rig.as_deref(), Some("candide3"));
             }
             other => panic!("{other:?}"),
         }
@@ -267,12 +274,14 @@ mod tests {
         assert_eq!(
             parse_hello(br#"{"mode":"weights","session":"w","rig":"ict-face","rate_hz":60}"#)
                 .unwrap(),
-            Hello::Weights {
-                session: Some("w".into()),
-                rig: Some("ict-face".into()),
+            Hello::Weights(WeightsHello {
+                request: SessionRequest {
+                    session: Some("w".into()),
+                    rig: Some("ict-face".into()),
+                },
                 rate_hz: Some(60.0),
                 source: None,
-            }
+            })
         );
         assert!(matches!(
             parse_hello(br#"{"mode":"weights","session":"a b"}"#),

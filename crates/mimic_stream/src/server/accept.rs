@@ -7,7 +7,7 @@ use super::session;
 use super::state::{Shared, lock};
 use super::udp::udp_loop;
 use super::viewer::viewer;
-use super::weights::{Weights, WeightsHello};
+use super::weights::Weights;
 use super::{HELLO_MAX_BYTES, Server};
 use crate::lines::{Line, LineReader};
 use crate::stats::ServerStats;
@@ -160,31 +160,15 @@ async fn connection(shared: Arc<Shared>, socket: TcpStream, mut stop: watch::Rec
         Ok(Hello::Viewer { session, positions }) => {
             viewer(shared, lines, w, session, positions).await;
         }
-        Ok(Hello::Tracker {
-            header,
-            session,
-            rig,
-        }) => {
+        Ok(Hello::Tracker { header, request }) => {
             let hello = LandmarkHello {
                 header,
-                session,
-                rig,
+                request,
                 peer,
             };
             session::run::<Landmark>(shared, lines, w, hello, stop).await;
         }
-        Ok(Hello::Weights {
-            session,
-            rig,
-            rate_hz,
-            source,
-        }) => {
-            let hello = WeightsHello {
-                session,
-                rig,
-                rate_hz,
-                source,
-            };
+        Ok(Hello::Weights(hello)) => {
             session::run::<Weights>(shared, lines, w, hello, stop).await;
         }
     }

@@ -121,6 +121,18 @@ pub(crate) async fn refuse<W: AsyncWrite + Unpin>(shared: &Shared, w: &mut W, re
     write_and_close(w, line.as_bytes()).await;
 }
 
+/// The rig a hello names (`None`: the server's default one).
+pub(crate) fn find_rig(shared: &Shared, rig: Option<String>) -> Result<Arc<RigEntry>, Refusal> {
+    shared
+        .catalog
+        .rig(rig.as_deref())
+        .cloned()
+        .ok_or_else(|| Refusal::UnknownRig {
+            rig: rig.unwrap_or_default(),
+            have: shared.catalog.rig_names(),
+        })
+}
+
 /// What a protocol's own checks of a hello admitted.
 #[derive(Debug)]
 pub(crate) struct Admission<A> {

@@ -2,8 +2,8 @@
 //! frame lines (and, after the welcome, UDP frame packets). Every accepted frame is retargeted,
 //! broadcast and, when the server records, written to the session's recording.
 
-use super::admission::{Admission, Refusal};
-use super::session::{LineOutcome, Protocol, Session, future_line, is_blank};
+use super::admission::{Admission, Refusal, find_rig};
+use super::session::{LineOutcome, Protocol, Session, TrackerLine, future_line, is_blank};
 use super::state::{Shared, lock};
 use super::udp::Route;
 use crate::catalog::RigEntry;
@@ -15,6 +15,7 @@ use glam::Vec3;
 use mimic_capture::{FrameProblem, RecordedFrame, RecordingHeader, parse_frame_line};
 use mimic_retarget::{FrameOutput, FrameStatus, RetargetSettings, Retargeter};
 use mimic_types::LandmarkFrame;
+use mimic_wire::SessionRequest;
 use serde_json::{Map, Value, json};
 use std::hash::{BuildHasher, Hasher};
 use std::net::SocketAddr;
@@ -27,10 +28,8 @@ use tokio::sync::mpsc;
 pub(crate) struct LandmarkHello {
     /// The recording header.
     pub(crate) header: Box<RecordingHeader>,
-    /// Session name asked for.
-    pub(crate) session: Option<String>,
-    /// Rig asked for.
-    pub(crate) rig: Option<String>,
+    /// Session and rig asked for.
+    pub(crate) request: SessionRequest,
     /// The tracker's address (named in the recording).
     pub(crate) peer: Option<SocketAddr>,
 }
@@ -201,8 +200,7 @@ impl Protocol for Landmark {
     fn admit(shared: &Shared, hello: LandmarkHello) -> Result<Admission<Admitted>, Refusal> {
         let LandmarkHello {
             header,
-            session,
-            rig,
+            request,
             peer,
         } = hello;
         let Some(layout) = shared.catalog.layout(&header.layout) else {
@@ -210,12 +208,7 @@ impl Protocol for Landmark {
                 layout: header.layout.clone(),
             });
         };
-        let Some(entry) = shared.catalog.rig(rig.as_deref()).cloned() else {
-            return Err(Refusal::UnknownRig {
-                rig: rig.unwrap_or_default(),
-                have: shared.catalog.rig_names(),
-            });
-        };
+        let entry = find_rig(shared, request.rig)?;
         if let Some(c) = header.point_count
             && c != layout.point_count
         {
@@ -233,7 +226,7 @@ impl Protocol for Landmark {
         let retargeter = Retargeter::new(&entry.rig, layout, entry.basis.clone(), retarget)
             .map_err(|e| Refusal::LayoutUnusable(e.to_string()))?;
         Ok(Admission {
-            session,
+            session: request.session,
             rig_message: entry.message.clone(),
             rig: entry,
             layout: layout.name.clone(),
@@ -304,27 +297,21 @@ impl Protocol for Landmark {
         self.accept_udp(s, frame, arrival).await;
     }
 
-    async fn on_line(
-        &mut self,
-        s: &Session,
-        line: &[u8],
-        complete: bool,
-        line_no: u64,
-        arrival: Instant,
-    ) -> LineOutcome {
-        if is_blank(line) {
+    async fn on_line(&mut self, s: &Session, line: TrackerLine<'_>) -> LineOutcome {
+        if is_blank(line.text) {
             return LineOutcome::Skipped;
         }
-        match parse_frame_line(line, complete, Some(self.point_count), &self.layout) {
+        let (layout, points) = (&self.layout, Some(self.point_count));
+        match parse_frame_line(line.text, line.complete, points, layout) {
             Ok(rf) => {
-                let outcome = self.accept(s, &rf.frame, arrival, false);
+                let outcome = self.accept(s, &rf.frame, line.arrival, false);
                 if let Outcome::Refused(TimeProblem::Future {
                     jump_us,
                     allowed_us,
                 }) = outcome
                 {
                     s.reply(future_line(
-                        line_no,
+                        line.number,
                         rf.frame.timestamp_us,
                         jump_us,
                         allowed_us,

@@ -52,6 +52,19 @@ pub(crate) struct Session {
     pub(crate) replies: mpsc::Sender<String>,
 }
 
+/// One line of a tracker, as the read loop hands it to the protocol.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct TrackerLine<'a> {
+    /// The line (with its newline, if it had one).
+    pub(crate) text: &'a [u8],
+    /// False when the connection ended in the middle of the line.
+    pub(crate) complete: bool,
+    /// Its line number (the hello is line 1).
+    pub(crate) number: u64,
+    /// When it was read.
+    pub(crate) arrival: Instant,
+}
+
 /// What a protocol made of one line.
 #[derive(Debug)]
 pub(crate) enum LineOutcome {
@@ -91,14 +104,11 @@ pub(crate) trait Protocol: Sized + Send {
     /// Handles one event.
     fn on_event(&mut self, s: &Session, event: Self::Event) -> impl Future<Output = ()> + Send;
 
-    /// Handles line `line_no` (`complete` when it ended with a newline), read at `arrival`.
+    /// Handles one line of the tracker (not the hello, not one too long).
     fn on_line(
         &mut self,
         s: &Session,
-        line: &[u8],
-        complete: bool,
-        line_no: u64,
-        arrival: Instant,
+        line: TrackerLine<'_>,
     ) -> impl Future<Output = LineOutcome> + Send;
 
     /// The message answering a line longer than `limit` bytes.
@@ -341,7 +351,13 @@ pub(crate) async fn run<P: Protocol>(
                     }
                     Ok(kind @ (Line::Complete | Line::Partial)) => {
                         line_no += 1;
-                        proto.on_line(&s, lines.line(), kind == Line::Complete, line_no, arrival).await
+                        let line = TrackerLine {
+                            text: lines.line(),
+                            complete: kind == Line::Complete,
+                            number: line_no,
+                            arrival,
+                        };
+                        proto.on_line(&s, line).await
                     }
                 };
                 match outcome {

@@ -3,8 +3,8 @@
 //! morph targets and reach viewers as the morph basis's control values (`d[3k + a] = w_k e_a`),
 //! or as positions `P0 + sum_k w_k dP_k`.
 
-use super::admission::{Admission, Refusal};
-use super::session::{LineOutcome, Protocol, Session, future_line, is_blank};
+use super::admission::{Admission, Refusal, find_rig};
+use super::session::{LineOutcome, Protocol, Session, TrackerLine, future_line, is_blank};
 use super::state::Shared;
 use crate::catalog::RigEntry;
 use crate::settings::ServerSettings;
@@ -13,7 +13,7 @@ use crate::timing::{FrameClock, TimeProblem};
 use glam::{Quat, Vec3};
 use mimic_retarget::{FrameOutput, FrameStatus};
 use mimic_types::HeadPose;
-use mimic_wire::{ErrorCode, parse_weight_frame, warning_line};
+use mimic_wire::{ErrorCode, WeightsHello, parse_weight_frame, warning_line};
 use serde_json::{Map, Value, json};
 use std::collections::HashSet;
 use std::convert::Infallible;
@@ -21,19 +21,6 @@ use std::time::Instant;
 
 /// Distinct unknown weight names a session remembers (and warns about once each).
 const UNKNOWN_NAMES_KEPT: usize = 256;
-
-/// What a weights hello asked for.
-#[derive(Debug)]
-pub(crate) struct WeightsHello {
-    /// Session name asked for.
-    pub(crate) session: Option<String>,
-    /// Rig asked for.
-    pub(crate) rig: Option<String>,
-    /// Frame rate the tracker announces.
-    pub(crate) rate_hz: Option<f64>,
-    /// Source the tracker announces.
-    pub(crate) source: Option<String>,
-}
 
 /// A weights session's frame path.
 #[derive(Debug)]
@@ -116,19 +103,14 @@ impl Protocol for Weights {
     const KIND: &'static str = "weights";
 
     fn admit(shared: &Shared, hello: WeightsHello) -> Result<Admission<WeightsHello>, Refusal> {
-        let Some(rig) = shared.catalog.rig(hello.rig.as_deref()).cloned() else {
-            return Err(Refusal::UnknownRig {
-                rig: hello.rig.unwrap_or_default(),
-                have: shared.catalog.rig_names(),
-            });
-        };
+        let rig = find_rig(shared, hello.request.rig.clone())?;
         let Some(morph) = rig.morph.as_ref() else {
             return Err(Refusal::NoMorphTargets {
                 rig: rig.name().to_string(),
             });
         };
         Ok(Admission {
-            session: hello.session.clone(),
+            session: hello.request.session.clone(),
             rig_message: morph.message.clone(),
             rig,
             layout: "weights".into(),
@@ -184,24 +166,17 @@ impl Protocol for Weights {
         match event {}
     }
 
-    async fn on_line(
-        &mut self,
-        s: &Session,
-        line: &[u8],
-        complete: bool,
-        line_no: u64,
-        arrival: Instant,
-    ) -> LineOutcome {
-        if !complete {
+    async fn on_line(&mut self, s: &Session, line: TrackerLine<'_>) -> LineOutcome {
+        if !line.complete {
             let message = "the connection ended in the middle of a line".to_string();
             return LineOutcome::Malformed(ErrorCode::Truncated, message);
         }
-        if is_blank(line) {
+        if is_blank(line.text) {
             return LineOutcome::Skipped;
         }
-        match parse_weight_frame(line) {
+        match parse_weight_frame(line.text) {
             Ok(f) => {
-                self.accept(s, f.timestamp_us, &f.weights, arrival, line_no);
+                self.accept(s, f.timestamp_us, &f.weights, line.arrival, line.number);
                 LineOutcome::Frame
             }
             Err(e) => LineOutcome::Malformed(e.code(), e.to_string()),
