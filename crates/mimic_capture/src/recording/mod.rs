@@ -12,7 +12,10 @@ mod writer;
 
 pub use error::{FrameError, FrameProblem, RecordingError, WriteError};
 pub use header::{FORMAT_NAME, FORMAT_VERSION, RecordingHeader, UNITS_METRES};
-pub use reader::{MAX_LINE_BYTES, ReadStats, RecordingReader, RejectCounts, parse_frame_line};
+pub use reader::{
+    MAX_LINE_BYTES, ReadStats, Recording, RecordingReader, RejectCounts, parse_frame_line,
+    read_recording,
+};
 pub use summary::{RecordingSummary, summarize, summarize_lenient};
 pub use writer::{RecordingWriter, format_coordinate};
 
