@@ -22,8 +22,8 @@ pub use material::{
     Material, MeshMaterials, load_rig_materials, parse_mtl, parse_obj_materials, rig_mesh_path,
 };
 pub use morph::{
-    MORPH_FILE_DECIMALS, MorphTargetEntry, compare_deltas, load_morph_file, load_morph_targets, morph_target,
-    read_morph_file, round_trip_tolerance, save_morph_file, write_morph_file,
+    MORPH_FILE_DECIMALS, MorphTargetEntry, compare_deltas, load_morph_file, load_morph_targets,
+    morph_target, read_morph_file, round_trip_tolerance, save_morph_file, write_morph_file,
 };
 pub use obj::{load_obj, parse_obj, write_obj};
 pub use rig::{RigFile, load_rig, parse_rig};

@@ -1,7 +1,7 @@
 //! A rig's look (`[look]` of its file) and the per-vertex colours it gives the rig's mesh.
 
-use crate::{AssetError, RigFile, load_rig_materials};
 use crate::span::toml_error;
+use crate::{AssetError, RigFile, load_rig_materials};
 use glam::Vec3;
 use mimic_types::RigLook;
 use std::path::Path;

@@ -16,7 +16,7 @@ pub use imported::Imported;
 pub use recording::{
     FrameError, FrameProblem, ReadStats, RecordedFrame, Recording, RecordingError, RecordingHeader,
     RecordingReader, RecordingSummary, RecordingWriter, RejectCounts, WriteError, parse_frame_line,
-    read_recording, summarize, summarize_lenient,
+    read_recording, summarize, summarize_lenient, summarize_reader,
 };
 pub use replay::{
     FileSource, FrameSource, MemorySource, Pace, Replay, ReplayError, ReplayFrame, ReplayOptions,

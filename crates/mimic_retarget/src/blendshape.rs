@@ -707,7 +707,8 @@ mod tests {
     #[test]
     fn displacements_are_the_blend_minus_the_rest() {
         let rig = grid_rig();
-        let f = BlendshapeFitter::new(&rig, &targets(&rig), &BlendshapeSettings::default()).unwrap();
+        let f =
+            BlendshapeFitter::new(&rig, &targets(&rig), &BlendshapeSettings::default()).unwrap();
         let w = [0.25, 0.5, 1.0];
         let (mut p, mut u) = (vec![Vec3::ZERO; 16], vec![Vec3::NAN; 16]);
         f.evaluate(&w, &mut p, &mut []);

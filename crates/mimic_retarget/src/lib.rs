@@ -26,9 +26,7 @@ pub use filter::{OneEuro, OneEuroSettings};
 pub use pipeline::{FrameOutput, FrameStatus, RetargetError, Retargeter, Stage, StageTimes, Stats};
 pub use scale::SourceToTarget;
 pub use settings::{Neutral, RetargetSettings};
-pub use stage_stats::{
-    Percentiles, StagePercentiles, StageSamples, elapsed_ns, median_p99_us,
-};
+pub use stage_stats::{Percentiles, StagePercentiles, StageSamples, elapsed_ns, median_p99_us};
 pub use weight_stats::{TargetWeight, WeightStats, WeightSummary};
 
 #[cfg(test)]

@@ -10,7 +10,7 @@
 use crate::{BlendshapeError, BlendshapeFitter, BlendshapeSettings};
 use glam::Vec3;
 use mimic_solve::Basis;
-use mimic_types::{MorphTarget, Region, Rig};
+use mimic_types::{MorphTarget, Rig};
 use serde::Serialize;
 
 /// Error statistics over a set of vertices (rig units).
@@ -56,12 +56,12 @@ impl ErrorStats {
     }
 }
 
-/// The error of one deformed shape: over all measured vertices and per [`Region`].
+/// The error of one deformed shape: over all measured vertices and per [`Region`](mimic_types::Region).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ShapeError {
     /// All measured vertices.
     pub all: ErrorStats,
-    /// Per region, in [`Region::ALL`] order.
+    /// Per region, in [`Region::ALL`](mimic_types::Region::ALL) order.
     pub regions: [ErrorStats; 3],
 }
 

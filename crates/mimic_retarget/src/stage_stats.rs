@@ -118,7 +118,9 @@ impl StageSamples {
 
     /// Percentiles per stage and of the step (sorts the samples).
     pub fn summary(&mut self) -> (StagePercentiles, Percentiles) {
-        let stages = StagePercentiles(std::array::from_fn(|k| Percentiles::of(&mut self.stages[k])));
+        let stages = StagePercentiles(std::array::from_fn(|k| {
+            Percentiles::of(&mut self.stages[k])
+        }));
         (stages, Percentiles::of(&mut self.step))
     }
 }

@@ -16,7 +16,7 @@ pub use reader::{
     MAX_LINE_BYTES, ReadStats, Recording, RecordingReader, RejectCounts, parse_frame_line,
     read_recording,
 };
-pub use summary::{RecordingSummary, summarize, summarize_lenient};
+pub use summary::{RecordingSummary, summarize, summarize_lenient, summarize_reader};
 pub use writer::{RecordingWriter, format_coordinate};
 
 use mimic_types::LandmarkFrame;
