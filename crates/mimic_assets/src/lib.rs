@@ -7,6 +7,7 @@
 mod error;
 mod frames;
 mod layout;
+mod look;
 mod material;
 mod morph;
 mod obj;
@@ -16,12 +17,13 @@ mod span;
 pub use error::AssetError;
 pub use frames::{FRAMES_MAGIC, FRAMES_VERSION, FrameRecord, FramesReader, FramesWriter};
 pub use layout::{ConfigDirs, load_layout, parse_layout};
+pub use look::{IRIS_DEGREES, PUPIL_COLOR, PUPIL_DEGREES, load_rig_look, look_colors};
 pub use material::{
     Material, MeshMaterials, load_rig_materials, parse_mtl, parse_obj_materials, rig_mesh_path,
 };
 pub use morph::{
-    MORPH_FILE_DECIMALS, MorphTargetEntry, load_morph_file, load_morph_targets, morph_target,
-    read_morph_file, save_morph_file, write_morph_file,
+    MORPH_FILE_DECIMALS, MorphTargetEntry, compare_deltas, load_morph_file, load_morph_targets,
+    morph_target, read_morph_file, round_trip_tolerance, save_morph_file, write_morph_file,
 };
 pub use obj::{load_obj, parse_obj, write_obj};
 pub use rig::{RigFile, load_rig, parse_rig};

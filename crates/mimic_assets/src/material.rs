@@ -2,7 +2,6 @@
 //! material each triangle uses (`usemtl`), in the triangle order of [`crate::load_obj`].
 
 use crate::AssetError;
-use crate::span::toml_error;
 use std::path::{Path, PathBuf};
 
 /// One material of an MTL file.
@@ -148,8 +147,7 @@ pub fn parse_obj_materials(obj_path: &Path, text: &str) -> Result<MeshMaterials,
 
 /// The OBJ mesh file a rig file names (relative to the rig file).
 pub fn rig_mesh_path(rig_path: &Path) -> Result<PathBuf, AssetError> {
-    let text = std::fs::read_to_string(rig_path).map_err(|e| AssetError::io(rig_path, e))?;
-    let file: crate::RigFile = toml::from_str(&text).map_err(|e| toml_error(rig_path, &text, e))?;
+    let file = crate::look::read_rig_file(rig_path)?;
     Ok(rig_path
         .parent()
         .unwrap_or(Path::new("."))

@@ -288,6 +288,27 @@ pub fn load_morph_file(path: &Path) -> Result<Vec<MorphTarget>, AssetError> {
     read_morph_file(std::io::BufReader::new(file), path)
 }
 
+/// Largest difference a value may show after printing with [`MORPH_FILE_DECIMALS`] decimals and
+/// parsing back to f32: half the last printed digit plus half an f32 ulp of the value.
+pub fn round_trip_tolerance(v: f32) -> f32 {
+    0.5 * 10f32.powi(-(MORPH_FILE_DECIMALS as i32)) + v.abs() * f32::EPSILON
+}
+
+/// Largest component difference between two delta lists (`a` the original), and whether every
+/// component is within [`round_trip_tolerance`] of the original's.
+pub fn compare_deltas(a: &[glam::Vec3], b: &[glam::Vec3]) -> (f32, bool) {
+    let mut max = 0f32;
+    let mut ok = true;
+    for (p, q) in a.iter().zip(b) {
+        for (x, y) in p.to_array().into_iter().zip(q.to_array()) {
+            let e = (x - y).abs();
+            max = max.max(e);
+            ok &= e <= round_trip_tolerance(x);
+        }
+    }
+    (max, ok)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -443,5 +464,16 @@ mod tests {
                 && e.ends_with("tri.obj: 3 vertices, the neutral has 4"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn deltas_compare_within_the_printed_precision() {
+        use glam::Vec3;
+        let a = [Vec3::new(1.0, -2.0, 0.5)];
+        // Half a printed digit (5e-7) off is within; 2e-6 is not.
+        let (d, ok) = compare_deltas(&a, &[Vec3::new(1.0, -2.0, 0.500_000_4)]);
+        assert!(ok && d > 0.0 && d < 5e-7, "{d}");
+        let (d, ok) = compare_deltas(&a, &[Vec3::new(1.0, -2.000_002, 0.5)]);
+        assert!(!ok && (d - 2e-6).abs() < 1e-6, "{d}");
     }
 }

@@ -33,6 +33,9 @@ pub struct RigFile {
     /// Morph targets (blendshapes) on the mesh's topology; loaded by [`crate::load_morph_targets`].
     #[serde(default)]
     pub morph_targets: Vec<Spanned<crate::MorphTargetEntry>>,
+    /// How the rig is drawn; loaded by [`crate::load_rig_look`].
+    #[serde(default)]
+    pub look: mimic_types::RigLook,
 }
 
 /// Loads a rig file and its mesh, and validates them; errors name the file and line.

@@ -9,7 +9,7 @@
 
 use crate::Imported;
 use crate::recording::{RecordedFrame, RecordingHeader};
-use glam::Vec3;
+use glam::{DVec2, Vec3};
 use mimic_types::LandmarkFrame;
 use std::path::{Path, PathBuf};
 
@@ -63,17 +63,29 @@ pub enum GfeError {
     },
 }
 
+/// The tracker's 2D pixel (x, y) of each point of one frame; `None` where the file has (0, 0).
+pub type FramePixels = Vec<Option<DVec2>>;
+
 /// Imports a GFE `*_datapoints.txt`, optionally labelling frames from its `*_targets.txt`.
 pub fn import_gfe(
     datapoints: &Path,
     targets: Option<&Path>,
     source: Option<&str>,
 ) -> Result<Imported, GfeError> {
+    import_gfe_with_pixels(datapoints, targets, source).map(|(imported, _)| imported)
+}
+
+/// [`import_gfe`], also returning each frame's raw pixels (for a model fit, `docs/fitter.md`).
+pub fn import_gfe_with_pixels(
+    datapoints: &Path,
+    targets: Option<&Path>,
+    source: Option<&str>,
+) -> Result<(Imported, Vec<FramePixels>), GfeError> {
     let text = std::fs::read_to_string(datapoints).map_err(|source| GfeError::Io {
         path: datapoints.to_path_buf(),
         source,
     })?;
-    let mut frames = parse_datapoints(&text, datapoints)?;
+    let (mut frames, pixels) = parse_rows(&text, datapoints)?;
     if let Some(tp) = targets {
         let t = std::fs::read_to_string(tp).map_err(|source| GfeError::Io {
             path: tp.to_path_buf(),
@@ -112,7 +124,7 @@ pub fn import_gfe(
             ""
         }
     ));
-    Ok(Imported { header, frames })
+    Ok((Imported { header, frames }, pixels))
 }
 
 /// Mean frame rate, rounded to 0.1 Hz.
@@ -181,6 +193,11 @@ pub fn back_project(x_px: f64, y_px: f64, depth_mm: f64) -> Option<Vec3> {
 
 /// Parses the text of a datapoints file (header line, then data rows).
 pub fn parse_datapoints(text: &str, path: &Path) -> Result<Vec<RecordedFrame>, GfeError> {
+    parse_rows(text, path).map(|(frames, _)| frames)
+}
+
+/// [`parse_datapoints`], with each row's pixels.
+fn parse_rows(text: &str, path: &Path) -> Result<(Vec<RecordedFrame>, Vec<FramePixels>), GfeError> {
     let mut lines = text.lines().enumerate();
     let header = lines
         .next()
@@ -191,6 +208,7 @@ pub fn parse_datapoints(text: &str, path: &Path) -> Result<Vec<RecordedFrame>, G
         })?;
     check_header(header, path)?;
     let mut frames: Vec<RecordedFrame> = Vec::new();
+    let mut pixels: Vec<FramePixels> = Vec::new();
     for (i, line) in lines {
         let line_no = i + 1;
         if line.trim().is_empty() {
@@ -224,6 +242,7 @@ pub fn parse_datapoints(text: &str, path: &Path) -> Result<Vec<RecordedFrame>, G
         }
         let mut points = Vec::with_capacity(POINT_COUNT);
         let mut valid = Vec::with_capacity(POINT_COUNT);
+        let mut row_pixels = Vec::with_capacity(POINT_COUNT);
         for (p, xyz) in tokens[1..].chunks_exact(3).enumerate() {
             let mut v = [0.0f64; 3];
             for (slot, tok) in v.iter_mut().zip(xyz) {
@@ -238,6 +257,8 @@ pub fn parse_datapoints(text: &str, path: &Path) -> Result<Vec<RecordedFrame>, G
             if v[2] < 0.0 {
                 return Err(row_error(format!("point {p}: negative depth {} mm", v[2])));
             }
+            let px = DVec2::new(v[0], v[1]);
+            row_pixels.push((px != DVec2::ZERO).then_some(px));
             match back_project(v[0], v[1], v[2]) {
                 Some(q) => {
                     points.push(q);
@@ -256,8 +277,9 @@ pub fn parse_datapoints(text: &str, path: &Path) -> Result<Vec<RecordedFrame>, G
             tracked: true,
         };
         frames.push(RecordedFrame::unlabelled(frame));
+        pixels.push(row_pixels);
     }
-    Ok(frames)
+    Ok((frames, pixels))
 }
 
 /// Parses a targets file: one 0 or 1 per line.
@@ -370,6 +392,21 @@ mod tests {
         assert_eq!(p.z, -1.0);
         let q = frames[1].frame.points[0];
         assert_eq!(q, Vec3::new(0.0, 0.0, -0.8));
+    }
+
+    #[test]
+    fn pixels_are_the_rows_x_y_and_zero_zero_is_missing() {
+        // Frame 0's point 0 at (0, 0) px: no pixel; frame 1's point 0 keeps (320, 240) without depth.
+        let zero = row("10.5", "0").replacen(" 320 240 ", " 0 0 ", 1);
+        let text = format!("{}\n{zero}\n{}\n", labels().join(" "), row("10.6", "0"));
+        let (frames, pixels) = parse_rows(&text, Path::new("t")).unwrap();
+        assert_eq!((frames.len(), pixels.len()), (2, 2));
+        assert_eq!(pixels[0].len(), POINT_COUNT);
+        assert_eq!(pixels[0][0], None);
+        assert_eq!(pixels[1][0], Some(DVec2::new(320.0, 240.0)));
+        assert_eq!(pixels[0][1], Some(DVec2::new(321.0, 240.0)));
+        // Depth 0 leaves the point invalid but keeps its pixel.
+        assert!(!frames[1].frame.is_valid(0));
     }
 
     #[test]

@@ -1,6 +1,7 @@
 //! Frame sources for mimic: the v1 recording format, importers of other trackers' files, paced replay.
 //!
-//! Entry points: [`RecordingReader`] / [`RecordingWriter`] / [`summarize`] (the JSON Lines
+//! Entry points: [`read_recording`] (a whole file: header, accepted frames, counts),
+//! [`RecordingReader`] / [`RecordingWriter`] / [`summarize`] (the JSON Lines
 //! format of `docs/recording-format.md`), [`gfe::import_gfe`] and [`openface::import_openface`]
 //! (importers), [`Replay`] (frames at their recorded pace on `tokio::time`).
 //! Depends on mimic_types, glam, serde and tokio's timer only (for [`Replay`], the default
@@ -15,9 +16,9 @@ pub mod replay;
 
 pub use imported::Imported;
 pub use recording::{
-    FrameError, FrameProblem, ReadStats, RecordedFrame, RecordingError, RecordingHeader,
+    FrameError, FrameProblem, ReadStats, RecordedFrame, Recording, RecordingError, RecordingHeader,
     RecordingReader, RecordingSummary, RecordingWriter, RejectCounts, WriteError, parse_frame_line,
-    summarize, summarize_lenient,
+    read_recording, summarize, summarize_lenient, summarize_reader,
 };
 #[cfg(feature = "replay")]
 pub use replay::{

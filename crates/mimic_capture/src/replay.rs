@@ -132,6 +132,15 @@ impl FileSource {
         })
     }
 
+    /// A source continuing from an open reader (e.g. one whose header was already looked at).
+    pub fn from_reader(reader: RecordingReader<BufReader<File>>) -> Self {
+        Self {
+            path: reader.path().to_path_buf(),
+            expected_points: reader.expected_points(),
+            reader,
+        }
+    }
+
     /// The current pass's reader (header and counts).
     pub fn reader(&self) -> &RecordingReader<BufReader<File>> {
         &self.reader

@@ -3,11 +3,13 @@
 //! animation-unit coefficients. See `docs/fitter.md`.
 //!
 //! Entry types: [`Candide3`] (the model, parsed from its `.wfm` file), [`Fitter`] (per-frame
-//! Levenberg-Marquardt with warm start), [`Camera`]. Numeric only: no I/O beyond what the caller
+//! Levenberg-Marquardt with warm start), [`Camera`], [`capture::fit_capture`] (a whole capture in
+//! memory -> `kinect121` frames and per-frame fits). Numeric only: no I/O beyond what the caller
 //! hands in, no async.
 
 pub mod camera;
 pub mod candide;
+pub mod capture;
 mod cholesky;
 pub mod fitter;
 

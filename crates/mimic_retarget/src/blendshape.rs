@@ -260,14 +260,7 @@ impl BlendshapeFitter {
             "normals: empty or one per vertex"
         );
         positions.copy_from_slice(&self.rest);
-        for (k, &w) in weights.iter().enumerate() {
-            if w != 0.0 {
-                let dp = &self.position_deltas[k * n..(k + 1) * n];
-                for (p, d) in positions.iter_mut().zip(dp) {
-                    *p += w * *d;
-                }
-            }
-        }
+        self.add_weighted_deltas(weights, positions);
         if normals.is_empty() {
             return;
         }
@@ -282,6 +275,31 @@ impl BlendshapeFitter {
         }
         for m in normals.iter_mut() {
             *m = m.normalize_or_zero();
+        }
+    }
+
+    /// Evaluates the displacement `sum w_k dP_k` (the blended mesh minus the rest mesh) into `u`;
+    /// allocates nothing.
+    ///
+    /// # Panics
+    /// If `weights` is not one per target or `u` not one per vertex.
+    pub fn displacements(&self, weights: &[f32], u: &mut [Vec3]) {
+        assert_eq!(weights.len(), self.names.len(), "one weight per target");
+        assert_eq!(u.len(), self.rest.len(), "one displacement per vertex");
+        u.fill(Vec3::ZERO);
+        self.add_weighted_deltas(weights, u);
+    }
+
+    /// Adds `sum w_k dP_k` to `out` (one entry per vertex).
+    fn add_weighted_deltas(&self, weights: &[f32], out: &mut [Vec3]) {
+        let n = self.rest.len();
+        for (k, &w) in weights.iter().enumerate() {
+            if w != 0.0 {
+                let dp = &self.position_deltas[k * n..(k + 1) * n];
+                for (p, d) in out.iter_mut().zip(dp) {
+                    *p += w * *d;
+                }
+            }
         }
     }
 
@@ -652,5 +670,51 @@ mod tests {
         // An exact name wins over the shared base; NaN counts as 0; unnamed targets are 0.
         let unknown = map.apply([("browInnerUp_R", 0.75), ("jawOpen", f32::NAN)], &mut w);
         assert_eq!((w, unknown), ([0.0, 0.0, 0.0, 0.75], 0));
+    }
+
+    #[test]
+    fn a_shape_that_is_a_target_is_matched_unless_left_out() {
+        use crate::quality::{MorphEval, control_displacements, measure};
+        let rig = grid_rig();
+        let t = targets(&rig);
+        // The measured shape is target 0 at full weight.
+        let shape: Vec<Vec3> = rig
+            .mesh
+            .positions
+            .iter()
+            .zip(&t[0].position_deltas)
+            .map(|(p, d)| *p + *d)
+            .collect();
+        let d = control_displacements(&rig, &shape);
+        assert_eq!(d, control_d(&rig, &t, &[1.0, 0.0, 0.0]));
+        let everything = vec![true; 16];
+        let mut u = vec![Vec3::NAN; 16];
+        let with_it = MorphEval::new(t.clone(), false, 0.0);
+        let mut f = with_it.fitter(&rig, &shape).unwrap();
+        let w = MorphEval::deform(&mut f, &d, &mut u);
+        assert_eq!(w.len(), 3);
+        assert!((w[0].1 - 1.0).abs() < 1e-4, "{w:?}");
+        let e = measure(&rig, &u, &shape, &everything);
+        assert_eq!(e.all.vertices, 16);
+        assert!(e.all.ratio < 1e-4, "{:?}", e.all);
+        // Left out, the other two targets cannot make it: a clearly worse match.
+        let without = MorphEval::new(t, true, 0.0);
+        let mut f = without.fitter(&rig, &shape).unwrap();
+        assert_eq!(MorphEval::deform(&mut f, &d, &mut u).len(), 2);
+        assert!(measure(&rig, &u, &shape, &everything).all.ratio > 0.1);
+    }
+
+    #[test]
+    fn displacements_are_the_blend_minus_the_rest() {
+        let rig = grid_rig();
+        let f =
+            BlendshapeFitter::new(&rig, &targets(&rig), &BlendshapeSettings::default()).unwrap();
+        let w = [0.25, 0.5, 1.0];
+        let (mut p, mut u) = (vec![Vec3::ZERO; 16], vec![Vec3::NAN; 16]);
+        f.evaluate(&w, &mut p, &mut []);
+        f.displacements(&w, &mut u);
+        for i in 0..16 {
+            assert!((rig.mesh.positions[i] + u[i] - p[i]).length() < 1e-6, "{i}");
+        }
     }
 }

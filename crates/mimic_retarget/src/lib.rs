@@ -7,21 +7,27 @@
 //! -> displacement against the neutral -> scale to the target -> One Euro filter -> `u = B d`
 //! -> normals, writing into a caller-owned [`FrameOutput`] and allocating nothing.
 //! [`BlendshapeFitter`] turns the same control displacements into morph-target weights and the
-//! blended mesh (blendshape mode).
+//! blended mesh (blendshape mode). [`StageSamples`] turns many steps' [`StageTimes`] into
+//! median / p99 per stage.
 //! No tokio, no wgpu, no file formats: sources and sinks live in other crates.
 
 mod blendshape;
 mod filter;
 mod patch;
 mod pipeline;
+pub mod quality;
 mod scale;
 mod settings;
+mod stage_stats;
+mod weight_stats;
 
 pub use blendshape::{BlendshapeError, BlendshapeFitter, BlendshapeSettings, WeightMap};
 pub use filter::{OneEuro, OneEuroSettings};
 pub use pipeline::{FrameOutput, FrameStatus, RetargetError, Retargeter, Stage, StageTimes, Stats};
 pub use scale::SourceToTarget;
 pub use settings::{Neutral, RetargetSettings};
+pub use stage_stats::{Percentiles, StagePercentiles, StageSamples, elapsed_ns, median_p99_us};
+pub use weight_stats::{TargetWeight, WeightStats, WeightSummary};
 
 #[cfg(test)]
 mod tests;

@@ -1,11 +1,11 @@
 //! `mimic bench`: per-stage timing of the retarget pipeline on a rig, with an in-process baseline.
 
-use crate::cmd::replay::median_p99_us;
-use crate::cmd::setup::{PipelineArgs, RigArgs, prepare};
+use crate::cmd::setup::{PipelineArgs, RigArgs, fit_candide3, prepare};
 use anyhow::Context;
 use glam::Vec3;
-use mimic_capture::RecordingReader;
-use mimic_retarget::{FrameStatus, Stage};
+use mimic_assets::ConfigDirs;
+use mimic_fit::capture::{CaptureFrame, FitSummary};
+use mimic_retarget::{FrameStatus, Stage, StageSamples, elapsed_ns, median_p99_us};
 use serde_json::json;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -30,14 +30,9 @@ pub struct Args {
 
 /// Runs `mimic bench`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut reader = RecordingReader::open(&args.recording, None)?;
-    let layout_name = reader.header().layout.clone();
-    let mut frames = Vec::new();
-    while let Some(item) = reader.next_frame() {
-        if let Ok(f) = item {
-            frames.push(f.frame);
-        }
-    }
+    let recording = mimic_capture::read_recording(&args.recording, None)?;
+    let layout_name = recording.header.layout.clone();
+    let frames: Vec<_> = recording.frames.iter().map(|f| f.frame.clone()).collect();
     anyhow::ensure!(
         !frames.is_empty(),
         "{}: no usable frames",
@@ -47,22 +42,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         frames.last().map(|f| f.timestamp_us).unwrap_or(0) - frames[0].timestamp_us + 33_333;
     let mut p = prepare(&args.rig, &args.pipeline, &layout_name)?;
     let mut out = p.retargeter.new_output();
-    let mut stage_ns: [Vec<u32>; 5] = Default::default();
-    let mut step_ns = Vec::with_capacity(args.steps);
+    let mut samples = StageSamples::with_capacity(args.steps);
     let mut k = 0usize;
     let mut guard = 0usize;
-    while step_ns.len() < args.steps {
+    while samples.steps() < args.steps {
         let src = &frames[k % frames.len()];
         let mut f = src.clone();
         f.timestamp_us += (k / frames.len()) as i64 * span_us;
         let t = Instant::now();
         let status = p.retargeter.step(&f, &mut out);
-        let ns = u32::try_from(t.elapsed().as_nanos()).unwrap_or(u32::MAX);
+        let ns = elapsed_ns(t);
         if status == FrameStatus::Tracked {
-            step_ns.push(ns);
-            for s in Stage::ALL {
-                stage_ns[s as usize].push(out.times.get(s));
-            }
+            samples.push(ns, &out.times);
         }
         k += 1;
         guard += 1;
@@ -85,7 +76,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut u_a = vec![glam::Vec3A::ZERO; n];
     let baseline_steps = (args.steps / 4).max(50);
     let mut base: [Vec<u32>; 4] = Default::default();
-    let ns = |t: Instant| u32::try_from(t.elapsed().as_nanos()).unwrap_or(u32::MAX);
+    let ns = elapsed_ns;
     for _ in 0..baseline_steps {
         let t = Instant::now();
         basis.apply(&d, &mut u);
@@ -104,15 +95,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     std::hint::black_box(&normals);
     let [ba, ba_pairs, bn, bn_fans] = base.map(|mut v| median_p99_us(&mut v).0);
 
-    let mut stages = serde_json::Map::new();
-    for s in Stage::ALL {
-        let (m, p99) = median_p99_us(&mut stage_ns[s as usize]);
-        stages.insert(s.name().into(), json!({"median_us": m, "p99_us": p99}));
-    }
-    let (step_m, step_p99) = median_p99_us(&mut step_ns);
-    let deform_m = stages["deform"]["median_us"].as_f64().unwrap_or(0.0);
-    let normals_m = stages["normals"]["median_us"].as_f64().unwrap_or(0.0);
-    let fit = crate::cmd::import_fit::fit_throughput(&args.recording)?;
+    let steps = samples.steps();
+    let (stages, step) = samples.summary();
+    let (step_m, step_p99) = (step.median_us, step.p99_us);
+    let deform_m = stages.get(Stage::Deform).median_us;
+    let normals_m = stages.get(Stage::Normals).median_us;
+    let fit = fit_throughput(&recording)?;
     let report = json!({
         "rig": p.rig.name,
         "vertices": n,
@@ -121,9 +109,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "solver": serde_json::to_value(p.solver)?,
         "basis_setup_ms": p.basis_time.as_secs_f64() * 1e3,
         "recording": args.recording.display().to_string(),
-        "steps": step_ns.len(),
+        "steps": steps,
         "stages": stages,
-        "step": {"median_us": step_m, "p99_us": step_p99, "frames_per_second": if step_m > 0.0 { 1e6 / step_m } else { 0.0 }},
+        "step": {"median_us": step_m, "p99_us": step_p99, "frames_per_second": step.per_second()},
         "baseline": {
             "what": "dense B d over every vertex plus full-mesh normals, same process; apply and normals_fans with the current kernels, apply_row_pairs and normals with the previous ones",
             "apply_median_us": ba,
@@ -151,9 +139,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             p.retargeter.moving_vertex_count(),
             basis.control_count(),
             p.basis_time.as_secs_f64() * 1e3,
-            step_ns.len()
+            steps
         );
-        crate::cmd::replay::print_stages(&report["stages"]);
+        print!("{stages}");
         println!(
             "  {:<10} median {step_m:>8.1} us  p99 {step_p99:>8.1} us  ({:.0} frames/s)",
             "step",
@@ -170,4 +158,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// CANDIDE-3 fitting speed on a recording whose layout lists correspondences (`None` otherwise):
+/// its valid 3D points only (a recording keeps no pixels of depth-less points).
+fn fit_throughput(recording: &mimic_capture::Recording) -> anyhow::Result<Option<FitSummary>> {
+    let configs = ConfigDirs::locate(None);
+    let has_correspondences = configs
+        .load_layout_named(&recording.header.layout)
+        .is_ok_and(|l| !l.candide_correspondences.is_empty());
+    if !has_correspondences {
+        return Ok(None);
+    }
+    let frames: Vec<CaptureFrame> = recording
+        .frames
+        .iter()
+        .map(|f| CaptureFrame {
+            landmarks: &f.frame,
+            label: f.label,
+            pixels: None,
+        })
+        .collect();
+    let fit = fit_candide3(&configs, &recording.header.layout, &frames)?;
+    Ok(Some(fit.summary))
 }

@@ -1,11 +1,24 @@
-//! `mimic import`: other trackers' files to v1 recordings.
+//! `mimic import`: other trackers' files to v1 recordings; with `--fit candide3`, the capture
+//! fitted with CANDIDE-3 as a `kinect121` recording (points 0-112 the fitted vertices, 113-120
+//! invalid) with the fit kept per frame (docs/fitter.md).
 
+use crate::cmd::setup::fit_candide3;
 use anyhow::Context;
 use clap::Subcommand;
-use mimic_capture::Imported;
+use mimic_assets::ConfigDirs;
+use mimic_capture::gfe::FramePixels;
 use mimic_capture::openface::OpenFaceTiming;
+use mimic_capture::{Imported, RecordingHeader, RecordingWriter};
+use mimic_fit::capture::{CaptureFrame, KINECT121_POINTS, frame_fields};
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
+
+/// Model a capture can be fitted with.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FitModel {
+    /// CANDIDE-3 (configs/models/candide3/candide3.wfm) -> a `kinect121` recording.
+    Candide3,
+}
 
 /// Importers of other trackers' files.
 #[derive(Subcommand, Debug)]
@@ -25,7 +38,7 @@ pub enum ImportCommand {
         source: Option<String>,
         /// Fit a face model and write its `kinect121` recording instead (docs/fitter.md).
         #[arg(long, value_enum)]
-        fit: Option<crate::cmd::import_fit::FitModel>,
+        fit: Option<FitModel>,
     },
     /// OpenFace 2.x CSV (3D landmarks X_i, Y_i, Z_i) to an `ibug68` recording.
     Openface {
@@ -45,7 +58,7 @@ pub enum ImportCommand {
         source: Option<String>,
         /// Fit a face model and write its `kinect121` recording instead (docs/fitter.md).
         #[arg(long, value_enum)]
-        fit: Option<crate::cmd::import_fit::FitModel>,
+        fit: Option<FitModel>,
     },
 }
 
@@ -59,13 +72,12 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             source,
             fit,
         } => {
-            let imported =
-                mimic_capture::gfe::import_gfe(&datapoints, targets.as_deref(), source.as_deref())?;
-            let fit = match fit {
-                Some(m) => Some((m, Some(crate::cmd::import_fit::gfe_pixels(&datapoints)?))),
-                None => None,
-            };
-            (imported, output, fit)
+            let (imported, pixels) = mimic_capture::gfe::import_gfe_with_pixels(
+                &datapoints,
+                targets.as_deref(),
+                source.as_deref(),
+            )?;
+            (imported, output, fit.map(|m| (m, Some(pixels))))
         }
         ImportCommand::Openface {
             csv,
@@ -87,8 +99,8 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             )
         }
     };
-    if let Some((model, pixels)) = fit {
-        return crate::cmd::import_fit::run_fit(&imported, pixels.as_deref(), model, &output);
+    if let Some((FitModel::Candide3, pixels)) = fit {
+        return write_fitted(&imported, pixels.as_deref(), &output);
     }
     write(&imported, &output)?;
     println!("{}", summary_line(&imported, &output));
@@ -101,6 +113,57 @@ fn write(imported: &Imported, output: &Path) -> anyhow::Result<()> {
     imported
         .write_to(BufWriter::new(file))
         .with_context(|| format!("{}: cannot write", output.display()))?;
+    Ok(())
+}
+
+/// Fits CANDIDE-3 to an imported capture (with the tracker's pixels where it gave them), writes
+/// the `kinect121` recording with each frame's `fit` and prints the summary line.
+fn write_fitted(
+    imported: &Imported,
+    pixels: Option<&[FramePixels]>,
+    output: &Path,
+) -> anyhow::Result<()> {
+    let frames: Vec<CaptureFrame> = imported
+        .frames
+        .iter()
+        .enumerate()
+        .map(|(i, f)| CaptureFrame {
+            landmarks: &f.frame,
+            label: f.label,
+            pixels: pixels.and_then(|p| p.get(i)).map(Vec::as_slice),
+        })
+        .collect();
+    let fit = fit_candide3(&ConfigDirs::locate(None), &imported.header.layout, &frames)?;
+    let mut header = RecordingHeader::new(
+        "kinect121",
+        &format!(
+            "{} -> CANDIDE-3 fit (mimic import --fit candide3)",
+            imported.header.source
+        ),
+        imported.header.rate_hz,
+        Some(KINECT121_POINTS),
+    );
+    header.description = Some(fit.description(imported.frames.iter().any(|f| f.label.is_some())));
+    header
+        .extra
+        .insert("fit".to_string(), fit.header_fit.clone());
+    let cannot_write = || format!("{}: cannot write", output.display());
+    let mut w = RecordingWriter::create(output, &header)
+        .with_context(|| format!("{}: cannot create", output.display()))?;
+    for ((frame, r), source) in fit.frames.iter().zip(&fit.results).zip(&imported.frames) {
+        w.write_frame_with_fields(frame, source.label, &frame_fields(r))
+            .with_context(cannot_write)?;
+    }
+    w.finish().with_context(cannot_write)?;
+    let s = &fit.summary;
+    println!(
+        "{}: {} frames fitted with CANDIDE-3 ({} lost), median residual {:.2} px, {:.0} frames/s, layout kinect121",
+        output.display(),
+        s.frames,
+        s.lost,
+        s.median_residual_px,
+        s.frames_per_s
+    );
     Ok(())
 }
 

@@ -48,7 +48,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Kind::Rig => rig_summary(&load_rig(&args.file)?),
         Kind::Recording => {
             let configs = ConfigDirs::locate(args.configs.as_deref());
-            crate::cmd::recording_info::summary(&args.file, &configs)?
+            recording_summary(&args.file, &configs)?
         }
     };
     let text = if args.json {
@@ -127,4 +127,23 @@ fn rig_summary(r: &Rig) -> Value {
         "bounds_max": [hi.x, hi.y, hi.z],
         "solver": serde_json::to_value(r.solver).unwrap_or(Value::Null),
     })
+}
+
+/// Validates a recording strictly (the first rejected frame is the error) and returns its summary.
+///
+/// The layout named in the header is loaded from the config directory when it exists there, so
+/// frames are checked against the layout's point count; otherwise against the header's.
+fn recording_summary(path: &Path, configs: &ConfigDirs) -> anyhow::Result<Value> {
+    let mut reader = mimic_capture::RecordingReader::open(path, None)?;
+    let layout = configs.load_layout_named(&reader.header().layout).ok();
+    if let Some(l) = &layout {
+        reader.expect_points(l.point_count)?;
+    }
+    let summary = mimic_capture::summarize_reader(reader, true)?;
+    let mut v = serde_json::to_value(&summary)?;
+    if let Value::Object(map) = &mut v {
+        map.insert("kind".into(), "recording".into());
+        map.insert("layout_found".into(), Value::Bool(layout.is_some()));
+    }
+    Ok(v)
 }

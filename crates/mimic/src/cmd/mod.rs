@@ -3,10 +3,8 @@
 pub mod bench;
 pub mod eval;
 pub mod import;
-pub mod import_fit;
 pub mod info;
 pub mod morph;
-pub mod recording_info;
 pub mod render;
 pub mod replay;
 pub mod send;

@@ -1,15 +1,11 @@
 //! `mimic morph`: a rig's morph targets to the morph data file and back (docs/morph-format.md).
 
+use crate::cmd::setup::{load_rig_with_targets, write_obj_frame};
 use anyhow::{Context, bail};
 use clap::Subcommand;
-use mimic_assets::{
-    ConfigDirs, MORPH_FILE_DECIMALS, load_morph_file, load_morph_targets, load_rig, save_morph_file,
-};
-use mimic_retarget::{BlendshapeFitter, BlendshapeSettings, FrameOutput, FrameStatus, WeightMap};
-use mimic_types::{MorphTarget, Rig};
+use mimic_assets::{MORPH_FILE_DECIMALS, compare_deltas, load_morph_file, save_morph_file};
+use mimic_retarget::{BlendshapeFitter, BlendshapeSettings, WeightMap};
 use serde_json::json;
-use std::fs::File;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 
 /// Export and import of morph data files.
@@ -59,37 +55,6 @@ pub enum MorphCommand {
         #[arg(long, default_value_t = 1)]
         every: usize,
     },
-}
-
-/// A rig and its morph targets, loaded from a rig name or path.
-pub fn load_rig_with_targets(
-    rig: &str,
-    configs: Option<&Path>,
-) -> anyhow::Result<(Rig, Vec<MorphTarget>)> {
-    let path = ConfigDirs::locate(configs).rig_path(rig);
-    let rig = load_rig(&path)?;
-    let targets = load_morph_targets(&path, &rig)?;
-    Ok((rig, targets))
-}
-
-/// Largest difference a value may show after printing with [`MORPH_FILE_DECIMALS`] decimals and
-/// parsing back to f32: half the last printed digit plus half an f32 ulp of the value.
-fn round_trip_tolerance(v: f32) -> f32 {
-    0.5 * 10f32.powi(-(MORPH_FILE_DECIMALS as i32)) + v.abs() * f32::EPSILON
-}
-
-/// Largest component difference between two delta lists, and whether all are within tolerance.
-fn compare(a: &[glam::Vec3], b: &[glam::Vec3]) -> (f32, bool) {
-    let mut max = 0f32;
-    let mut ok = true;
-    for (p, q) in a.iter().zip(b) {
-        for (x, y) in p.to_array().into_iter().zip(q.to_array()) {
-            let e = (x - y).abs();
-            max = max.max(e);
-            ok &= e <= round_trip_tolerance(x);
-        }
-    }
-    (max, ok)
 }
 
 /// Runs `mimic morph`.
@@ -157,8 +122,8 @@ pub fn run(command: MorphCommand) -> anyhow::Result<()> {
                     rows.push(json!({"target": t.name, "in_rig": false}));
                     continue;
                 };
-                let (dp, okp) = compare(&own.position_deltas, &t.position_deltas);
-                let (dn, okn) = compare(&own.normal_deltas, &t.normal_deltas);
+                let (dp, okp) = compare_deltas(&own.position_deltas, &t.position_deltas);
+                let (dn, okn) = compare_deltas(&own.normal_deltas, &t.normal_deltas);
                 all_ok &= okp && okn;
                 rows.push(json!({
                     "target": t.name,
@@ -209,205 +174,6 @@ pub fn run(command: MorphCommand) -> anyhow::Result<()> {
             }
             Ok(())
         }
-    }
-}
-
-/// Output mode of the retarget pipeline.
-#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Mode {
-    /// Free-form deformation `P0 + B d` by the rig's solver.
-    Freeform,
-    /// Weights of the rig's morph targets fitted to `d`, mesh `P0 + sum w dP`.
-    Blendshapes,
-}
-
-/// Command-line options of the blendshape mode (flattened into `mimic replay`).
-#[derive(clap::Args, Debug, Clone)]
-pub struct BlendshapeArgs {
-    /// Free-form deformation, or blendshape weights of the rig's `[[morph_targets]]`.
-    #[arg(long, value_enum, default_value = "freeform")]
-    pub mode: Mode,
-    /// Per-frame blendshape weights as CSV (frame, t_us, status, label, one column per target).
-    #[arg(long)]
-    pub weights: Option<PathBuf>,
-    /// Ridge of the weight fit, relative to each target's squared control deltas (0.01: 1 % shrink).
-    #[arg(long, default_value_t = BlendshapeSettings::default().ridge)]
-    pub ridge: f64,
-    /// Turn the One Euro smoothing of the weights off.
-    #[arg(long)]
-    pub no_weight_filter: bool,
-}
-
-/// The blendshape stage of a replay: fitter, weights CSV and running statistics.
-pub struct Blend {
-    fitter: BlendshapeFitter,
-    csv: Option<(PathBuf, BufWriter<File>)>,
-    sum: Vec<f64>,
-    max: Vec<f32>,
-    frames: usize,
-    /// Nanoseconds of fit + blend per tracked frame.
-    ns: Vec<u32>,
-}
-
-impl BlendshapeArgs {
-    /// The blendshape stage for `rig` (loaded from `rig_path`), or `None` in free-form mode.
-    pub fn blend(&self, rig_path: &Path, rig: &Rig) -> anyhow::Result<Option<Blend>> {
-        if self.mode == Mode::Freeform {
-            if self.weights.is_some() {
-                bail!("--weights needs --mode blendshapes");
-            }
-            return Ok(None);
-        }
-        let targets = load_morph_targets(rig_path, rig)?;
-        let settings = BlendshapeSettings {
-            ridge: self.ridge,
-            smoothing: if self.no_weight_filter {
-                None
-            } else {
-                BlendshapeSettings::default().smoothing
-            },
-        };
-        let fitter = BlendshapeFitter::new(rig, &targets, &settings)
-            .with_context(|| format!("blendshapes of rig `{}`", rig.name))?;
-        let csv = match &self.weights {
-            Some(p) => {
-                let mut w =
-                    BufWriter::new(File::create(p).with_context(|| p.display().to_string())?);
-                write!(w, "frame,t_us,status,label")?;
-                for name in fitter.names() {
-                    write!(w, ",{name}")?;
-                }
-                writeln!(w)?;
-                Some((p.clone(), w))
-            }
-            None => None,
-        };
-        let k = fitter.target_count();
-        Ok(Some(Blend {
-            fitter,
-            csv,
-            sum: vec![0.0; k],
-            max: vec![0.0; k],
-            frames: 0,
-            ns: Vec::new(),
-        }))
-    }
-}
-
-impl Blend {
-    /// Replaces `out`'s mesh with the blend fitted to its displacements and writes the CSV row.
-    pub fn frame(
-        &mut self,
-        index: usize,
-        status_code: u32,
-        label: Option<i64>,
-        out: &mut FrameOutput,
-    ) -> anyhow::Result<()> {
-        let tracked = out.status == FrameStatus::Tracked;
-        let started = std::time::Instant::now();
-        let w = self.fitter.apply(out);
-        if tracked {
-            self.ns
-                .push(u32::try_from(started.elapsed().as_nanos()).unwrap_or(u32::MAX));
-            self.frames += 1;
-            for ((s, m), x) in self.sum.iter_mut().zip(&mut self.max).zip(w) {
-                *s += f64::from(*x);
-                *m = m.max(*x);
-            }
-        }
-        if let Some((path, csv)) = self.csv.as_mut() {
-            let label = label.map(|l| l.to_string()).unwrap_or_default();
-            write!(csv, "{index},{},{status_code},{label}", out.timestamp_us)
-                .with_context(|| path.display().to_string())?;
-            for x in w {
-                write!(csv, ",{x:.4}")?;
-            }
-            writeln!(csv)?;
-        }
-        Ok(())
-    }
-
-    /// Flushes the CSV; returns a summary (per target: mean and max weight over tracked frames).
-    pub fn finish(mut self) -> anyhow::Result<serde_json::Value> {
-        if let Some((path, csv)) = self.csv {
-            csv.into_inner()
-                .map_err(|e| e.into_error())
-                .with_context(|| path.display().to_string())?;
-        }
-        let n = self.frames.max(1) as f64;
-        let (median_us, p99_us) = crate::cmd::replay::median_p99_us(&mut self.ns);
-        Ok(json!({
-            "fit_and_blend": {"median_us": median_us, "p99_us": p99_us},
-            "ridge_per_target": self.fitter.ridges(),
-            "targets": self.fitter.names().iter().zip(&self.sum).zip(&self.max).map(|((name, s), m)| {
-                json!({"target": name, "mean_weight": s / n, "max_weight": m})
-            }).collect::<Vec<_>>(),
-        }))
-    }
-}
-
-/// Blendshape "solver" for `mimic eval`: fits weights to a shape's control displacements (no
-/// smoothing) and deforms the neutral with the rig's morph targets.
-pub struct EvalBlend {
-    targets: Vec<MorphTarget>,
-    leave_one_out: bool,
-    ridge: f64,
-}
-
-impl EvalBlend {
-    /// Loads the rig's morph targets; with `leave_one_out`, a target identical to the measured
-    /// shape is left out of that shape's fit (so a shape cannot be matched by itself).
-    pub fn load(
-        rig_path: &Path,
-        rig: &Rig,
-        leave_one_out: bool,
-        ridge: f64,
-    ) -> anyhow::Result<Self> {
-        let targets = load_morph_targets(rig_path, rig)?;
-        if targets.is_empty() {
-            bail!("rig `{}` has no morph targets", rig.name);
-        }
-        Ok(Self {
-            targets,
-            leave_one_out,
-            ridge,
-        })
-    }
-
-    /// The fitter for `shape` (positions on the rig's topology).
-    pub fn fitter(&self, rig: &Rig, shape: &[glam::Vec3]) -> anyhow::Result<BlendshapeFitter> {
-        let is_shape = |t: &MorphTarget| {
-            t.position_deltas
-                .iter()
-                .zip(shape.iter().zip(&rig.mesh.positions))
-                .all(|(d, (s, p))| (*s - *p - *d).abs().max_element() <= 1e-6)
-        };
-        let used: Vec<MorphTarget> = self
-            .targets
-            .iter()
-            .filter(|t| !(self.leave_one_out && is_shape(t)))
-            .cloned()
-            .collect();
-        let settings = BlendshapeSettings {
-            ridge: self.ridge,
-            smoothing: None,
-        };
-        Ok(BlendshapeFitter::new(rig, &used, &settings)?)
-    }
-
-    /// `u = P(w) - P0` for the weights `fitter` fits to `d`; returns the weights by name.
-    pub fn deform(
-        fitter: &mut BlendshapeFitter,
-        rest: &[glam::Vec3],
-        d: &[glam::Vec3],
-        u: &mut [glam::Vec3],
-    ) -> Vec<(String, f32)> {
-        let w = fitter.fit(d, 0).to_vec();
-        fitter.evaluate(&w, u, &mut []);
-        for (u, p) in u.iter_mut().zip(rest) {
-            *u -= *p;
-        }
-        fitter.names().iter().cloned().zip(w).collect()
     }
 }
 
@@ -470,17 +236,8 @@ fn apply(
         map.apply(pairs.iter().copied(), &mut w);
         if frames.is_multiple_of(every.max(1)) {
             fitter.evaluate(&w, &mut positions, &mut []);
-            let path = crate::cmd::replay::obj_frame_path(out, frames);
-            let file = File::create(&path).with_context(|| path.display().to_string())?;
-            let mut f = BufWriter::new(file);
-            mimic_assets::write_obj(
-                &mut f,
-                &format!("mimic morph apply onto rig {}: frame {frames}", rig.name),
-                &positions,
-                None,
-                &rig.mesh.triangles,
-            )?;
-            f.flush().with_context(|| path.display().to_string())?;
+            let header = format!("mimic morph apply onto rig {}: frame {frames}", rig.name);
+            write_obj_frame(out, frames, &header, &positions, &rig.mesh.triangles)?;
             written += 1;
         }
         frames += 1;

@@ -1,109 +1,13 @@
 //! `mimic render`: frames of a recording retargeted onto a rig, rendered headless to PNG.
 
-use crate::cmd::setup::{PipelineArgs, RigArgs, prepare_with};
+use crate::cmd::setup::{PipelineArgs, RigArgs, parse_size, prepare_with, rig_look};
 use anyhow::{Context, bail};
 use glam::Vec3;
 use mimic_capture::RecordingReader;
-use mimic_render::{Camera, Deform, Image, Renderer, SKIN_ALBEDO, Shading, View};
+use mimic_render::{Camera, Deform, Image, Renderer, Shading, View};
 use mimic_retarget::RetargetSettings;
-use mimic_types::{Fdp, LandmarkFrame};
+use mimic_types::Fdp;
 use std::path::{Path, PathBuf};
-
-/// Vertex ranges hidden by default per rig: ICT-FaceKit's parts that its own renderer draws
-/// (partly) see-through (configs/meshes/ict-facekit/SOURCE.md), which opaque would cover the eyes:
-/// the sclera shells (21451-22220, 23021-23790; their texture is clear over the cornea, and the
-/// iris mesh inside them is the whole eyeball), the lacrimal fluid, eye blend and eye occlusion
-/// shells (24591-25350, `Tf 0`) and the alpha-mapped eyelash cards (25351-26718, `Tf 0`).
-const HIDDEN_BY_RIG: &[(&str, &[(u32, u32)])] = &[(
-    "ict-face",
-    &[(21451, 22220), (23021, 23790), (24591, 26718)],
-)];
-
-/// Materials per rig that keep the skin albedo instead of their MTL colour: ICT-FaceKit's face and
-/// back of the head have a flat grey `Kd` (0.6) that multiplies a skin texture not shipped here.
-const SKIN_MATERIALS_BY_RIG: &[(&str, &[&str])] = &[("ict-face", &["M_Face", "M_BackHead"])];
-
-/// Eyeballs per rig, as (eyeball material, white-of-the-eye material): ICT-FaceKit's iris meshes
-/// are whole eyeballs, textured. Here a vertex within [`IRIS_DEGREES`] of the eyeball's front (+z
-/// from the centre of its vertices) takes the eyeball material's `Kd` (the iris), within
-/// [`PUPIL_DEGREES`] black, and the rest the white's `Kd`.
-const EYEBALLS_BY_RIG: &[(&str, &[(&str, &str)])] = &[(
-    "ict-face",
-    &[
-        ("M_IrisLeft", "M_ScleraLeft"),
-        ("M_IrisRight", "M_ScleraRight"),
-    ],
-)];
-/// Half-angle of the iris seen from the eyeball's centre (a 12 mm iris on a 24 mm eye: 30 degrees).
-const IRIS_DEGREES: f32 = 30.0;
-/// Half-angle of the pupil.
-const PUPIL_DEGREES: f32 = 11.0;
-
-/// Per-vertex albedo of a rig from its mesh's MTL materials (`Kd`; skin for the rig's skin
-/// materials and for vertices of no material; eyeballs as [`EYEBALLS_BY_RIG`] says), or `None`
-/// when the mesh names no materials.
-pub(crate) fn material_colors(
-    rig_path: &Path,
-    rig_name: &str,
-    positions: &[Vec3],
-    triangles: &[[u32; 3]],
-) -> anyhow::Result<Option<Vec<[f32; 3]>>> {
-    let materials = mimic_assets::load_rig_materials(rig_path)?;
-    if materials.materials.is_empty() || materials.triangle_material.len() != triangles.len() {
-        return Ok(None);
-    }
-    let skin: &[&str] = SKIN_MATERIALS_BY_RIG
-        .iter()
-        .find(|(name, _)| *name == rig_name)
-        .map_or(&[], |(_, m)| m);
-    let mut colors = materials.vertex_colors(positions.len(), triangles, SKIN_ALBEDO, |m| {
-        if skin.contains(&m.name.as_str()) {
-            SKIN_ALBEDO
-        } else {
-            m.diffuse
-        }
-    });
-    let eyeballs: &[(&str, &str)] = EYEBALLS_BY_RIG
-        .iter()
-        .find(|(name, _)| *name == rig_name)
-        .map_or(&[], |(_, e)| e);
-    for (ball, white) in eyeballs {
-        let (Some(b), Some(w)) = (materials.find(ball), materials.find(white)) else {
-            continue;
-        };
-        let mut vertices: Vec<u32> = triangles
-            .iter()
-            .zip(&materials.triangle_material)
-            .filter(|(_, m)| **m == Some(b))
-            .flat_map(|(t, _)| t.iter().copied())
-            .collect();
-        vertices.sort_unstable();
-        vertices.dedup();
-        let points: Vec<Vec3> = vertices
-            .iter()
-            .filter_map(|&v| positions.get(v as usize).copied())
-            .collect();
-        if points.is_empty() {
-            continue;
-        }
-        let centre = points.iter().copied().sum::<Vec3>() / points.len() as f32;
-        let (iris, pupil) = (
-            IRIS_DEGREES.to_radians().cos(),
-            PUPIL_DEGREES.to_radians().cos(),
-        );
-        for (&v, p) in vertices.iter().zip(&points) {
-            let cos = (*p - centre).normalize_or_zero().dot(Vec3::Z);
-            colors[v as usize] = if cos >= pupil {
-                [0.02, 0.02, 0.02]
-            } else if cos >= iris {
-                materials.materials[b].diffuse
-            } else {
-                materials.materials[w].diffuse
-            };
-        }
-    }
-    Ok(Some(colors))
-}
 
 /// Arguments of `mimic render`.
 #[derive(clap::Args, Debug)]
@@ -139,53 +43,13 @@ pub struct Args {
     /// Turn the head by the performer's head rotation.
     #[arg(long)]
     pub pose: bool,
-    /// Vertex ranges whose triangles are not drawn, e.g. 100-200,300-310, or `none` (default: per rig).
+    /// Vertex ranges whose triangles are not drawn, e.g. 100-200,300-310, or `none` (default: the
+    /// rig's `[look]`).
     #[arg(long)]
     pub hide: Option<String>,
     /// Skin colour everywhere instead of the mesh's material colours (teeth, gums, eyes, lashes).
     #[arg(long)]
     pub no_materials: bool,
-}
-
-pub(crate) fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
-    let (w, h) = s
-        .split_once('x')
-        .with_context(|| format!("--size `{s}`: expected WIDTHxHEIGHT, e.g. 512x512"))?;
-    Ok((
-        w.trim()
-            .parse()
-            .with_context(|| format!("--size width `{w}`"))?,
-        h.trim()
-            .parse()
-            .with_context(|| format!("--size height `{h}`"))?,
-    ))
-}
-
-pub(crate) fn parse_hidden(arg: Option<&str>, rig: &str) -> anyhow::Result<Vec<(u32, u32)>> {
-    let Some(s) = arg else {
-        return Ok(HIDDEN_BY_RIG
-            .iter()
-            .find(|(name, _)| *name == rig)
-            .map(|(_, r)| r.to_vec())
-            .unwrap_or_default());
-    };
-    if s.trim() == "none" {
-        return Ok(Vec::new());
-    }
-    s.split(',')
-        .map(|part| {
-            let (a, b) = part.split_once('-').unwrap_or((part, part));
-            let a: u32 = a
-                .trim()
-                .parse()
-                .with_context(|| format!("--hide `{part}`"))?;
-            let b: u32 = b
-                .trim()
-                .parse()
-                .with_context(|| format!("--hide `{part}`"))?;
-            Ok((a.min(b), a.max(b)))
-        })
-        .collect()
 }
 
 /// Frames to render for a sheet of `n` out of `total`: evenly spread, first and last included.
@@ -207,18 +71,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.frames.is_empty() && args.sheet.is_none() {
         bail!("nothing to render: give --frames 0,30,60 or --sheet N");
     }
-    let header = RecordingReader::open(&args.recording, None)?
-        .header()
-        .clone();
+    let mut reader = RecordingReader::open(&args.recording, None)?;
     // The GPU computes u = B d and the normals: the pipeline only needs d.
     let settings = RetargetSettings {
         positions: false,
         normals: false,
         ..args.pipeline.settings()
     };
-    let mut prepared = prepare_with(&args.rig, settings, &header.layout)?;
+    let mut prepared = prepare_with(&args.rig, settings, &reader.header().layout)?;
     let rig = &prepared.rig;
-    let hidden = parse_hidden(args.hide.as_deref(), &rig.name)?;
+    let look = rig_look(&args.rig, rig, args.hide.as_deref(), !args.no_materials)?;
+    let hidden = look.hidden;
     let shown: Vec<[u32; 3]> = rig
         .mesh
         .triangles
@@ -255,27 +118,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     tracing::info!(adapter = renderer.adapter(), "renderer");
     let basis = prepared.retargeter.basis().clone();
     let gpu = renderer.upload_rig(&rig.mesh.positions, &shown, Some(&basis))?;
-    if !args.no_materials {
-        let rig_path = args.rig.config_dirs().rig_path(&args.rig.rig);
-        let (p, t) = (&rig.mesh.positions, &rig.mesh.triangles);
-        if let Some(colors) = material_colors(&rig_path, &rig.name, p, t)? {
-            renderer.set_albedo(&gpu, &colors)?;
-        }
+    if let Some(colors) = &look.colors {
+        renderer.set_albedo(&gpu, colors)?;
     }
     let pivot = (lo + hi) * 0.5;
     let mut view = View::lit(Camera::front(lo, hi));
     view.shading = shading;
 
     // Read the accepted frames (a sheet needs the count first; recordings are small).
-    let mut reader = RecordingReader::open(&args.recording, Some(prepared.layout.point_count))?;
-    let mut frames: Vec<LandmarkFrame> = Vec::new();
-    let mut rejected = 0usize;
-    while let Some(item) = reader.next_frame() {
-        match item {
-            Ok(rf) => frames.push(rf.frame),
-            Err(_) => rejected += 1,
-        }
-    }
+    reader.expect_points(prepared.layout.point_count)?;
+    let recording = reader.read_all();
+    let frames: Vec<_> = recording.frames.iter().map(|f| &f.frame).collect();
+    let rejected = recording.stats.rejected.total();
     if rejected > 0 {
         tracing::warn!(rejected, "lines rejected by the reader were skipped");
     }
@@ -302,7 +156,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let last = wanted.iter().copied().max().unwrap_or(0);
     let mut out = prepared.retargeter.new_output();
     let mut tiles: Vec<(usize, Image, Image)> = Vec::new();
-    for (index, frame) in frames.iter().enumerate().take(last + 1) {
+    for (index, &frame) in frames.iter().enumerate().take(last + 1) {
         prepared.retargeter.step(frame, &mut out);
         if !wanted.contains(&index) {
             continue;
@@ -374,79 +228,5 @@ mod tests {
         // More frames asked than exist: each frame once.
         assert_eq!(spread(5, 3), vec![0, 1, 2]);
         assert!(spread(0, 10).is_empty() && spread(3, 0).is_empty());
-    }
-
-    #[test]
-    fn hidden_ranges_parse_and_default_per_rig() {
-        assert_eq!(
-            parse_hidden(Some("5-3,7"), "x").unwrap(),
-            vec![(3, 5), (7, 7)]
-        );
-        assert!(parse_hidden(Some("none"), "ict-face").unwrap().is_empty());
-        assert_eq!(
-            parse_hidden(None, "ict-face").unwrap(),
-            vec![(21451, 22220), (23021, 23790), (24591, 26718)]
-        );
-        assert!(parse_hidden(None, "candide3").unwrap().is_empty());
-        assert!(parse_hidden(Some("1-x"), "x").is_err());
-        assert_eq!(parse_size("640x480").unwrap(), (640, 480));
-        assert!(parse_size("640").is_err());
-    }
-
-    #[test]
-    fn the_hidden_ict_ranges_are_its_see_through_eye_parts() {
-        let configs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs");
-        let path = mimic_assets::ConfigDirs::locate(Some(&configs)).rig_path("ict-face");
-        let mats = mimic_assets::load_rig_materials(&path).unwrap();
-        let mesh = mimic_assets::load_obj(&mimic_assets::rig_mesh_path(&path).unwrap()).unwrap();
-        let hidden = parse_hidden(None, "ict-face").unwrap();
-        let in_hidden = |v: &u32| hidden.iter().any(|(a, b)| (*a..=*b).contains(v));
-        for (tri, m) in mesh.triangles.iter().zip(&mats.triangle_material) {
-            let name = &mats.materials[m.unwrap()].name;
-            let shell = [
-                "M_ScleraLeft",
-                "M_ScleraRight",
-                "M_LacrimalFluid",
-                "M_EyeBlend",
-                "M_EyeOcclusion",
-                "M_EyeLashes",
-            ]
-            .contains(&name.as_str());
-            // Their triangles lie wholly in the ranges; no other triangle touches them.
-            assert_eq!(tri.iter().all(in_hidden), shell, "{name} {tri:?}");
-            assert_eq!(tri.iter().any(in_hidden), shell, "{name} {tri:?}");
-        }
-        // Colours: gums red, teeth light, the face skin.
-        let colors = material_colors(&path, "ict-face", &mesh.positions, &mesh.triangles)
-            .unwrap()
-            .unwrap();
-        let of = |name: &str| {
-            let k = mats.find(name).unwrap();
-            let t = mats
-                .triangle_material
-                .iter()
-                .position(|m| *m == Some(k))
-                .unwrap();
-            colors[mesh.triangles[t][0] as usize]
-        };
-        assert_eq!(of("M_GumsTongue"), [0.30, 0.03, 0.06]);
-        assert_eq!(of("M_Teeth"), [0.8, 0.8, 0.8]);
-        assert_eq!(of("M_Face"), SKIN_ALBEDO);
-        // Each eyeball: a black pupil, an iris of the iris Kd, the rest the sclera's Kd.
-        for ball in ["M_IrisLeft", "M_IrisRight"] {
-            let k = mats.find(ball).unwrap();
-            let mut seen: Vec<[f32; 3]> = Vec::new();
-            for (t, m) in mesh.triangles.iter().zip(&mats.triangle_material) {
-                if *m == Some(k) {
-                    for &v in t {
-                        if !seen.contains(&colors[v as usize]) {
-                            seen.push(colors[v as usize]);
-                        }
-                    }
-                }
-            }
-            seen.sort_by(|a, b| a[0].total_cmp(&b[0]));
-            assert_eq!(seen, vec![[0.02; 3], [0.2; 3], [0.6; 3]], "{ball}");
-        }
     }
 }

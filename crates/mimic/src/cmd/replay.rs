@@ -1,11 +1,16 @@
 //! `mimic replay`: a recorded performance onto a rig, written as OBJ frames or one binary file.
 
-use crate::cmd::setup::{PipelineArgs, RigArgs, prepare_with};
-use anyhow::Context;
-use mimic_assets::{FramesWriter, write_obj};
-use mimic_capture::{Pace, Replay, ReplayOptions};
-use mimic_retarget::{FrameOutput, FrameStatus, Stage};
-use mimic_types::Region;
+use crate::cmd::setup::{
+    BlendshapeArgs, Mode, PipelineArgs, RigArgs, prepare_with, write_obj_frame,
+};
+use anyhow::{Context, bail};
+use mimic_assets::{FramesWriter, load_morph_targets};
+use mimic_capture::{FileSource, Pace, RecordingReader, Replay, ReplayOptions};
+use mimic_retarget::{
+    BlendshapeFitter, FrameOutput, FrameStatus, StageSamples, WeightStats, WeightSummary,
+    elapsed_ns,
+};
+use mimic_types::{Region, Rig};
 use serde_json::json;
 use std::fs::File;
 use std::io::{BufWriter, IsTerminal, Write};
@@ -31,7 +36,7 @@ pub struct Args {
     #[command(flatten)]
     pub pipeline: PipelineArgs,
     #[command(flatten)]
-    pub blend: crate::cmd::morph::BlendshapeArgs,
+    pub blend: BlendshapeArgs,
     /// Directory for the deformed frames (nothing is written without it).
     #[arg(long)]
     pub out: Option<PathBuf>,
@@ -93,45 +98,19 @@ fn status_code(s: FrameStatus) -> u32 {
     }
 }
 
-/// Prints one `median / p99` line per pipeline stage from a `{stage: {median_us, p99_us}}` object.
-pub fn print_stages(stages: &serde_json::Value) {
-    for s in Stage::ALL {
-        let v = &stages[s.name()];
-        println!(
-            "  {:<10} median {:>8.1} us   p99 {:>8.1} us",
-            s.name(),
-            v["median_us"].as_f64().unwrap_or(0.0),
-            v["p99_us"].as_f64().unwrap_or(0.0)
-        );
-    }
-}
-
-/// Median and 99th percentile of nanosecond samples, in microseconds.
-pub fn median_p99_us(samples: &mut [u32]) -> (f64, f64) {
-    if samples.is_empty() {
-        return (0.0, 0.0);
-    }
-    samples.sort_unstable();
-    let at = |q: f64| samples[((samples.len() - 1) as f64 * q).round() as usize] as f64 / 1000.0;
-    (at(0.5), at(0.99))
-}
-
 /// Runs `mimic replay`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let header = mimic_capture::RecordingReader::open(&args.recording, None)?
-        .header()
-        .clone();
+    let mut reader = RecordingReader::open(&args.recording, None)?;
     // Normals are only written by the binary format; OBJ readers recompute their own.
     let settings = mimic_retarget::RetargetSettings {
         normals: args.format == OutFormat::Bin && args.out.is_some(),
         // Blendshape mode blends the mesh itself: skip `B d`.
-        positions: args.blend.mode == crate::cmd::morph::Mode::Freeform,
+        positions: args.blend.mode == Mode::Freeform,
         ..args.pipeline.settings()
     };
-    let mut prepared = prepare_with(&args.rig, settings, &header.layout)?;
+    let mut prepared = prepare_with(&args.rig, settings, &reader.header().layout)?;
     let rig = &prepared.rig;
-    let rig_path = args.rig.config_dirs().rig_path(&args.rig.rig);
-    let mut blend = args.blend.blend(&rig_path, rig)?;
+    let mut blend = Blend::new(&args.blend, &args.rig.rig_path(), rig)?;
     let options = ReplayOptions {
         pace: if args.realtime {
             Pace::Recorded { speed: args.speed }
@@ -140,7 +119,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         ..ReplayOptions::default()
     };
-    let mut replay = Replay::open(&args.recording, Some(prepared.layout.point_count), options)?;
+    reader.expect_points(prepared.layout.point_count)?;
+    let mut replay = Replay::new(FileSource::from_reader(reader), options)?;
 
     let mut sink = match (&args.out, args.format) {
         (None, _) => Sink::None,
@@ -196,8 +176,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .enable_time()
         .build()?;
     let mut out: FrameOutput = prepared.retargeter.new_output();
-    let mut stage_ns: [Vec<u32>; 5] = Default::default();
-    let mut step_ns: Vec<u32> = Vec::new();
+    let mut samples = StageSamples::default();
     let mut non_finite_frames = 0usize;
     let mut frame_index = 0usize;
     let progress = std::io::stderr().is_terminal() && !args.json;
@@ -207,15 +186,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let rf = item?;
             let t = Instant::now();
             let status = prepared.retargeter.step(&rf.frame, &mut out);
-            let elapsed = u32::try_from(t.elapsed().as_nanos()).unwrap_or(u32::MAX);
+            let elapsed = elapsed_ns(t);
             if let Some(b) = blend.as_mut() {
                 b.frame(frame_index, status_code(status), rf.label, &mut out)?;
             }
             if status == FrameStatus::Tracked {
-                step_ns.push(elapsed);
-                for s in Stage::ALL {
-                    stage_ns[s as usize].push(out.times.get(s));
-                }
+                samples.push(elapsed, &out.times);
             }
             if !out.positions.iter().all(|p| p.is_finite()) {
                 non_finite_frames += 1;
@@ -299,12 +275,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let read = replay.source().reader().stats().clone();
     let stats = prepared.retargeter.stats();
-    let mut stages = serde_json::Map::new();
-    for s in Stage::ALL {
-        let (median, p99) = median_p99_us(&mut stage_ns[s as usize]);
-        stages.insert(s.name().into(), json!({"median_us": median, "p99_us": p99}));
-    }
-    let (step_median, step_p99) = median_p99_us(&mut step_ns);
+    let (stages, step) = samples.summary();
+    let (step_median, step_p99) = (step.median_us, step.p99_us);
     let map = prepared.retargeter.source_to_target().copied();
     let summary = json!({
         "recording": args.recording.display().to_string(),
@@ -324,8 +296,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "frames_with_non_finite_vertices": non_finite_frames,
         "source_to_target": map.map(|m| json!({"scale": m.scale, "mirrored": m.mirrored, "rms_residual": m.rms_residual})),
         "stages": stages,
-        "step": {"median_us": step_median, "p99_us": step_p99},
-        "processing_frames_per_second": if step_median > 0.0 { 1e6 / step_median } else { 0.0 },
+        "step": step,
+        "processing_frames_per_second": step.per_second(),
         "wall_s": wall_s,
         "frames_written": files,
         "out": args.out.as_ref().map(|p| p.display().to_string()),
@@ -346,15 +318,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             prepared.retargeter.moving_vertex_count(),
             prepared.basis_time.as_secs_f64() * 1e3
         );
-        print_stages(&summary["stages"]);
+        print!("{stages}");
         println!(
             "  {:<10} median {step_median:>8.1} us   p99 {step_p99:>8.1} us   ({:.0} frames/s of processing)",
             "step",
-            if step_median > 0.0 {
-                1e6 / step_median
-            } else {
-                0.0
-            }
+            step.per_second()
         );
         if let Some(dir) = &args.out {
             println!("  wrote {files} frames to {}", dir.display());
@@ -373,15 +341,11 @@ fn write_frame(
     match sink {
         Sink::None => {}
         Sink::Obj { dir, written } => {
-            let path = obj_frame_path(dir, index);
-            let file = File::create(&path).with_context(|| path.display().to_string())?;
-            let mut w = BufWriter::new(file);
             let header = format!(
                 "mimic replay onto rig {rig}: frame {index}, t = {} us",
                 out.timestamp_us
             );
-            write_obj(&mut w, &header, &out.positions, None, triangles)?;
-            w.flush().with_context(|| path.display().to_string())?;
+            write_obj_frame(dir, index, &header, &out.positions, triangles)?;
             *written += 1;
         }
         Sink::Bin {
@@ -404,7 +368,77 @@ fn write_frame(
     Ok(())
 }
 
-/// Path of the OBJ of frame `index` in `dir` as `replay --format obj` names it.
-pub fn obj_frame_path(dir: &Path, index: usize) -> PathBuf {
-    dir.join(format!("frame_{index:06}.obj"))
+/// The blendshape stage of a replay: fitter, weights CSV and running statistics.
+struct Blend {
+    fitter: BlendshapeFitter,
+    csv: Option<(PathBuf, BufWriter<File>)>,
+    stats: WeightStats,
+}
+
+impl Blend {
+    /// The blendshape stage for `rig` (loaded from `rig_path`), or `None` in free-form mode.
+    fn new(args: &BlendshapeArgs, rig_path: &Path, rig: &Rig) -> anyhow::Result<Option<Self>> {
+        if args.mode == Mode::Freeform {
+            if args.weights.is_some() {
+                bail!("--weights needs --mode blendshapes");
+            }
+            return Ok(None);
+        }
+        let targets = load_morph_targets(rig_path, rig)?;
+        let fitter = BlendshapeFitter::new(rig, &targets, &args.settings())
+            .with_context(|| format!("blendshapes of rig `{}`", rig.name))?;
+        let csv = match &args.weights {
+            Some(p) => {
+                let mut w =
+                    BufWriter::new(File::create(p).with_context(|| p.display().to_string())?);
+                write!(w, "frame,t_us,status,label")?;
+                for name in fitter.names() {
+                    write!(w, ",{name}")?;
+                }
+                writeln!(w)?;
+                Some((p.clone(), w))
+            }
+            None => None,
+        };
+        let stats = WeightStats::new(fitter.target_count());
+        Ok(Some(Self { fitter, csv, stats }))
+    }
+
+    /// Replaces `out`'s mesh with the blend fitted to its displacements and writes the CSV row.
+    fn frame(
+        &mut self,
+        index: usize,
+        status_code: u32,
+        label: Option<i64>,
+        out: &mut FrameOutput,
+    ) -> anyhow::Result<()> {
+        let tracked = out.status == FrameStatus::Tracked;
+        let started = Instant::now();
+        let w = self.fitter.apply(out);
+        if tracked {
+            self.stats.push(w, elapsed_ns(started));
+        }
+        if let Some((path, csv)) = self.csv.as_mut() {
+            let label = label.map(|l| l.to_string()).unwrap_or_default();
+            write!(csv, "{index},{},{status_code},{label}", out.timestamp_us)
+                .with_context(|| path.display().to_string())?;
+            for x in w {
+                write!(csv, ",{x:.4}")?;
+            }
+            writeln!(csv)?;
+        }
+        Ok(())
+    }
+
+    /// Flushes the CSV; returns the summary (per target: mean and max weight over tracked frames).
+    fn finish(mut self) -> anyhow::Result<WeightSummary> {
+        if let Some((path, csv)) = self.csv {
+            csv.into_inner()
+                .map_err(|e| e.into_error())
+                .with_context(|| path.display().to_string())?;
+        }
+        Ok(self
+            .stats
+            .summary(self.fitter.names(), self.fitter.ridges()))
+    }
 }

@@ -2,7 +2,9 @@
 //! weights, as a weights session) into `mimic serve` over TCP.
 
 use anyhow::Context;
-use mimic_capture::{Pace, RecordedFrame, RecordingReader, RecordingWriter, Replay, ReplayOptions};
+use mimic_capture::{
+    FileSource, Pace, RecordedFrame, RecordingReader, RecordingWriter, Replay, ReplayOptions,
+};
 use serde_json::Value;
 use std::io::{BufRead, BufReader};
 use std::net::{Shutdown, TcpStream};
@@ -53,7 +55,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return send_weights(&args, csv);
     }
     let recording = args.recording.clone().context("no recording given")?;
-    let mut header = RecordingReader::open(&recording, None)?.header().clone();
+    let recording_reader = RecordingReader::open(&recording, None)?;
+    let mut header = recording_reader.header().clone();
     if let Some(s) = &args.session {
         header
             .extra
@@ -73,7 +76,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         looping: args.looping,
         ..ReplayOptions::default()
     };
-    let mut replay = Replay::open(&recording, None, options)?;
+    let mut replay = Replay::new(FileSource::from_reader(recording_reader), options)?;
     let runtime = tokio::runtime::Builder::new_current_thread()
         .enable_time()
         .build()?;

@@ -1,11 +1,19 @@
-//! Rig, layout and solver setup shared by the subcommands that retarget.
+//! Options and setup shared by the subcommands: rig, layout, solver and pipeline flags, the
+//! rig's look, output naming, the CANDIDE-3 model.
 
-use anyhow::Context;
-use mimic_assets::{ConfigDirs, load_rig};
-use mimic_retarget::{Neutral, OneEuroSettings, RetargetSettings, Retargeter};
+use anyhow::{Context, bail};
+use mimic_assets::{ConfigDirs, load_morph_targets, load_rig, write_obj};
+use mimic_fit::Candide3;
+use mimic_fit::capture::{CaptureFit, CaptureFrame, fit_capture};
+use mimic_retarget::{BlendshapeSettings, Neutral, OneEuroSettings, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
-use mimic_types::{Layout, Rig, SolverKind, SolverSettings};
-use std::path::PathBuf;
+use mimic_types::{
+    LaplacianWeights, Layout, MorphTarget, RbfDistance, RbfKernel, Rig, SolverKind, SolverSettings,
+    TopSplit,
+};
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
 /// Which solver, as the command line names it.
@@ -15,6 +23,9 @@ pub enum SolverChoice {
     Rbf,
     /// Laplacian surface editing.
     Laplacian,
+    /// Weights of the rig's morph targets fitted to the controls (`P0 + sum w dP`); `mimic eval`
+    /// only (a replay takes `--mode blendshapes`).
+    Blendshapes,
 }
 
 /// On or off, as the command line says it.
@@ -52,10 +63,14 @@ impl RigArgs {
         ConfigDirs::locate(self.configs.as_deref())
     }
 
+    /// The rig file these options name.
+    pub fn rig_path(&self) -> PathBuf {
+        self.config_dirs().rig_path(&self.rig)
+    }
+
     /// Loads the rig.
     pub fn load_rig(&self) -> anyhow::Result<Rig> {
-        let path = self.config_dirs().rig_path(&self.rig);
-        Ok(load_rig(&path)?)
+        Ok(load_rig(&self.rig_path())?)
     }
 
     /// The rig's solver settings with the command line's overrides applied.
@@ -65,6 +80,7 @@ impl RigArgs {
             s.kind = match k {
                 SolverChoice::Rbf => SolverKind::Rbf,
                 SolverChoice::Laplacian => SolverKind::Laplacian,
+                SolverChoice::Blendshapes => s.kind,
             };
         }
         if let Some(r) = self.regions {
@@ -78,11 +94,205 @@ impl RigArgs {
 
     /// Builds the basis for the rig with these settings, and how long it took.
     pub fn build_basis(&self, rig: &Rig) -> anyhow::Result<(Basis, SolverSettings, Duration)> {
+        if self.solver == Some(SolverChoice::Blendshapes) {
+            bail!("--solver blendshapes is for `mimic eval`; replay with --mode blendshapes");
+        }
         let settings = self.solver_settings(rig);
-        let t = Instant::now();
-        let basis = build_basis(rig, &settings)
-            .with_context(|| format!("building the basis of rig `{}`", rig.name))?;
-        Ok((basis, settings, t.elapsed()))
+        let (basis, took) = timed_basis(rig, &settings)?;
+        Ok((basis, settings, took))
+    }
+}
+
+/// A rig and its morph targets, loaded from a rig name or path.
+pub fn load_rig_with_targets(
+    rig: &str,
+    configs: Option<&Path>,
+) -> anyhow::Result<(Rig, Vec<MorphTarget>)> {
+    let path = ConfigDirs::locate(configs).rig_path(rig);
+    let rig = load_rig(&path)?;
+    let targets = load_morph_targets(&path, &rig)?;
+    Ok((rig, targets))
+}
+
+/// Builds the basis of `rig` with `settings`, and how long it took.
+pub fn timed_basis(rig: &Rig, settings: &SolverSettings) -> anyhow::Result<(Basis, Duration)> {
+    let t = Instant::now();
+    let basis = build_basis(rig, settings)
+        .with_context(|| format!("building the basis of rig `{}`", rig.name))?;
+    Ok((basis, t.elapsed()))
+}
+
+/// RBF kernel family, on the command line (the radius comes from `--radius` or the rig).
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum KernelArg {
+    /// `exp(-r / radius)`.
+    Exponential,
+    /// `exp(-(r / radius)^2)`.
+    Gaussian,
+    /// Matern 3/2, `(1 + sqrt(3) r / radius) exp(-sqrt(3) r / radius)`.
+    Matern32,
+    /// `r^2 log r` (turns the affine term on).
+    ThinPlate,
+}
+
+/// RBF distance, on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum DistanceArg {
+    /// Straight-line distance.
+    Euclidean,
+    /// Shortest path along the mesh edges.
+    Geodesic,
+}
+
+/// Laplacian edge weights, on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum WeightsArg {
+    /// Uniform.
+    Uniform,
+    /// Mean-value.
+    MeanValue,
+    /// Cotangent.
+    Cotangent,
+}
+
+/// A number, or `off`.
+#[derive(Clone, Copy, Debug)]
+pub struct Split(pub Option<f64>);
+
+/// Parses a finite number or `off`.
+pub fn parse_split(text: &str) -> Result<Split, String> {
+    if text == "off" {
+        return Ok(Split(None));
+    }
+    match text.parse::<f64>() {
+        Ok(v) if v.is_finite() => Ok(Split(Some(v))),
+        _ => Err(format!("`{text}`: expected a number or `off`")),
+    }
+}
+
+/// A kernel with its radius, or `off`.
+#[derive(Clone, Copy, Debug)]
+pub struct KernelChoice(pub Option<RbfKernel>);
+
+/// Parses `family:radius` (`exponential`, `gaussian`, `matern32`) or `off`.
+pub fn parse_kernel(text: &str) -> Result<KernelChoice, String> {
+    if text == "off" {
+        return Ok(KernelChoice(None));
+    }
+    let (family, radius) = text
+        .split_once(':')
+        .ok_or_else(|| format!("`{text}`: expected family:radius (e.g. matern32:2) or `off`"))?;
+    let radius: f64 = radius
+        .parse()
+        .map_err(|e| format!("`{text}`: radius: {e}"))?;
+    let kernel = match family {
+        "exponential" => RbfKernel::Exponential { radius },
+        "gaussian" => RbfKernel::Gaussian { radius },
+        "matern32" => RbfKernel::Matern32 { radius },
+        _ => return Err(format!("`{text}`: unknown kernel family `{family}`")),
+    };
+    Ok(KernelChoice(Some(kernel)))
+}
+
+/// Command-line options that tune a solver beyond [`RigArgs`] (`mimic eval`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct SolverTuningArgs {
+    /// RBF kernel family (default: the rig's).
+    #[arg(long, value_enum)]
+    pub kernel: Option<KernelArg>,
+    /// RBF affine term (default: the rig's).
+    #[arg(long, value_enum)]
+    pub affine: Option<Switch>,
+    /// RBF distance (default: the rig's).
+    #[arg(long, value_enum)]
+    pub distance: Option<DistanceArg>,
+    /// Laplacian edge weights (default: the rig's).
+    #[arg(long, value_enum)]
+    pub weights: Option<WeightsArg>,
+    /// Laplacian constraint weight (default: the rig's).
+    #[arg(long)]
+    pub constraint_weight: Option<f64>,
+    /// Region blend band width in rig units (default: the rig's).
+    #[arg(long)]
+    pub band: Option<f32>,
+    /// Split the top region into lids and brows at this height (rig units), or `off` (default:
+    /// the rig's).
+    #[arg(long, value_parser = parse_split)]
+    pub top_split: Option<Split>,
+    /// Blend band of the top split in rig units (default: the rig's, or 1).
+    #[arg(long)]
+    pub top_split_band: Option<f32>,
+    /// Kernel of the upper (brow) half of the top split as `family:radius` (`exponential`,
+    /// `gaussian`, `matern32`; e.g. `matern32:2`), or `off` for the solver's (default: the rig's).
+    #[arg(long, value_parser = parse_kernel)]
+    pub upper_kernel: Option<KernelChoice>,
+    /// Kernel of the lower (lid) half of the top split, as `--upper-kernel` (default: the rig's).
+    #[arg(long, value_parser = parse_kernel)]
+    pub lower_kernel: Option<KernelChoice>,
+}
+
+impl SolverTuningArgs {
+    /// Applies the region band to `rig`.
+    pub fn apply_to_rig(&self, rig: &mut Rig) {
+        if let Some(band) = self.band {
+            rig.regions.band = band;
+        }
+    }
+
+    /// `rig_args`' settings for `rig` with these options applied on top.
+    pub fn solver_settings(&self, rig_args: &RigArgs, rig: &Rig) -> SolverSettings {
+        let mut s = rig_args.solver_settings(rig);
+        if let Some(k) = self.kernel {
+            let radius = rig_args.radius.or(s.kernel.radius()).unwrap_or(1.0);
+            s.kernel = match k {
+                KernelArg::Exponential => RbfKernel::Exponential { radius },
+                KernelArg::Gaussian => RbfKernel::Gaussian { radius },
+                KernelArg::Matern32 => RbfKernel::Matern32 { radius },
+                KernelArg::ThinPlate => {
+                    s.affine = true;
+                    RbfKernel::ThinPlate
+                }
+            };
+        }
+        if let Some(Split(at)) = self.top_split {
+            s.top_split = at.map(|at| TopSplit {
+                at: at as f32,
+                band: s.top_split.map_or(1.0, |t| t.band),
+                upper_kernel: s.top_split.and_then(|t| t.upper_kernel),
+                lower_kernel: s.top_split.and_then(|t| t.lower_kernel),
+            });
+        }
+        if let Some(split) = s.top_split.as_mut() {
+            if let Some(band) = self.top_split_band {
+                split.band = band;
+            }
+            if let Some(KernelChoice(k)) = self.upper_kernel {
+                split.upper_kernel = k;
+            }
+            if let Some(KernelChoice(k)) = self.lower_kernel {
+                split.lower_kernel = k;
+            }
+        }
+        if let Some(a) = self.affine {
+            s.affine = a == Switch::On;
+        }
+        if let Some(d) = self.distance {
+            s.distance = match d {
+                DistanceArg::Euclidean => RbfDistance::Euclidean,
+                DistanceArg::Geodesic => RbfDistance::Geodesic,
+            };
+        }
+        if let Some(w) = self.weights {
+            s.weights = match w {
+                WeightsArg::Uniform => LaplacianWeights::Uniform,
+                WeightsArg::MeanValue => LaplacianWeights::MeanValue,
+                WeightsArg::Cotangent => LaplacianWeights::Cotangent,
+            };
+        }
+        if let Some(w) = self.constraint_weight {
+            s.constraint_weight = w;
+        }
+        s
     }
 }
 
@@ -156,7 +366,7 @@ pub fn prepare(
 /// [`prepare`] with pipeline settings given directly.
 pub fn prepare_with(
     rig_args: &RigArgs,
-    settings: mimic_retarget::RetargetSettings,
+    settings: RetargetSettings,
     layout_name: &str,
 ) -> anyhow::Result<Prepared> {
     let layout = rig_args.config_dirs().load_layout_named(layout_name)?;
@@ -171,4 +381,200 @@ pub fn prepare_with(
         solver,
         basis_time,
     })
+}
+
+/// Output mode of the retarget pipeline.
+#[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    /// Free-form deformation `P0 + B d` by the rig's solver.
+    Freeform,
+    /// Weights of the rig's morph targets fitted to `d`, mesh `P0 + sum w dP`.
+    Blendshapes,
+}
+
+/// Command-line options of the blendshape mode (flattened into `mimic replay`).
+#[derive(clap::Args, Debug, Clone)]
+pub struct BlendshapeArgs {
+    /// Free-form deformation, or blendshape weights of the rig's `[[morph_targets]]`.
+    #[arg(long, value_enum, default_value = "freeform")]
+    pub mode: Mode,
+    /// Per-frame blendshape weights as CSV (frame, t_us, status, label, one column per target).
+    #[arg(long)]
+    pub weights: Option<PathBuf>,
+    /// Ridge of the weight fit, relative to each target's squared control deltas (0.01: 1 % shrink).
+    #[arg(long, default_value_t = BlendshapeSettings::default().ridge)]
+    pub ridge: f64,
+    /// Turn the One Euro smoothing of the weights off.
+    #[arg(long)]
+    pub no_weight_filter: bool,
+}
+
+impl BlendshapeArgs {
+    /// The weight fit's settings these options describe.
+    pub fn settings(&self) -> BlendshapeSettings {
+        BlendshapeSettings {
+            ridge: self.ridge,
+            smoothing: if self.no_weight_filter {
+                None
+            } else {
+                BlendshapeSettings::default().smoothing
+            },
+        }
+    }
+}
+
+/// Parses `WIDTHxHEIGHT`.
+pub fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
+    let (w, h) = s
+        .split_once('x')
+        .with_context(|| format!("--size `{s}`: expected WIDTHxHEIGHT, e.g. 512x512"))?;
+    Ok((
+        w.trim()
+            .parse()
+            .with_context(|| format!("--size width `{w}`"))?,
+        h.trim()
+            .parse()
+            .with_context(|| format!("--size height `{h}`"))?,
+    ))
+}
+
+/// Parses inclusive index ranges `0-9408,11248-14061` (a single index is a range of one); a
+/// range written backwards is an error, or with `swap_backwards` read the other way round.
+pub fn parse_ranges(text: &str, swap_backwards: bool) -> Result<Vec<(u32, u32)>, String> {
+    text.split(',')
+        .map(|part| {
+            let (a, b) = part.split_once('-').unwrap_or((part, part));
+            let parse = |s: &str| {
+                s.trim()
+                    .parse::<u32>()
+                    .map_err(|e| format!("`{part}`: {e}"))
+            };
+            let (a, b) = (parse(a)?, parse(b)?);
+            if a > b && !swap_backwards {
+                return Err(format!("`{part}`: range runs backwards"));
+            }
+            Ok((a.min(b), a.max(b)))
+        })
+        .collect()
+}
+
+/// The `--hide` ranges: as given, none for `none`, or the rig look's when not given.
+pub fn parse_hidden(
+    arg: Option<&str>,
+    look: &mimic_types::RigLook,
+) -> anyhow::Result<Vec<(u32, u32)>> {
+    match arg {
+        None => Ok(look.hidden.iter().map(|[a, b]| (*a, *b)).collect()),
+        Some(s) if s.trim() == "none" => Ok(Vec::new()),
+        Some(s) => parse_ranges(s, true).map_err(|e| anyhow::anyhow!("--hide {e}")),
+    }
+}
+
+/// Colours and hidden parts of the rig `rig_args` names, as its `[look]` says (`hide` and
+/// `materials` as `--hide` and not `--no-materials` give them).
+pub fn rig_look(
+    rig_args: &RigArgs,
+    rig: &Rig,
+    hide: Option<&str>,
+    materials: bool,
+) -> anyhow::Result<mimic_view::Look> {
+    let path = rig_args.rig_path();
+    let look = mimic_assets::load_rig_look(&path)?;
+    let colors = if materials {
+        let (p, t) = (&rig.mesh.positions, &rig.mesh.triangles);
+        mimic_assets::look_colors(&path, &look, p, t, mimic_render::SKIN_ALBEDO)?
+    } else {
+        None
+    };
+    Ok(mimic_view::Look {
+        colors,
+        hidden: parse_hidden(hide, &look)?,
+    })
+}
+
+/// Path of the OBJ of frame `index` in `dir` (`frame_000000.obj` ...).
+pub fn obj_frame_path(dir: &Path, index: usize) -> PathBuf {
+    dir.join(format!("frame_{index:06}.obj"))
+}
+
+/// Writes frame `index` as an OBJ in `dir` with a one-line `header` comment.
+pub fn write_obj_frame(
+    dir: &Path,
+    index: usize,
+    header: &str,
+    positions: &[glam::Vec3],
+    triangles: &[[u32; 3]],
+) -> anyhow::Result<()> {
+    let path = obj_frame_path(dir, index);
+    let file = File::create(&path).with_context(|| path.display().to_string())?;
+    let mut w = BufWriter::new(file);
+    write_obj(&mut w, header, positions, None, triangles)?;
+    w.flush().with_context(|| path.display().to_string())?;
+    Ok(())
+}
+
+/// Fits CANDIDE-3 (`configs/models/candide3/candide3.wfm`) to a capture in the layout named
+/// `layout_name` (which must list `candide_correspondences`).
+pub fn fit_candide3(
+    configs: &ConfigDirs,
+    layout_name: &str,
+    frames: &[CaptureFrame<'_>],
+) -> anyhow::Result<CaptureFit> {
+    let layout = configs.load_layout_named(layout_name)?;
+    if layout.candide_correspondences.is_empty() {
+        bail!(
+            "layout `{}` lists no candide_correspondences: it cannot be fitted",
+            layout.name
+        );
+    }
+    let wfm = configs.root.join("models/candide3/candide3.wfm");
+    let bytes = std::fs::read(&wfm).with_context(|| format!("{}: cannot read", wfm.display()))?;
+    let candide = Candide3::parse(&String::from_utf8_lossy(&bytes))
+        .with_context(|| format!("{}: not a CANDIDE-3 model", wfm.display()))?;
+    Ok(fit_capture(
+        candide,
+        &layout,
+        mimic_fit::Camera::KINECT_V1_COLOUR,
+        frames,
+    )?)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ranges_parse_and_backwards_is_an_error_or_swapped() {
+        let r = parse_ranges("0-9408,11248-14061,20000", false).unwrap();
+        assert_eq!(r, vec![(0, 9408), (11248, 14061), (20000, 20000)]);
+        assert!(parse_ranges("5-1", false).is_err() && parse_ranges("a-3", false).is_err());
+        assert_eq!(parse_ranges("5-3,7", true).unwrap(), vec![(3, 5), (7, 7)]);
+    }
+
+    #[test]
+    fn hidden_ranges_default_to_the_look() {
+        let look = mimic_types::RigLook {
+            hidden: vec![[1, 4]],
+            ..Default::default()
+        };
+        assert_eq!(parse_hidden(None, &look).unwrap(), vec![(1, 4)]);
+        assert!(parse_hidden(Some("none"), &look).unwrap().is_empty());
+        assert_eq!(parse_hidden(Some("9"), &look).unwrap(), vec![(9, 9)]);
+        assert!(parse_hidden(Some("1-x"), &look).is_err());
+        assert_eq!(parse_size("640x480").unwrap(), (640, 480));
+        assert!(parse_size("640").is_err());
+    }
+
+    #[test]
+    fn parses_kernels_and_splits() {
+        assert!(matches!(
+            parse_kernel("matern32:2"),
+            Ok(KernelChoice(Some(RbfKernel::Matern32 { radius }))) if radius == 2.0
+        ));
+        assert!(matches!(parse_kernel("off"), Ok(KernelChoice(None))));
+        assert!(parse_kernel("matern32").is_err() && parse_kernel("cubic:1").is_err());
+        assert!(matches!(parse_split("4.6"), Ok(Split(Some(v))) if v == 4.6));
+        assert!(matches!(parse_split("off"), Ok(Split(None))));
+        assert!(parse_split("inf").is_err() && parse_split("x").is_err());
+    }
 }

@@ -1,14 +1,12 @@
 //! `mimic view`: a window replaying a recording through the retargeter, or following a live
 //! `mimic serve` session (`--connect`), drawn with the GPU morph (`crates/mimic_view`).
 
-use crate::cmd::render::{material_colors, parse_hidden, parse_size};
-use crate::cmd::setup::{PipelineArgs, RigArgs};
+use crate::cmd::setup::{PipelineArgs, RigArgs, parse_size, rig_look};
 use anyhow::{Context, bail};
-use mimic_assets::load_rig;
 use mimic_capture::RecordingReader;
 use mimic_render::Renderer;
 use mimic_retarget::RetargetSettings;
-use mimic_types::{Rig, SolverKind};
+use mimic_types::SolverKind;
 use mimic_view::{Action, HELP, LocalSetup, Look, LookFor, Options, Viewer};
 use std::path::PathBuf;
 use std::time::Duration;
@@ -42,7 +40,8 @@ pub struct Args {
     /// Displacement shown hottest by the heat map, rig units (default: 5% of the rig's diagonal).
     #[arg(long)]
     pub heat_scale: Option<f32>,
-    /// Vertex ranges whose triangles are not drawn, e.g. 100-200, or `none` (default: per rig).
+    /// Vertex ranges whose triangles are not drawn, e.g. 100-200, or `none` (default: the rig's
+    /// `[look]`).
     #[arg(long)]
     pub hide: Option<String>,
     /// Skin colour everywhere instead of the mesh's material colours.
@@ -64,25 +63,6 @@ pub struct Args {
     /// With --headless-frames and --connect: give up after this many seconds.
     #[arg(long, default_value_t = 60.0, requires = "headless_frames")]
     pub headless_timeout: f64,
-}
-
-/// Colours and hidden parts of a rig, as `mimic render` draws it.
-fn look_of(
-    rig_args: &RigArgs,
-    rig: &Rig,
-    hide: Option<&str>,
-    materials: bool,
-) -> anyhow::Result<Look> {
-    let colors = if materials {
-        let path = rig_args.config_dirs().rig_path(&rig_args.rig);
-        material_colors(&path, &rig.name, &rig.mesh.positions, &rig.mesh.triangles)?
-    } else {
-        None
-    };
-    Ok(Look {
-        colors,
-        hidden: parse_hidden(hide, &rig.name)?,
-    })
 }
 
 /// Runs `mimic view`.
@@ -116,7 +96,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 };
                 match local.load_rig() {
                     Ok(rig) if rig.mesh.vertex_count() == n => {
-                        look_of(&local, &rig, hide.as_deref(), materials).unwrap_or_else(|e| {
+                        rig_look(&local, &rig, hide.as_deref(), materials).unwrap_or_else(|e| {
                             tracing::warn!("rig `{name}`: {e:#}; drawing it in skin colour");
                             Look::default()
                         })
@@ -130,24 +110,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let Some(recording) = &args.recording else {
                 bail!("give a recording, or --connect ADDR");
             };
-            let header = RecordingReader::open(recording, None)?.header().clone();
-            let layout = args.rig.config_dirs().load_layout_named(&header.layout)?;
-            let rig = load_rig(&args.rig.config_dirs().rig_path(&args.rig.rig))?;
+            let mut reader = RecordingReader::open(recording, None)?;
+            let layout = args
+                .rig
+                .config_dirs()
+                .load_layout_named(&reader.header().layout)?;
+            let rig = args.rig.load_rig()?;
             let (basis, first, _) = args.rig.build_basis(&rig)?;
             let mut other = first;
             other.kind = match first.kind {
                 SolverKind::Rbf => SolverKind::Laplacian,
                 SolverKind::Laplacian => SolverKind::Rbf,
             };
-            let mut reader = RecordingReader::open(recording, Some(layout.point_count))?;
-            let mut frames = Vec::new();
-            while let Some(item) = reader.next_frame() {
-                // Lines the reader rejects are skipped, as `mimic render` does.
-                if let Ok(rf) = item {
-                    frames.push(rf.frame);
-                }
-            }
-            let look = look_of(&args.rig, &rig, args.hide.as_deref(), !args.no_materials)?;
+            // Lines the reader rejects are skipped, as `mimic render` does.
+            reader.expect_points(layout.point_count)?;
+            let frames = reader
+                .read_all()
+                .frames
+                .into_iter()
+                .map(|f| f.frame)
+                .collect();
+            let look = rig_look(&args.rig, &rig, args.hide.as_deref(), !args.no_materials)?;
             // The GPU computes u = B d and the normals: the pipeline only needs d.
             let settings = RetargetSettings {
                 positions: false,

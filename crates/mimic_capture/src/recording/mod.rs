@@ -12,8 +12,11 @@ mod writer;
 
 pub use error::{FrameError, FrameProblem, RecordingError, WriteError};
 pub use header::{FORMAT_NAME, FORMAT_VERSION, RecordingHeader, UNITS_METRES};
-pub use reader::{MAX_LINE_BYTES, ReadStats, RecordingReader, RejectCounts, parse_frame_line};
-pub use summary::{RecordingSummary, summarize, summarize_lenient};
+pub use reader::{
+    MAX_LINE_BYTES, ReadStats, Recording, RecordingReader, RejectCounts, parse_frame_line,
+    read_recording,
+};
+pub use summary::{RecordingSummary, summarize, summarize_lenient, summarize_reader};
 pub use writer::{RecordingWriter, format_coordinate};
 
 use mimic_types::LandmarkFrame;

@@ -149,27 +149,56 @@ impl<R: BufRead> RecordingReader<R> {
         let header: RecordingHeader = serde_json::from_slice(trim_line_end(&buf))
             .map_err(|e| header_error(format!("header is not a valid recording header ({e})")))?;
         header.check().map_err(header_error)?;
-        if let (Some(caller), Some(file)) = (expected_points, header.point_count)
-            && caller != file
-        {
-            return Err(header_error(format!(
-                "header says {file} points per frame but layout {} is expected to have {caller}",
-                header.layout
-            )));
-        }
-        let expected_points = expected_points.or(header.point_count);
-        Ok(Self {
+        let expected = header.point_count;
+        let mut reader = Self {
             input,
             path,
             header,
-            expected_points,
+            expected_points: expected,
             line: 1,
             last_t_us: None,
             stats: ReadStats::default(),
             buf,
             max_line_bytes: MAX_LINE_BYTES,
             done: false,
-        })
+        };
+        if let Some(n) = expected_points {
+            reader.expect_points(n)?;
+        }
+        Ok(reader)
+    }
+
+    /// Checks frames against `n` points from now on (call it before the first frame, e.g. once
+    /// the layout the header names is loaded); fails when the header says another count.
+    pub fn expect_points(&mut self, n: usize) -> Result<(), RecordingError> {
+        if let Some(file) = self.header.point_count
+            && file != n
+        {
+            return Err(RecordingError::Header {
+                path: self.path.clone(),
+                reason: format!(
+                    "header says {file} points per frame but layout {} is expected to have {n}",
+                    self.header.layout
+                ),
+            });
+        }
+        self.expected_points = Some(n);
+        Ok(())
+    }
+
+    /// Reads every remaining line: the accepted frames are kept, rejected lines only counted.
+    pub fn read_all(mut self) -> Recording {
+        let mut frames = Vec::new();
+        while let Some(item) = self.next_frame() {
+            if let Ok(f) = item {
+                frames.push(f);
+            }
+        }
+        Recording {
+            header: self.header,
+            frames,
+            stats: self.stats,
+        }
     }
 
     /// Sets the longest frame line taken (default [`MAX_LINE_BYTES`]); longer lines are rejected.
@@ -343,6 +372,25 @@ fn check_frame(
         frame,
         label: rec.label,
     })
+}
+
+/// A whole recording in memory: its header, the accepted frames and the reader's counts.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Recording {
+    /// The header line.
+    pub header: RecordingHeader,
+    /// Accepted frames in file order (lost-tracking frames included).
+    pub frames: Vec<RecordedFrame>,
+    /// What was accepted and rejected.
+    pub stats: ReadStats,
+}
+
+/// Opens a recording once and reads it whole (see [`RecordingReader::read_all`]).
+pub fn read_recording(
+    path: &Path,
+    expected_points: Option<usize>,
+) -> Result<Recording, RecordingError> {
+    Ok(RecordingReader::open(path, expected_points)?.read_all())
 }
 
 impl<R: BufRead> Iterator for RecordingReader<R> {

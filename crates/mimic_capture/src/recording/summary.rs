@@ -62,7 +62,15 @@ fn summarize_with(
     expected_points: Option<usize>,
     strict: bool,
 ) -> Result<RecordingSummary, RecordingError> {
-    let mut reader = RecordingReader::open(path, expected_points)?;
+    summarize_reader(RecordingReader::open(path, expected_points)?, strict)
+}
+
+/// [`summarize`] (or, not `strict`, [`summarize_lenient`]) of an open reader, from its next frame
+/// (e.g. after its header was looked at and [`RecordingReader::expect_points`] set).
+pub fn summarize_reader<R: std::io::BufRead>(
+    mut reader: RecordingReader<R>,
+    strict: bool,
+) -> Result<RecordingSummary, RecordingError> {
     let mut first_problem = None;
     let (mut first, mut last) = (None::<i64>, None::<i64>);
     let mut max_gap_us = 0i64;
@@ -99,7 +107,7 @@ fn summarize_with(
     let mean_rate_hz =
         (stats.accepted >= 2 && duration_s > 0.0).then(|| (stats.accepted - 1) as f64 / duration_s);
     Ok(RecordingSummary {
-        path: path.display().to_string(),
+        path: reader.path().display().to_string(),
         header: reader.header().clone(),
         point_count: reader.expected_points(),
         frames: stats.accepted,

@@ -431,3 +431,38 @@ fn overlong_lines_are_skipped_without_buffering_them() {
         (1, 1)
     );
 }
+
+#[test]
+fn read_all_keeps_accepted_frames_and_counts_the_rest() {
+    let header = HEADER_121.replace(r#","point_count":121"#, "");
+    let text = format!(
+        "{header}\n{}\n{}\nnot json\n{}\n",
+        frame_line(10, 3),
+        frame_line(20, 4),
+        frame_line(30, 3)
+    );
+    let mut r = RecordingReader::new(Cursor::new(text.into_bytes()), "x.jsonl", None).unwrap();
+    // The count is set after the header was read, as a command does once it has the layout.
+    r.expect_points(3).unwrap();
+    let all = r.read_all();
+    assert_eq!(all.header.layout, "kinect121");
+    let times: Vec<i64> = all.frames.iter().map(|f| f.frame.timestamp_us).collect();
+    assert_eq!(times, vec![10, 30]);
+    assert_eq!(all.stats.accepted, 2);
+    assert_eq!(all.stats.rejected.point_count, 1);
+    assert_eq!(all.stats.rejected.bad_json, 1);
+}
+
+#[test]
+fn expect_points_refuses_a_count_the_header_contradicts() {
+    let text = format!("{}\n{}\n", header(5), frame_line(10, 5));
+    let mut r = RecordingReader::new(Cursor::new(text.into_bytes()), "x.jsonl", None).unwrap();
+    let e = r.expect_points(6).unwrap_err();
+    assert!(
+        e.to_string()
+            .contains("header says 5 points per frame but layout kinect121 is expected to have 6"),
+        "{e}"
+    );
+    r.expect_points(5).unwrap();
+    assert_eq!(r.read_all().frames.len(), 1);
+}

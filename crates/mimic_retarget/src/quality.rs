@@ -1,0 +1,228 @@
+//! Solver quality against real expression meshes, as `mimic eval` measures it (docs/quality.md).
+//!
+//! For an expression shape on the rig's topology, the rig's controls are driven with the shape's
+//! own displacements at the control vertices ([`control_displacements`]), the neutral is deformed
+//! (`u = B d`, or by morph-target weights with [`MorphEval`]), and [`measure`] compares `u` with the
+//! true displacement at the measured vertices, overall and per region (by
+//! `RegionBands::region_at` of the rest height). `ratio = mean_error / mean_displacement`: 0 is
+//! perfect, 1 is no better than leaving the neutral unchanged.
+
+use crate::{BlendshapeError, BlendshapeFitter, BlendshapeSettings};
+use glam::Vec3;
+use mimic_solve::Basis;
+use mimic_types::{MorphTarget, Rig};
+use serde::Serialize;
+
+/// Error statistics over a set of vertices (rig units).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct ErrorStats {
+    /// Vertices measured.
+    pub vertices: usize,
+    /// Mean distance between deformed and true position.
+    pub mean_error: f64,
+    /// Nearest-rank 95th percentile of the error.
+    pub p95_error: f64,
+    /// Largest error.
+    pub max_error: f64,
+    /// Mean length of the true displacement.
+    pub mean_displacement: f64,
+    /// `mean_error / mean_displacement` (NaN when nothing moves).
+    pub ratio: f64,
+}
+
+impl ErrorStats {
+    /// Statistics of per-vertex `errors` (sorted here) and true `displacements`.
+    pub fn of(errors: &mut [f64], displacements: &[f64]) -> Self {
+        let n = errors.len();
+        if n == 0 {
+            return Self::default();
+        }
+        let mean_error = errors.iter().sum::<f64>() / n as f64;
+        let mean_displacement = displacements.iter().sum::<f64>() / n as f64;
+        errors.sort_by(f64::total_cmp);
+        let p95_error = errors[((n as f64 * 0.95).ceil() as usize).clamp(1, n) - 1];
+        Self {
+            vertices: n,
+            mean_error,
+            p95_error,
+            max_error: errors[n - 1],
+            mean_displacement,
+            ratio: if mean_displacement > 0.0 {
+                mean_error / mean_displacement
+            } else {
+                f64::NAN
+            },
+        }
+    }
+}
+
+/// The error of one deformed shape: over all measured vertices and per [`Region`](mimic_types::Region).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct ShapeError {
+    /// All measured vertices.
+    pub all: ErrorStats,
+    /// Per region, in [`Region::ALL`](mimic_types::Region::ALL) order.
+    pub regions: [ErrorStats; 3],
+}
+
+/// The control displacements that make the rig's controls follow `shape` (positions on the rig's
+/// topology): `shape - rest` at each control vertex, in control order.
+pub fn control_displacements(rig: &Rig, shape: &[Vec3]) -> Vec<Vec3> {
+    let rest = &rig.mesh.positions;
+    rig.controls
+        .iter()
+        .map(|c| shape[c.vertex as usize] - rest[c.vertex as usize])
+        .collect()
+}
+
+/// Compares the displacement `u` with the true one (`shape - rest`) at the vertices where
+/// `measured` is true.
+pub fn measure(rig: &Rig, u: &[Vec3], shape: &[Vec3], measured: &[bool]) -> ShapeError {
+    let rest = &rig.mesh.positions;
+    let mut errors: [Vec<f64>; 4] = Default::default();
+    let mut moves: [Vec<f64>; 4] = Default::default();
+    for (i, p) in rest.iter().enumerate() {
+        if !measured.get(i).copied().unwrap_or(false) {
+            continue;
+        }
+        let truth = shape[i] - *p;
+        let e = (u[i] - truth).length() as f64;
+        let t = truth.length() as f64;
+        let r = 1 + rig.regions.region_at(p.y).index();
+        for slot in [0, r] {
+            errors[slot].push(e);
+            moves[slot].push(t);
+        }
+    }
+    let [mut e0, mut e1, mut e2, mut e3] = errors;
+    ShapeError {
+        all: ErrorStats::of(&mut e0, &moves[0]),
+        regions: [
+            ErrorStats::of(&mut e1, &moves[1]),
+            ErrorStats::of(&mut e2, &moves[2]),
+            ErrorStats::of(&mut e3, &moves[3]),
+        ],
+    }
+}
+
+/// The per-vertex errors of [`measure`] as CSV text (`vertex,x,y,z,error,displacement`, rest
+/// position and true displacement length), for plotting where the error is.
+pub fn error_csv(rig: &Rig, u: &[Vec3], shape: &[Vec3], measured: &[bool]) -> String {
+    use std::fmt::Write as _;
+    let mut csv = String::from("vertex,x,y,z,error,displacement\n");
+    for (i, p) in rig.mesh.positions.iter().enumerate() {
+        if !measured.get(i).copied().unwrap_or(false) {
+            continue;
+        }
+        let truth = shape[i] - *p;
+        let _ = writeln!(
+            csv,
+            "{i},{},{},{},{},{}",
+            p.x,
+            p.y,
+            p.z,
+            (u[i] - truth).length(),
+            truth.length()
+        );
+    }
+    csv
+}
+
+/// The basis' noise gain: the largest row sum of `|B|`, i.e. how much a per-control error
+/// (tracking noise, inconsistent neighbouring controls) can be amplified at one vertex (1 for a
+/// partition of unity).
+pub fn noise_gain(basis: &Basis) -> f64 {
+    (0..basis.vertex_count())
+        .map(|i| basis.row(i).iter().map(|w| w.abs() as f64).sum::<f64>())
+        .fold(0f64, f64::max)
+}
+
+/// Median of `values` (sorted here; the mean of the middle two for an even count, NaN for none).
+pub fn median(values: &mut [f64]) -> f64 {
+    values.sort_by(f64::total_cmp);
+    let n = values.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        values[n / 2]
+    } else {
+        0.5 * (values[n / 2 - 1] + values[n / 2])
+    }
+}
+
+/// Morph targets as the "solver" of an evaluation: weights fitted to a shape's control
+/// displacements (no smoothing) deform the neutral, `u = sum w_k dP_k`.
+#[derive(Clone, Debug)]
+pub struct MorphEval {
+    targets: Vec<MorphTarget>,
+    leave_one_out: bool,
+    ridge: f64,
+}
+
+impl MorphEval {
+    /// Evaluates with `targets`; with `leave_one_out`, a target identical to the measured shape is
+    /// left out of that shape's fit (so a shape cannot be matched by itself).
+    pub fn new(targets: Vec<MorphTarget>, leave_one_out: bool, ridge: f64) -> Self {
+        Self {
+            targets,
+            leave_one_out,
+            ridge,
+        }
+    }
+
+    /// The fitter for `shape` (positions on the rig's topology).
+    pub fn fitter(&self, rig: &Rig, shape: &[Vec3]) -> Result<BlendshapeFitter, BlendshapeError> {
+        let is_shape = |t: &MorphTarget| {
+            t.position_deltas
+                .iter()
+                .zip(shape.iter().zip(&rig.mesh.positions))
+                .all(|(d, (s, p))| (*s - *p - *d).abs().max_element() <= 1e-6)
+        };
+        let used: Vec<MorphTarget> = self
+            .targets
+            .iter()
+            .filter(|t| !(self.leave_one_out && is_shape(t)))
+            .cloned()
+            .collect();
+        let settings = BlendshapeSettings {
+            ridge: self.ridge,
+            smoothing: None,
+        };
+        BlendshapeFitter::new(rig, &used, &settings)
+    }
+
+    /// `u = sum w_k dP_k` for the weights `fitter` fits to `d`; returns the weights by name.
+    pub fn deform(fitter: &mut BlendshapeFitter, d: &[Vec3], u: &mut [Vec3]) -> Vec<(String, f32)> {
+        let w = fitter.fit(d, 0).to_vec();
+        fitter.displacements(&w, u);
+        fitter.names().iter().cloned().zip(w).collect()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn stats_of_known_errors() {
+        // Errors 1..=100 (order does not matter): mean 50.5, nearest-rank p95 = 95, max 100;
+        // displacements all 101: ratio 0.5.
+        let mut errors: Vec<f64> = (1..=100).rev().map(f64::from).collect();
+        let s = ErrorStats::of(&mut errors, &[101.0; 100]);
+        assert_eq!(s.vertices, 100);
+        assert!((s.mean_error - 50.5).abs() < 1e-12);
+        assert_eq!(s.p95_error, 95.0);
+        assert_eq!(s.max_error, 100.0);
+        assert!((s.ratio - 0.5).abs() < 1e-12);
+        let empty = ErrorStats::of(&mut [], &[]);
+        assert_eq!(empty.vertices, 0);
+        assert!(ErrorStats::of(&mut [1.0], &[0.0]).ratio.is_nan());
+    }
+
+    #[test]
+    fn median_of_odd_even_and_no_values() {
+        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
+        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
+        assert!(median(&mut []).is_nan());
+    }
+}
