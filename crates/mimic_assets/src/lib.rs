@@ -10,6 +10,7 @@ mod layout;
 mod material;
 mod morph;
 mod obj;
+mod read;
 mod rig;
 mod span;
 

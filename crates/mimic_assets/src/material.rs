@@ -3,6 +3,7 @@
 
 use crate::AssetError;
 use crate::span::toml_error;
+use mimic_types::limits;
 use std::path::{Path, PathBuf};
 
 /// One material of an MTL file.
@@ -127,7 +128,7 @@ pub fn parse_obj_materials(obj_path: &Path, text: &str) -> Result<MeshMaterials,
             Some("mtllib") if out.materials.is_empty() => {
                 let name = tokens.collect::<Vec<_>>().join(" ");
                 let path = obj_path.parent().unwrap_or(Path::new(".")).join(name);
-                let mtl = std::fs::read_to_string(&path).map_err(|e| AssetError::io(&path, e))?;
+                let mtl = crate::read::read_text(&path, &limits::MTL_FILE)?;
                 out.materials = parse_mtl(&path, &mtl)?;
             }
             Some("usemtl") => {
@@ -148,7 +149,7 @@ pub fn parse_obj_materials(obj_path: &Path, text: &str) -> Result<MeshMaterials,
 
 /// The OBJ mesh file a rig file names (relative to the rig file).
 pub fn rig_mesh_path(rig_path: &Path) -> Result<PathBuf, AssetError> {
-    let text = std::fs::read_to_string(rig_path).map_err(|e| AssetError::io(rig_path, e))?;
+    let text = crate::read::read_text(rig_path, &limits::RIG_FILE)?;
     let file: crate::RigFile = toml::from_str(&text).map_err(|e| toml_error(rig_path, &text, e))?;
     Ok(rig_path
         .parent()
@@ -159,7 +160,7 @@ pub fn rig_mesh_path(rig_path: &Path) -> Result<PathBuf, AssetError> {
 /// The materials of a rig's mesh (see [`parse_obj_materials`]).
 pub fn load_rig_materials(rig_path: &Path) -> Result<MeshMaterials, AssetError> {
     let obj = rig_mesh_path(rig_path)?;
-    let text = std::fs::read_to_string(&obj).map_err(|e| AssetError::io(&obj, e))?;
+    let text = crate::read::read_text(&obj, &limits::OBJ_FILE)?;
     parse_obj_materials(&obj, &text)
 }
 
