@@ -49,7 +49,7 @@ pub const MTL_FILE: FileKind = FileKind {
     what: "MTL files",
     max_bytes: MIB,
 };
-/// Morph data files (`mimic morph export`; the ICT rig's 8 targets make 13 MB).
+/// Morph data files (`mimic morph export`; the ICT rig's 8 targets make 11.9 MB).
 pub const MORPH_FILE: FileKind = FileKind {
     what: "morph data files",
     max_bytes: 256 * MIB,
