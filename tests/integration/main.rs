@@ -1,5 +1,6 @@
 //! End-to-end tests of the `mimic` binary on the shipped configs and recordings.
 
+mod config_limits;
 mod faults;
 mod fit;
 mod import;

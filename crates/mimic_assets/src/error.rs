@@ -91,6 +91,29 @@ pub enum AssetError {
         /// What was wrong.
         message: String,
     },
+    /// A numeric setting of a layout or rig outside its documented range (docs/reliability.md).
+    #[error("{}:{line}: {cause}", path.display())]
+    Setting {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line of the setting.
+        line: usize,
+        /// The setting, its value and the rule it breaks.
+        cause: mimic_types::SettingError,
+    },
+    /// A file named by a setting (a rig's `mesh`) refused by its limits: not a regular file, or
+    /// over its size cap. Refused before reading a byte of it.
+    #[error("{}:{line}: {}: {cause}", path.display(), file.display())]
+    Refused {
+        /// The config file naming it.
+        path: PathBuf,
+        /// 1-based line of the setting that names it.
+        line: usize,
+        /// The refused file.
+        file: PathBuf,
+        /// Why.
+        cause: mimic_types::ReadError,
+    },
     /// A named layout was not found in any config directory.
     #[error("no layout named `{name}` (looked for {})", tried.iter().map(|p| p.display().to_string()).collect::<Vec<_>>().join(", "))]
     LayoutNotFound {
@@ -108,5 +131,10 @@ impl AssetError {
             path: path.to_path_buf(),
             cause,
         }
+    }
+
+    /// Wraps a capped read's error (an OS error, or the file's refusal) with its path.
+    pub(crate) fn read(path: &std::path::Path, cause: mimic_types::ReadError) -> Self {
+        AssetError::io(path, cause.into())
     }
 }

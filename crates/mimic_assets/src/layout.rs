@@ -14,20 +14,20 @@ struct LayoutFile {
     name: String,
     #[serde(default)]
     description: String,
-    point_count: usize,
+    point_count: Spanned<usize>,
     controls: Vec<Spanned<LayoutControl>>,
     stable: Spanned<Vec<usize>>,
     #[serde(default)]
-    undocumented: Vec<usize>,
+    undocumented: Option<Spanned<Vec<usize>>>,
     #[serde(default)]
-    point_names: Vec<String>,
+    point_names: Option<Spanned<Vec<String>>>,
     #[serde(default)]
-    candide_correspondences: Vec<ModelCorrespondence>,
+    candide_correspondences: Vec<Spanned<ModelCorrespondence>>,
 }
 
 /// Loads and validates a layout file; errors name the file and the offending line.
 pub fn load_layout(path: &Path) -> Result<Layout, AssetError> {
-    let text = std::fs::read_to_string(path).map_err(|e| AssetError::io(path, e))?;
+    let text = crate::read::read_text(path, &mimic_types::limits::LAYOUT_FILE)?;
     parse_layout(path, &text)
 }
 
@@ -36,15 +36,28 @@ pub fn parse_layout(path: &Path, text: &str) -> Result<Layout, AssetError> {
     let file: LayoutFile = toml::from_str(text).map_err(|e| toml_error(path, text, e))?;
     let control_line = |fdp, nth: usize| line_of_nth(text, &file.controls, |c| c.fdp == fdp, nth);
     let stable_line = line_of(text, file.stable.span().start);
+    let line_of_opt = |start: Option<usize>| start.map_or(1, |s| line_of(text, s));
     let layout = Layout {
         name: file.name.clone(),
         description: file.description.clone(),
-        point_count: file.point_count,
+        point_count: *file.point_count.get_ref(),
         controls: file.controls.iter().map(|c| c.get_ref().clone()).collect(),
         stable: file.stable.get_ref().clone(),
-        undocumented: file.undocumented.clone(),
-        point_names: file.point_names.clone(),
-        candide_correspondences: file.candide_correspondences.clone(),
+        undocumented: file
+            .undocumented
+            .as_ref()
+            .map(|u| u.get_ref().clone())
+            .unwrap_or_default(),
+        point_names: file
+            .point_names
+            .as_ref()
+            .map(|n| n.get_ref().clone())
+            .unwrap_or_default(),
+        candide_correspondences: file
+            .candide_correspondences
+            .iter()
+            .map(|c| c.get_ref().clone())
+            .collect(),
     };
     if let Err(source) = layout.validate() {
         let line = match &source {
@@ -54,6 +67,17 @@ pub fn parse_layout(path: &Path, text: &str) -> Result<Layout, AssetError> {
             LayoutError::StablePointOutOfRange { .. } | LayoutError::TooFewStablePoints { .. } => {
                 stable_line
             }
+            LayoutError::TooManyPoints { .. } => line_of(text, file.point_count.span().start),
+            LayoutError::UndocumentedPointOutOfRange { .. } => {
+                line_of_opt(file.undocumented.as_ref().map(|u| u.span().start))
+            }
+            LayoutError::TooManyPointNames { .. } => {
+                line_of_opt(file.point_names.as_ref().map(|n| n.span().start))
+            }
+            LayoutError::BadCorrespondence { index, .. } => file
+                .candide_correspondences
+                .get(*index)
+                .map_or(1, |c| line_of(text, c.span().start)),
         };
         return Err(AssetError::Layout {
             path: path.to_path_buf(),
@@ -178,6 +202,43 @@ region = "top"
             .unwrap_err()
             .to_string();
         assert!(e.starts_with("tiny.toml:1:"), "{e}");
+    }
+
+    #[test]
+    fn counts_and_correspondences_name_their_line() {
+        let e = |t: &str| {
+            parse_layout(Path::new("tiny.toml"), t)
+                .unwrap_err()
+                .to_string()
+        };
+        let huge = GOOD.replace("point_count = 4", "point_count = 1000000000000");
+        assert_eq!(
+            e(&huge),
+            "tiny.toml:3: layout `tiny` has point_count 1000000000000, over the maximum of 4096 points"
+        );
+        let names = GOOD.replace(
+            "stable = [0, 1, 3]",
+            "stable = [0, 1, 3]\nundocumented = [2]\npoint_names = [\"a\", \"b\", \"c\", \"d\", \"e\"]",
+        );
+        assert!(e(&names).starts_with("tiny.toml:6: layout `tiny` names 5 points"));
+        let undoc = GOOD.replace(
+            "stable = [0, 1, 3]",
+            "stable = [0, 1, 3]\nundocumented = [4]",
+        );
+        assert!(e(&undoc).starts_with("tiny.toml:5: undocumented point 4 is out of range"));
+        let text = GOOD.replace(
+            "stable = [0, 1, 3]",
+            "stable = [0, 1, 3]\ncandide_correspondences = [\n  { point = 0, vertex = 3 },\n  { point = 1, vertices = [1, 2], t = 0.5, weight = -1.0 },\n]",
+        );
+        assert_eq!(
+            e(&text),
+            "tiny.toml:7: candide_correspondences entry 2 (point 1) of layout `tiny`: weight -1 must be finite and > 0"
+        );
+        parse_layout(
+            Path::new("tiny.toml"),
+            &text.replace("weight = -1.0", "weight = 2.0"),
+        )
+        .unwrap();
     }
 
     #[test]

@@ -11,6 +11,7 @@ mod look;
 mod material;
 mod morph;
 mod obj;
+mod read;
 mod rig;
 mod span;
 

@@ -15,7 +15,7 @@ pub const PUPIL_COLOR: [f32; 3] = [0.02, 0.02, 0.02];
 
 /// The rig file at `rig_path`, parsed (its mesh is not loaded).
 pub(crate) fn read_rig_file(rig_path: &Path) -> Result<RigFile, AssetError> {
-    let text = std::fs::read_to_string(rig_path).map_err(|e| AssetError::io(rig_path, e))?;
+    let text = crate::read::read_text(rig_path, &mimic_types::limits::RIG_FILE)?;
     toml::from_str(&text).map_err(|e| toml_error(rig_path, &text, e))
 }
 

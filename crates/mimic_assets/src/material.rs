@@ -2,6 +2,7 @@
 //! material each triangle uses (`usemtl`), in the triangle order of [`crate::load_obj`].
 
 use crate::AssetError;
+use mimic_types::limits;
 use std::path::{Path, PathBuf};
 
 /// One material of an MTL file.
@@ -126,7 +127,7 @@ pub fn parse_obj_materials(obj_path: &Path, text: &str) -> Result<MeshMaterials,
             Some("mtllib") if out.materials.is_empty() => {
                 let name = tokens.collect::<Vec<_>>().join(" ");
                 let path = obj_path.parent().unwrap_or(Path::new(".")).join(name);
-                let mtl = std::fs::read_to_string(&path).map_err(|e| AssetError::io(&path, e))?;
+                let mtl = crate::read::read_text(&path, &limits::MTL_FILE)?;
                 out.materials = parse_mtl(&path, &mtl)?;
             }
             Some("usemtl") => {
@@ -157,7 +158,7 @@ pub fn rig_mesh_path(rig_path: &Path) -> Result<PathBuf, AssetError> {
 /// The materials of a rig's mesh (see [`parse_obj_materials`]).
 pub fn load_rig_materials(rig_path: &Path) -> Result<MeshMaterials, AssetError> {
     let obj = rig_mesh_path(rig_path)?;
-    let text = std::fs::read_to_string(&obj).map_err(|e| AssetError::io(&obj, e))?;
+    let text = crate::read::read_text(&obj, &limits::OBJ_FILE)?;
     parse_obj_materials(&obj, &text)
 }
 

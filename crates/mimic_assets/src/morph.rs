@@ -8,7 +8,7 @@ use crate::AssetError;
 use crate::span::{line_of, toml_error};
 use glam::Vec3;
 use mimic_solve::vertex_normals;
-use mimic_types::{Mesh, MorphTarget, Rig};
+use mimic_types::{Mesh, MorphTarget, Rig, limits};
 use serde::Deserialize;
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
@@ -82,13 +82,23 @@ pub fn morph_target(
 /// `rig` is the rig loaded from the same file ([`crate::load_rig`]); a rig without
 /// `[[morph_targets]]` gives an empty list. Errors name the rig file, the entry's line and the OBJ.
 pub fn load_morph_targets(rig_path: &Path, rig: &Rig) -> Result<Vec<MorphTarget>, AssetError> {
-    let text = std::fs::read_to_string(rig_path).map_err(|e| AssetError::io(rig_path, e))?;
+    let text = crate::read::read_text(rig_path, &limits::RIG_FILE)?;
     let file: crate::RigFile = toml::from_str(&text).map_err(|e| toml_error(rig_path, &text, e))?;
     let dir = rig_path.parent().unwrap_or(Path::new("."));
     let mut seen = std::collections::HashSet::new();
-    let mut targets = Vec::with_capacity(file.morph_targets.len());
-    for entry in &file.morph_targets {
+    let mut targets = Vec::with_capacity(file.morph_targets.len().min(limits::MAX_MORPH_TARGETS));
+    for (k, entry) in file.morph_targets.iter().enumerate() {
         let line = line_of(&text, entry.span().start);
+        if k == limits::MAX_MORPH_TARGETS {
+            return Err(AssetError::Toml {
+                path: rig_path.to_path_buf(),
+                line,
+                message: format!(
+                    "more than {} morph targets, the most a rig may have",
+                    limits::MAX_MORPH_TARGETS
+                ),
+            });
+        }
         let e = entry.get_ref();
         let wrap = |source: AssetError| AssetError::MorphTarget {
             path: rig_path.to_path_buf(),
@@ -193,7 +203,17 @@ pub fn read_morph_file<R: BufRead>(r: R, path: &Path) -> Result<Vec<MorphTarget>
             format!("expected the counts `<targets> <vertices>`, found `{counts}`"),
         ));
     }
-    let mut targets = Vec::with_capacity(k.min(1024));
+    if k > limits::MAX_MORPH_TARGETS || n > limits::MAX_MESH_VERTICES {
+        return Err(err(
+            counts_no,
+            format!(
+                "counts `{k} {n}` over the maximum of {} targets of {} vertices",
+                limits::MAX_MORPH_TARGETS,
+                limits::MAX_MESH_VERTICES
+            ),
+        ));
+    }
+    let mut targets = Vec::with_capacity(k);
     for t in 0..k {
         let (no, l) = next(&|| format!("target {} of {k}", t + 1))?;
         let name = l
@@ -284,7 +304,7 @@ pub fn save_morph_file(
 
 /// Reads the morph data file at `path`.
 pub fn load_morph_file(path: &Path) -> Result<Vec<MorphTarget>, AssetError> {
-    let file = std::fs::File::open(path).map_err(|e| AssetError::io(path, e))?;
+    let file = crate::read::open_capped(path, &limits::MORPH_FILE)?;
     read_morph_file(std::io::BufReader::new(file), path)
 }
 
@@ -435,6 +455,44 @@ mod tests {
             e(format!("{good}0 0 0\n")),
             "m.txt:12: more rows than the counts line's 1 targets x 3 vertices announce"
         );
+    }
+
+    #[test]
+    fn counts_over_the_maxima_are_refused_at_the_counts_line() {
+        let e = |t: &str| read(t).unwrap_err().to_string();
+        assert_eq!(
+            e("# h\n1 1048577\n"),
+            "m.txt:2: counts `1 1048577` over the maximum of 1024 targets of 1048576 vertices"
+        );
+        assert!(e("# h\n1025 3\n").starts_with("m.txt:2: counts `1025 3` over the maximum"));
+        // At the maxima, a short file is an ordinary early end (nothing was allocated for it).
+        assert_eq!(
+            e("# h\n1024 1048576\n"),
+            "m.txt:3: the file ends before target 1 of 1024"
+        );
+    }
+
+    #[test]
+    fn morph_file_loader_refuses_devices_and_oversized_files() {
+        let dir = tempfile::tempdir().unwrap();
+        let big = dir.path().join("big.txt");
+        let f = std::fs::File::create(&big).unwrap();
+        f.set_len(limits::MORPH_FILE.max_bytes + 1).unwrap();
+        let e = load_morph_file(&big).unwrap_err().to_string();
+        assert!(
+            e.ends_with("big.txt: 268435457 bytes, over the 256 MiB cap for morph data files"),
+            "{e}"
+        );
+        #[cfg(unix)]
+        {
+            let e = load_morph_file(Path::new("/dev/zero"))
+                .unwrap_err()
+                .to_string();
+            assert!(
+                e.starts_with("/dev/zero: not a regular file but a character device"),
+                "{e}"
+            );
+        }
     }
 
     #[test]

@@ -8,6 +8,7 @@
 use crate::AssetError;
 use glam::{Vec2, Vec3};
 use mimic_types::Mesh;
+use mimic_types::limits::{MAX_MESH_TRIANGLES, MAX_MESH_VERTICES};
 use std::io::Write;
 use std::path::Path;
 
@@ -44,7 +45,7 @@ impl Corner {
 
 /// Loads an OBJ mesh: positions in file order, polygons triangulated, texture coordinates if any.
 pub fn load_obj(path: &Path) -> Result<Mesh, AssetError> {
-    let text = std::fs::read_to_string(path).map_err(|e| AssetError::io(path, e))?;
+    let text = crate::read::read_text(path, &mimic_types::limits::OBJ_FILE)?;
     parse_obj(path, &text)
 }
 
@@ -61,6 +62,7 @@ pub fn parse_obj(path: &Path, text: &str) -> Result<Mesh, AssetError> {
     let mut vertex_lines = String::new();
     let mut face_lines = String::new();
     let (mut nv, mut nvt, mut nvn) = (0usize, 0usize, 0usize);
+    let mut triangle_count = 0usize;
     let mut corner: Option<Corner> = None;
     for (k, raw) in text.lines().enumerate() {
         let line_no = k + 1;
@@ -89,6 +91,13 @@ pub fn parse_obj(path: &Path, text: &str) -> Result<Mesh, AssetError> {
                     }
                 }
                 nv += 1;
+                if nv > MAX_MESH_VERTICES {
+                    return Err(obj_err(
+                        path,
+                        line_no,
+                        format!("more than {MAX_MESH_VERTICES} vertices, the most a mesh may have"),
+                    ));
+                }
                 vertex_lines.push_str(line);
                 vertex_lines.push('\n');
             }
@@ -158,6 +167,16 @@ pub fn parse_obj(path: &Path, text: &str) -> Result<Mesh, AssetError> {
                             }
                         }
                     }
+                }
+                triangle_count += corners.len() - 2;
+                if triangle_count > MAX_MESH_TRIANGLES {
+                    return Err(obj_err(
+                        path,
+                        line_no,
+                        format!(
+                            "more than {MAX_MESH_TRIANGLES} triangles, the most a mesh may have"
+                        ),
+                    ));
                 }
                 face_lines.push_str(line);
                 face_lines.push('\n');
@@ -331,6 +350,57 @@ f 4/1 1/2 2/1 3/2
         let bad = "v 0 0 0\nv 1 nan 0\n";
         let e = parse_obj(Path::new("x.obj"), bad).unwrap_err().to_string();
         assert!(e.starts_with("x.obj:2: vertex coordinate `nan`"), "{e}");
+    }
+
+    #[test]
+    fn vertex_and_triangle_counts_are_capped() {
+        let mut text = "v 0 0 0\n".repeat(MAX_MESH_VERTICES + 1);
+        let e = parse_obj(Path::new("x.obj"), &text)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            format!(
+                "x.obj:{}: more than 1048576 vertices, the most a mesh may have",
+                MAX_MESH_VERTICES + 1
+            )
+        );
+        text = "v 0 0 0\nv 1 0 0\nv 0 1 0\n".to_string();
+        // One polygon of MAX + 3 corners triangulates into MAX + 1 triangles.
+        text.push('f');
+        for k in 0..MAX_MESH_TRIANGLES + 3 {
+            text.push_str([" 1", " 2", " 3"][k % 3]);
+        }
+        text.push('\n');
+        let e = parse_obj(Path::new("x.obj"), &text)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(
+            e,
+            "x.obj:4: more than 2097152 triangles, the most a mesh may have"
+        );
+    }
+
+    #[test]
+    fn oversized_and_device_files_are_refused_by_the_loader() {
+        let dir = tempfile::tempdir().unwrap();
+        let big = dir.path().join("big.obj");
+        let f = std::fs::File::create(&big).unwrap();
+        f.set_len(mimic_types::limits::OBJ_FILE.max_bytes + 1)
+            .unwrap();
+        let e = load_obj(&big).unwrap_err().to_string();
+        assert!(
+            e.ends_with("big.obj: 67108865 bytes, over the 64 MiB cap for OBJ meshes"),
+            "{e}"
+        );
+        #[cfg(unix)]
+        {
+            let e = load_obj(Path::new("/dev/zero")).unwrap_err().to_string();
+            assert_eq!(
+                e,
+                "/dev/zero: not a regular file but a character device; OBJ meshes are read only from regular files"
+            );
+        }
     }
 
     #[test]

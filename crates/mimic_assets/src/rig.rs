@@ -38,9 +38,75 @@ pub struct RigFile {
     pub look: mimic_types::RigLook,
 }
 
+/// Where a rig's numeric settings sit in its text: a second, lenient read (unknown keys
+/// ignored) that only keeps source positions, for the lines of range errors.
+#[derive(Default, Deserialize)]
+struct SettingLines {
+    #[serde(default)]
+    regions: Option<Spanned<RegionLines>>,
+    #[serde(default)]
+    solver: Option<Spanned<SolverLines>>,
+}
+
+/// Positions of the `[regions]` keys.
+#[derive(Deserialize)]
+struct RegionLines {
+    top_from: Option<Spanned<toml::Value>>,
+    bottom_below: Option<Spanned<toml::Value>>,
+    band: Option<Spanned<toml::Value>>,
+}
+
+/// Positions of the numeric `[solver]` keys.
+#[derive(Deserialize)]
+struct SolverLines {
+    kernel: Option<Spanned<toml::Value>>,
+    constraint_weight: Option<Spanned<toml::Value>>,
+    top_split: Option<Spanned<SplitLines>>,
+}
+
+/// Positions of the `top_split` keys.
+#[derive(Deserialize)]
+struct SplitLines {
+    at: Option<Spanned<toml::Value>>,
+    band: Option<Spanned<toml::Value>>,
+    upper_kernel: Option<Spanned<toml::Value>>,
+    lower_kernel: Option<Spanned<toml::Value>>,
+}
+
+impl SettingLines {
+    /// Byte offset of the setting `key` (a [`mimic_types::SettingError`] key), else of its
+    /// section, else 0.
+    fn offset(&self, key: &str) -> usize {
+        fn at<T>(s: &Option<Spanned<T>>) -> Option<usize> {
+            s.as_ref().map(|s| s.span().start)
+        }
+        let regions = self.regions.as_ref();
+        let solver = self.solver.as_ref();
+        let split = solver.and_then(|s| s.get_ref().top_split.as_ref());
+        let exact = match key {
+            "regions.top_from" => regions.and_then(|r| at(&r.get_ref().top_from)),
+            "regions.bottom_below" => regions.and_then(|r| at(&r.get_ref().bottom_below)),
+            "regions.band" => regions.and_then(|r| at(&r.get_ref().band)),
+            "solver.kernel" => solver.and_then(|s| at(&s.get_ref().kernel)),
+            "solver.constraint_weight" => solver.and_then(|s| at(&s.get_ref().constraint_weight)),
+            "solver.top_split.at" => split.and_then(|t| at(&t.get_ref().at)),
+            "solver.top_split.band" => split.and_then(|t| at(&t.get_ref().band)),
+            "solver.top_split.upper_kernel" => split.and_then(|t| at(&t.get_ref().upper_kernel)),
+            "solver.top_split.lower_kernel" => split.and_then(|t| at(&t.get_ref().lower_kernel)),
+            _ => None,
+        };
+        let section = if key.starts_with("regions.") {
+            regions.map(|r| r.span().start)
+        } else {
+            solver.map(|s| s.span().start)
+        };
+        exact.or(section).unwrap_or(0)
+    }
+}
+
 /// Loads a rig file and its mesh, and validates them; errors name the file and line.
 pub fn load_rig(path: &Path) -> Result<Rig, AssetError> {
-    let text = std::fs::read_to_string(path).map_err(|e| AssetError::io(path, e))?;
+    let text = crate::read::read_text(path, &mimic_types::limits::RIG_FILE)?;
     parse_rig(path, &text)
 }
 
@@ -51,6 +117,18 @@ pub fn parse_rig(path: &Path, text: &str) -> Result<Rig, AssetError> {
         .parent()
         .unwrap_or(Path::new("."))
         .join(file.mesh.get_ref());
+    // A FIFO, a device or an oversized file is refused at the `mesh` line, before a byte of it is
+    // read; other errors (a missing file) come from the mesh loader as before.
+    if let Err(cause) = mimic_types::limits::check_file(&mesh_path, &mimic_types::limits::OBJ_FILE)
+        && cause.is_refusal()
+    {
+        return Err(AssetError::Refused {
+            path: path.to_path_buf(),
+            line: line_of(text, file.mesh.span().start),
+            file: mesh_path,
+            cause,
+        });
+    }
     let mesh = crate::load_obj(&mesh_path).map_err(|e| AssetError::RigMesh {
         path: path.to_path_buf(),
         cause: Box::new(e),
@@ -100,6 +178,14 @@ pub fn parse_rig(path: &Path, text: &str) -> Result<Rig, AssetError> {
             }
         };
         return Err(rig_err(line, source));
+    }
+    if let Err(cause) = rig.validate_settings() {
+        let lines: SettingLines = toml::from_str(text).unwrap_or_default();
+        return Err(AssetError::Setting {
+            path: path.to_path_buf(),
+            line: line_of(text, lines.offset(cause.key)),
+            cause,
+        });
     }
     Ok(rig)
 }
@@ -205,6 +291,116 @@ kind = "laplacian"
         let e = load_rig(&path).unwrap_err().to_string();
         assert!(
             e.contains("tri.toml: mesh: ") && e.contains("tri.obj: "),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn out_of_range_settings_name_their_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = write_rig(
+            dir.path(),
+            "[[controls]]\nfdp = \"8.3\"\nvertex = 1\nregion = \"bottom\"\n",
+        );
+        let good = std::fs::read_to_string(&path).unwrap();
+        let e = |from: &str, to: &str| {
+            let text = good.replacen(from, to, 1);
+            assert_ne!(text, good, "{from}");
+            parse_rig(&path, &text).unwrap_err().to_string()
+        };
+        let ends = |got: String, want: &str| assert!(got.ends_with(want), "{got}\nwant {want}");
+        ends(
+            e("band = 0.1", "band = nan"),
+            "tri.toml:9: regions.band = NaN: must be finite and >= 0",
+        );
+        ends(
+            e("band = 0.1", "band = -0.1"),
+            "tri.toml:9: regions.band = -0.1: must be finite and >= 0",
+        );
+        assert!(
+            e("band = 0.1", "band = 0.5")
+                .contains("tri.toml:9: regions.band = 0.5: must be at most")
+        );
+        ends(
+            e("top_from = 0.7", "top_from = inf"),
+            "tri.toml:7: regions.top_from = inf: must be a finite number",
+        );
+        assert!(
+            e("bottom_below = 0.3", "bottom_below = 0.8")
+                .contains("tri.toml:7: regions.top_from = 0.7: must be above")
+        );
+        let kernel = |k: &str| {
+            e(
+                "kind = \"laplacian\"",
+                &format!("kind = \"laplacian\"\n{k}"),
+            )
+        };
+        assert!(
+            kernel("kernel = { kind = \"gaussian\", radius = 0.0 }")
+                .contains("tri.toml:13: solver.kernel = { radius = 0 }: the radius must be finite")
+        );
+        assert!(
+            kernel("kernel = { kind = \"exponential\", radius = -3.0 }")
+                .contains("tri.toml:13: solver.kernel")
+        );
+        assert!(
+            kernel("kernel = { kind = \"thin_plate\" }")
+                .contains("tri.toml:13: solver.kernel = thin_plate: needs affine = true")
+        );
+        assert!(
+            kernel("constraint_weight = 0.0")
+                .contains("tri.toml:13: solver.constraint_weight = 0: must be finite, > 0")
+        );
+        assert!(
+            kernel("constraint_weight = 1e300").contains("tri.toml:13: solver.constraint_weight")
+        );
+        let split = |s: &str| kernel(&format!("top_split = {{ {s} }}"));
+        assert!(split("at = nan").contains("tri.toml:13: solver.top_split.at = NaN"));
+        assert!(
+            split("at = 0.8, band = -1.0")
+                .contains("tri.toml:13: solver.top_split.band = -1: must be finite and >= 0")
+        );
+        assert!(split("at = 0.8, band = 3.0").contains(
+            "tri.toml:13: solver.top_split.band = 3: must be at most the mesh's height 1"
+        ));
+        assert!(
+            split("at = 0.8, lower_kernel = { kind = \"matern32\", radius = inf }")
+                .contains("tri.toml:13: solver.top_split.lower_kernel")
+        );
+        // Within range, the same keys load.
+        let text = good.replacen(
+            "kind = \"laplacian\"",
+            "kind = \"laplacian\"\nconstraint_weight = 100.0\ntop_split = { at = 0.8, band = 0.2 }",
+            1,
+        );
+        parse_rig(&path, &text).unwrap();
+    }
+
+    #[cfg(unix)]
+    #[test]
+    fn device_mesh_is_refused_at_its_line_before_reading() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = write_rig(
+            dir.path(),
+            "[[controls]]\nfdp = \"8.3\"\nvertex = 1\nregion = \"bottom\"\n",
+        );
+        let text = std::fs::read_to_string(&path)
+            .unwrap()
+            .replace("mesh = \"tri.obj\"", "mesh = \"/dev/zero\"");
+        let e = parse_rig(&path, &text).unwrap_err().to_string();
+        assert!(
+            e.ends_with("tri.toml:3: /dev/zero: not a regular file but a character device; OBJ meshes are read only from regular files"),
+            "{e}"
+        );
+        // A mesh over the OBJ cap is refused by its size (a sparse file: no disk used).
+        let big = std::fs::File::create(dir.path().join("big.obj")).unwrap();
+        big.set_len(mimic_types::limits::OBJ_FILE.max_bytes + 1)
+            .unwrap();
+        let text = text.replace("/dev/zero", "big.obj");
+        let e = parse_rig(&path, &text).unwrap_err().to_string();
+        assert!(
+            e.contains("tri.toml:3: ")
+                && e.ends_with("big.obj: 67108865 bytes, over the 64 MiB cap for OBJ meshes"),
             "{e}"
         );
     }

@@ -81,16 +81,20 @@ pub fn import_gfe_with_pixels(
     targets: Option<&Path>,
     source: Option<&str>,
 ) -> Result<(Imported, Vec<FramePixels>), GfeError> {
-    let text = std::fs::read_to_string(datapoints).map_err(|source| GfeError::Io {
-        path: datapoints.to_path_buf(),
-        source,
-    })?;
+    let text = mimic_types::limits::read_capped(datapoints, &mimic_types::limits::GFE_FILE)
+        .map_err(|e| GfeError::Io {
+            path: datapoints.to_path_buf(),
+            source: e.into(),
+        })?;
     let (mut frames, pixels) = parse_rows(&text, datapoints)?;
     if let Some(tp) = targets {
-        let t = std::fs::read_to_string(tp).map_err(|source| GfeError::Io {
-            path: tp.to_path_buf(),
-            source,
-        })?;
+        let t =
+            mimic_types::limits::read_capped(tp, &mimic_types::limits::GFE_FILE).map_err(|e| {
+                GfeError::Io {
+                    path: tp.to_path_buf(),
+                    source: e.into(),
+                }
+            })?;
         let labels = parse_targets(&t, tp)?;
         if labels.len() != frames.len() {
             return Err(GfeError::Targets {

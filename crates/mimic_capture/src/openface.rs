@@ -111,10 +111,11 @@ pub fn import_openface(
     {
         return Err(OpenFaceError::Rate(r));
     }
-    let text = std::fs::read_to_string(path).map_err(|source| OpenFaceError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = mimic_types::limits::read_capped(path, &mimic_types::limits::OPENFACE_FILE)
+        .map_err(|e| OpenFaceError::Io {
+            path: path.to_path_buf(),
+            source: e.into(),
+        })?;
     let frames = parse_csv(&text, path, timing)?;
     let rate_hz = match timing {
         OpenFaceTiming::Rate(r) => r,

@@ -84,6 +84,51 @@ pub enum LayoutError {
         /// Points in the layout.
         point_count: usize,
     },
+    /// More points than [`crate::limits::MAX_LAYOUT_POINTS`].
+    #[error(
+        "layout `{layout}` has point_count {point_count}, over the maximum of {max} points",
+        max = crate::limits::MAX_LAYOUT_POINTS
+    )]
+    TooManyPoints {
+        /// Layout name.
+        layout: String,
+        /// Points announced.
+        point_count: usize,
+    },
+    /// An undocumented point is out of range.
+    #[error(
+        "undocumented point {point} is out of range: layout `{layout}` has {point_count} points"
+    )]
+    UndocumentedPointOutOfRange {
+        /// Layout name.
+        layout: String,
+        /// Offending point.
+        point: usize,
+        /// Points in the layout.
+        point_count: usize,
+    },
+    /// More point names than points.
+    #[error("layout `{layout}` names {names} points but has {point_count}")]
+    TooManyPointNames {
+        /// Layout name.
+        layout: String,
+        /// Names given.
+        names: usize,
+        /// Points in the layout.
+        point_count: usize,
+    },
+    /// A CANDIDE-3 correspondence that is malformed or out of range.
+    #[error("candide_correspondences entry {} (point {point}) of layout `{layout}`: {reason}", index + 1)]
+    BadCorrespondence {
+        /// Layout name.
+        layout: String,
+        /// 0-based index of the entry.
+        index: usize,
+        /// Its layout point.
+        point: usize,
+        /// What is wrong.
+        reason: String,
+    },
     /// Fewer than three stable points: head motion cannot be removed.
     #[error("layout `{layout}` has {count} stable points; removing head motion needs at least 3")]
     TooFewStablePoints {
@@ -95,8 +140,16 @@ pub enum LayoutError {
 }
 
 impl Layout {
-    /// Checks every index against `point_count`, and that controls are unique and non-empty.
+    /// Checks `point_count` against [`crate::limits::MAX_LAYOUT_POINTS`], every index against
+    /// `point_count`, that controls are unique and non-empty, and the CANDIDE-3 correspondences
+    /// (a point in range, one vertex or an edge with `t` in [0, 1], a finite weight > 0).
     pub fn validate(&self) -> Result<(), LayoutError> {
+        if self.point_count > crate::limits::MAX_LAYOUT_POINTS {
+            return Err(LayoutError::TooManyPoints {
+                layout: self.name.clone(),
+                point_count: self.point_count,
+            });
+        }
         let mut seen = std::collections::HashSet::new();
         for c in &self.controls {
             if !seen.insert(c.fdp) {
@@ -132,6 +185,42 @@ impl Layout {
                 layout: self.name.clone(),
                 count: self.stable.len(),
             });
+        }
+        if let Some(&p) = self.undocumented.iter().find(|&&p| p >= self.point_count) {
+            return Err(LayoutError::UndocumentedPointOutOfRange {
+                layout: self.name.clone(),
+                point: p,
+                point_count: self.point_count,
+            });
+        }
+        if self.point_names.len() > self.point_count {
+            return Err(LayoutError::TooManyPointNames {
+                layout: self.name.clone(),
+                names: self.point_names.len(),
+                point_count: self.point_count,
+            });
+        }
+        for (index, c) in self.candide_correspondences.iter().enumerate() {
+            let bad = |reason: String| LayoutError::BadCorrespondence {
+                layout: self.name.clone(),
+                index,
+                point: c.point,
+                reason,
+            };
+            if c.point >= self.point_count {
+                return Err(bad(format!(
+                    "point is out of range ({} points)",
+                    self.point_count
+                )));
+            }
+            if !(c.weight.is_finite() && c.weight > 0.0) {
+                return Err(bad(format!("weight {} must be finite and > 0", c.weight)));
+            }
+            if c.blend().is_none() {
+                return Err(bad(
+                    "needs either `vertex`, or `vertices` (two) with `t` in [0, 1]".to_string(),
+                ));
+            }
         }
         Ok(())
     }
@@ -187,6 +276,55 @@ mod tests {
         assert_eq!(l.control_position(0, &f), Some(Vec3::X));
         f.points[1] = Vec3::NAN;
         assert_eq!(l.control_position(0, &f), None);
+    }
+
+    #[test]
+    fn point_count_names_and_correspondences_are_bounded() {
+        let mut l = layout();
+        l.point_count = 1_000_000_000_000;
+        assert_eq!(
+            l.validate().unwrap_err().to_string(),
+            "layout `t` has point_count 1000000000000, over the maximum of 4096 points"
+        );
+        l.point_count = crate::limits::MAX_LAYOUT_POINTS;
+        l.validate().unwrap();
+        let mut l = layout();
+        l.undocumented = vec![4];
+        assert!(matches!(
+            l.validate(),
+            Err(LayoutError::UndocumentedPointOutOfRange { point: 4, .. })
+        ));
+        let mut l = layout();
+        l.point_names = vec![String::new(); 5];
+        assert!(matches!(
+            l.validate(),
+            Err(LayoutError::TooManyPointNames { names: 5, .. })
+        ));
+        let corr = |point, weight, t| ModelCorrespondence {
+            point,
+            vertex: None,
+            vertices: vec![1, 2],
+            t: Some(t),
+            weight,
+            contour: false,
+        };
+        let mut l = layout();
+        l.candide_correspondences = vec![corr(0, 1.0, 0.5)];
+        l.validate().unwrap();
+        for (c, what) in [
+            (corr(4, 1.0, 0.5), "out of range"),
+            (corr(0, 0.0, 0.5), "weight 0"),
+            (corr(0, f32::NAN, 0.5), "weight NaN"),
+            (corr(0, 1.0, 1.5), "`t` in [0, 1]"),
+            (corr(0, 1.0, f32::NAN), "`t` in [0, 1]"),
+        ] {
+            l.candide_correspondences = vec![corr(0, 1.0, 0.5), c];
+            let e = l.validate().unwrap_err().to_string();
+            assert!(
+                e.starts_with("candide_correspondences entry 2 ") && e.contains(what),
+                "{e}"
+            );
+        }
     }
 
     #[test]

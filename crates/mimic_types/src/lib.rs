@@ -1,14 +1,16 @@
 //! Value types shared by every mimic crate.
 //!
 //! Entry types: [`LandmarkFrame`], [`Layout`], [`Mesh`], [`Rig`], [`HeadPose`], [`Fdp`], [`Region`].
-//! This crate does no I/O and depends on nothing but glam, serde and thiserror; loading these
-//! values from files is `mimic_assets`' job, producing frames is `mimic_capture`'s.
+//! This crate depends on nothing but glam, serde and thiserror, and does no I/O but the capped
+//! whole-file reads of [`limits`] (shared by every loader); loading these values from files is
+//! `mimic_assets`' job, producing frames is `mimic_capture`'s.
 
 pub mod correspondence;
 pub mod fdp;
 pub mod frame;
 pub mod layout;
 pub mod look;
+pub mod limits;
 pub mod mesh;
 pub mod morph;
 pub mod pose;
@@ -20,6 +22,7 @@ pub use fdp::{Fdp, FdpError};
 pub use frame::LandmarkFrame;
 pub use layout::{Layout, LayoutControl, LayoutError};
 pub use look::{Eyeball, RigLook};
+pub use limits::{FileKind, ReadError, SettingError};
 pub use mesh::{Mesh, MeshError};
 pub use morph::MorphTarget;
 pub use pose::HeadPose;

@@ -60,6 +60,45 @@ pub struct RegionBands {
 }
 
 impl RegionBands {
+    /// Range checks of a rig's `[regions]`: finite borders with `top_from > bottom_below`, and a
+    /// band in `[0, top_from - bottom_below]` (the two blends may meet but not overlap).
+    pub fn validate(&self) -> Result<(), crate::SettingError> {
+        use crate::SettingError;
+        for (key, v) in [
+            ("regions.top_from", self.top_from),
+            ("regions.bottom_below", self.bottom_below),
+        ] {
+            if !v.is_finite() {
+                return Err(SettingError::new(key, v, "must be a finite number"));
+            }
+        }
+        let middle = self.top_from - self.bottom_below;
+        if middle <= 0.0 {
+            return Err(SettingError::new(
+                "regions.top_from",
+                self.top_from,
+                format!("must be above bottom_below = {}", self.bottom_below),
+            ));
+        }
+        if !(self.band.is_finite() && self.band >= 0.0) {
+            return Err(SettingError::new(
+                "regions.band",
+                self.band,
+                "must be finite and >= 0",
+            ));
+        }
+        if self.band > middle {
+            return Err(SettingError::new(
+                "regions.band",
+                self.band,
+                format!(
+                    "must be at most top_from - bottom_below = {middle} (the blends would overlap)"
+                ),
+            ));
+        }
+        Ok(())
+    }
+
     /// Blend weights `[top, middle, bottom]` of a vertex at height `y`; they sum to one.
     pub fn weights(&self, y: f32) -> [f32; 3] {
         let ramp = |border: f32| -> f32 {
@@ -116,6 +155,46 @@ mod tests {
         assert!((w[0] - 0.5).abs() < 1e-6 && (w[1] - 0.5).abs() < 1e-6);
         assert_eq!(b.region_at(3.0), Region::Top);
         assert_eq!(b.region_at(-3.0), Region::Bottom);
+    }
+
+    #[test]
+    fn validate_refuses_nan_negative_and_overlapping_bands() {
+        let ok = RegionBands {
+            top_from: 1.0,
+            bottom_below: 0.0,
+            band: 0.5,
+        };
+        ok.validate().unwrap();
+        RegionBands { band: 1.0, ..ok }.validate().unwrap();
+        let err = |b: RegionBands| b.validate().unwrap_err().to_string();
+        assert_eq!(
+            err(RegionBands {
+                band: f32::NAN,
+                ..ok
+            }),
+            "regions.band = NaN: must be finite and >= 0"
+        );
+        assert_eq!(
+            err(RegionBands { band: -0.1, ..ok }),
+            "regions.band = -0.1: must be finite and >= 0"
+        );
+        assert!(
+            err(RegionBands { band: 1.5, ..ok }).starts_with("regions.band = 1.5: must be at most")
+        );
+        assert_eq!(
+            err(RegionBands {
+                bottom_below: f32::INFINITY,
+                ..ok
+            }),
+            "regions.bottom_below = inf: must be a finite number"
+        );
+        assert!(
+            err(RegionBands {
+                top_from: -1.0,
+                ..ok
+            })
+            .starts_with("regions.top_from = -1: must be above")
+        );
     }
 
     #[test]

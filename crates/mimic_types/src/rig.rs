@@ -103,6 +103,24 @@ impl Rig {
         Ok(())
     }
 
+    /// Range checks of every numeric setting ([`RegionBands::validate`],
+    /// [`SolverSettings::validate`]), and a top split band no wider than the mesh is tall.
+    pub fn validate_settings(&self) -> Result<(), crate::SettingError> {
+        self.regions.validate()?;
+        self.solver.validate()?;
+        if let (Some(split), Some((lo, hi))) = (self.solver.top_split, self.mesh.bounds()) {
+            let height = hi.y - lo.y;
+            if split.band > height {
+                return Err(crate::SettingError::new(
+                    "solver.top_split.band",
+                    split.band,
+                    format!("must be at most the mesh's height {height}"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Rest positions of the control vertices, in control order.
     pub fn control_positions(&self) -> Vec<glam::Vec3> {
         self.controls
@@ -148,6 +166,35 @@ pub enum RbfKernel {
 }
 
 impl RbfKernel {
+    /// Smallest kernel radius a rig may set (rig units); smaller ones overflow the kernels.
+    pub const MIN_RADIUS: f64 = 1e-6;
+    /// Largest kernel radius a rig may set (rig units).
+    pub const MAX_RADIUS: f64 = 1e6;
+
+    /// Range check: a radius in [[`Self::MIN_RADIUS`], [`Self::MAX_RADIUS`]], and thin-plate
+    /// only with the affine term; `key` names the kernel's setting in the error.
+    pub fn validate(self, key: &'static str, affine: bool) -> Result<(), crate::SettingError> {
+        match self.radius() {
+            Some(r) if !(Self::MIN_RADIUS..=Self::MAX_RADIUS).contains(&r) => {
+                Err(crate::SettingError::new(
+                    key,
+                    format!("{{ radius = {r} }}"),
+                    format!(
+                        "the radius must be finite, >= {:e} and <= {:e} (rig units)",
+                        Self::MIN_RADIUS,
+                        Self::MAX_RADIUS
+                    ),
+                ))
+            }
+            None if !affine => Err(crate::SettingError::new(
+                key,
+                "thin_plate",
+                "needs affine = true (the thin-plate system is not well posed without it)",
+            )),
+            _ => Ok(()),
+        }
+    }
+
     /// The kernel's length scale in rig units (`None` for thin-plate, which has none).
     pub fn radius(self) -> Option<f64> {
         match self {
@@ -244,6 +291,52 @@ pub struct TopSplit {
     pub lower_kernel: Option<RbfKernel>,
 }
 
+impl SolverSettings {
+    /// Largest Laplacian constraint weight a rig may set (its square enters the normal equations).
+    pub const MAX_CONSTRAINT_WEIGHT: f64 = 1e6;
+
+    /// Range checks of every numeric solver setting, whichever solver the rig picks (the command
+    /// line may switch it): kernel radii, the constraint weight in (0, 1e6], a finite top split.
+    pub fn validate(&self) -> Result<(), crate::SettingError> {
+        use crate::SettingError;
+        self.kernel.validate("solver.kernel", self.affine)?;
+        let w = self.constraint_weight;
+        if !(w.is_finite() && w > 0.0 && w <= Self::MAX_CONSTRAINT_WEIGHT) {
+            return Err(SettingError::new(
+                "solver.constraint_weight",
+                w,
+                format!(
+                    "must be finite, > 0 and <= {:e}",
+                    Self::MAX_CONSTRAINT_WEIGHT
+                ),
+            ));
+        }
+        if let Some(split) = &self.top_split {
+            if !split.at.is_finite() {
+                return Err(SettingError::new(
+                    "solver.top_split.at",
+                    split.at,
+                    "must be a finite number",
+                ));
+            }
+            if !(split.band.is_finite() && split.band >= 0.0) {
+                return Err(SettingError::new(
+                    "solver.top_split.band",
+                    split.band,
+                    "must be finite and >= 0",
+                ));
+            }
+            if let Some(k) = split.upper_kernel {
+                k.validate("solver.top_split.upper_kernel", self.affine)?;
+            }
+            if let Some(k) = split.lower_kernel {
+                k.validate("solver.top_split.lower_kernel", self.affine)?;
+            }
+        }
+        Ok(())
+    }
+}
+
 impl TopSplit {
     /// Share of the upper (brow) part at height `y`, in `[0, 1]`.
     pub fn upper_share(&self, y: f32) -> f32 {
@@ -289,6 +382,74 @@ mod tests {
         assert_eq!(s.upper_share(5.0), 1.0);
         let hard = TopSplit { band: 0.0, ..s };
         assert_eq!((hard.upper_share(3.99), hard.upper_share(4.0)), (0.0, 1.0));
+    }
+
+    #[test]
+    fn solver_settings_range_checks() {
+        let ok = SolverSettings::default();
+        ok.validate().unwrap();
+        let err = |s: SolverSettings| s.validate().unwrap_err();
+        for r in [0.0, -1.0, f64::NAN, f64::INFINITY, 1e-9, 1e7] {
+            let e = err(SolverSettings {
+                kernel: RbfKernel::Gaussian { radius: r },
+                ..ok
+            });
+            assert_eq!(e.key, "solver.kernel", "{r}");
+        }
+        let e = err(SolverSettings {
+            kernel: RbfKernel::ThinPlate,
+            ..ok
+        });
+        assert!(e.to_string().contains("needs affine = true"), "{e}");
+        SolverSettings {
+            kernel: RbfKernel::ThinPlate,
+            affine: true,
+            ..ok
+        }
+        .validate()
+        .unwrap();
+        for w in [0.0, -2.0, f64::NAN, 1e7] {
+            let e = err(SolverSettings {
+                constraint_weight: w,
+                ..ok
+            });
+            assert_eq!(e.key, "solver.constraint_weight", "{w}");
+        }
+        let split = TopSplit {
+            at: 4.0,
+            band: 1.0,
+            upper_kernel: None,
+            lower_kernel: Some(RbfKernel::Matern32 { radius: 1.0 }),
+        };
+        let with = |t: TopSplit| SolverSettings {
+            top_split: Some(t),
+            ..ok
+        };
+        with(split).validate().unwrap();
+        assert_eq!(
+            err(with(TopSplit {
+                at: f32::NAN,
+                ..split
+            }))
+            .key,
+            "solver.top_split.at"
+        );
+        assert_eq!(
+            err(with(TopSplit {
+                band: -1.0,
+                ..split
+            }))
+            .to_string(),
+            "solver.top_split.band = -1: must be finite and >= 0"
+        );
+        assert_eq!(
+            err(with(TopSplit {
+                lower_kernel: Some(RbfKernel::Matern32 { radius: 0.0 }),
+                ..split
+            }))
+            .key,
+            "solver.top_split.lower_kernel"
+        );
     }
 
     #[test]

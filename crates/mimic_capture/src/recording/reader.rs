@@ -114,9 +114,11 @@ pub struct RecordingReader<R> {
 impl RecordingReader<BufReader<File>> {
     /// Opens a recording file and reads its header.
     pub fn open(path: &Path, expected_points: Option<usize>) -> Result<Self, RecordingError> {
-        let file = File::open(path).map_err(|source| RecordingError::Open {
-            path: path.to_path_buf(),
-            source,
+        let file = mimic_types::limits::open_regular(path, "recordings").map_err(|e| {
+            RecordingError::Open {
+                path: path.to_path_buf(),
+                source: e.into(),
+            }
         })?;
         Self::new(BufReader::new(file), path, expected_points)
     }
