@@ -12,6 +12,7 @@
 
 mod blendshape;
 mod filter;
+mod gate;
 mod patch;
 mod pipeline;
 mod scale;
@@ -19,6 +20,7 @@ mod settings;
 
 pub use blendshape::{BlendshapeError, BlendshapeFitter, BlendshapeSettings, WeightMap};
 pub use filter::{OneEuro, OneEuroSettings};
+pub use gate::{GateReading, GateReason, GateSettings, face_size};
 pub use pipeline::{FrameOutput, FrameStatus, RetargetError, Retargeter, Stage, StageTimes, Stats};
 pub use scale::SourceToTarget;
 pub use settings::{Neutral, RetargetSettings};
