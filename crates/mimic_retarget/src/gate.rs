@@ -125,14 +125,16 @@ impl GateReading {
             Some(_) => f32::INFINITY,
             None => self.since_accepted_s,
         };
-        // Written as `!(x <= limit)` so that a NaN reading fails.
-        if !(self.displacement <= 1.0) {
+        // `passes` is false for a NaN reading, so a NaN fails the gate.
+        let passes = |x: f32, limit: f32| x <= limit;
+        if !passes(self.displacement, 1.0) {
             Some(GateReason::Displacement)
-        } else if !(self.rotation_deg <= settings.max_rotation_deg) {
+        } else if !passes(self.rotation_deg, settings.max_rotation_deg) {
             Some(GateReason::Rotation)
-        } else if !(self.turn_deg
-            <= settings.turn_floor_deg + settings.max_turn_speed_dps * turn_time)
-        {
+        } else if !passes(
+            self.turn_deg,
+            settings.turn_floor_deg + settings.max_turn_speed_dps * turn_time,
+        ) {
             Some(GateReason::Turn)
         } else {
             None
