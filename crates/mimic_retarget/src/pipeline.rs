@@ -495,8 +495,8 @@ impl Retargeter {
             self.raw_e[j] = e;
             self.raw_d[j] = to_target.apply(e);
         }
-        if let Some(reason) = self.gate(&pose, frame.timestamp_us) {
-            return self.hold_gated(frame.timestamp_us, reason, filled, &to_target, out);
+        if self.gate(&pose, frame.timestamp_us).is_some() {
+            return self.hold_gated(frame.timestamp_us, filled, &to_target, out);
         }
         self.gated_since_us = None;
         self.accepted_rotation = pose.rotation;
@@ -652,7 +652,6 @@ impl Retargeter {
     fn hold_gated(
         &mut self,
         t_us: i64,
-        _reason: GateReason,
         filled: u32,
         to_target: &SourceToTarget,
         out: &mut FrameOutput,

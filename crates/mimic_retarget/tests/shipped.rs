@@ -9,7 +9,7 @@ use std::path::{Path, PathBuf};
 use std::sync::{Arc, OnceLock};
 
 use glam::Vec3;
-use mimic_retarget::{FrameStatus, RetargetSettings, Retargeter, face_size};
+use mimic_retarget::{FrameStatus, GateReason, RetargetSettings, Retargeter, face_size};
 use mimic_solve::{Basis, build_basis};
 use mimic_types::{LandmarkFrame, Layout, Rig, SolverKind};
 
@@ -80,8 +80,8 @@ struct Replayed {
     tracked: u64,
     gated: u64,
     clamped: u64,
-    /// Indices of the frames the gate held.
-    gated_frames: Vec<usize>,
+    /// Indices of the frames the gate held, and why.
+    gated_frames: Vec<(usize, GateReason)>,
     jumps_counted: u64,
     /// Tracked frames whose largest control jump exceeds the 1 cm-equivalent.
     jump_frames: u64,
@@ -109,7 +109,9 @@ fn replay(
     for (k, f) in frames.iter().enumerate() {
         let status = rt.step(f, &mut out);
         if rt.stats().gated > r.gated_frames.len() as u64 {
-            r.gated_frames.push(k);
+            if let Some(why) = rt.gate_reading().reason {
+                r.gated_frames.push((k, why));
+            }
         }
         if let (FrameStatus::Tracked, Some(p)) = (status, &prev) {
             let jump = p
