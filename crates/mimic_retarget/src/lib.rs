@@ -13,6 +13,7 @@
 
 mod blendshape;
 mod filter;
+mod gate;
 mod patch;
 mod pipeline;
 pub mod quality;
@@ -23,6 +24,7 @@ mod weight_stats;
 
 pub use blendshape::{BlendshapeError, BlendshapeFitter, BlendshapeSettings, WeightMap};
 pub use filter::{OneEuro, OneEuroSettings};
+pub use gate::{GateReading, GateReason, GateSettings, face_size};
 pub use pipeline::{FrameOutput, FrameStatus, RetargetError, Retargeter, Stage, StageTimes, Stats};
 pub use scale::SourceToTarget;
 pub use settings::{Neutral, RetargetSettings};

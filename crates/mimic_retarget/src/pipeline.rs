@@ -1,5 +1,6 @@
 //! The retargeter: setup once, then one allocation-free `step` per frame.
 
+use crate::gate::{GateReading, GateReason, angle_deg, face_size};
 use crate::patch::MovingPatch;
 use crate::{Neutral, OneEuro, RetargetSettings, SourceToTarget};
 use glam::{Quat, Vec3};
@@ -95,7 +96,7 @@ pub enum FrameStatus {
     Tracked,
     /// Tracking lost (or too few stable points): last pose held, expression easing to neutral.
     Lost,
-    /// Unusable (wrong point count): the output was left unchanged.
+    /// Unusable (a tracked frame with the wrong point count): the output was left unchanged.
     Rejected,
 }
 
@@ -110,10 +111,17 @@ pub struct Stats {
     pub tracked: u64,
     /// Frames with lost tracking or too few stable points.
     pub lost: u64,
-    /// Frames rejected for a wrong point count.
+    /// Tracked frames rejected for a wrong point count (lost frames are never rejected).
     pub rejected: u64,
     /// Controls filled (held) because none of their points was valid, summed over frames.
     pub filled_controls: u64,
+    /// Tracked frames the plausibility gate held (counted in `tracked` too; `docs/gate.md`).
+    pub gated: u64,
+    /// Tracked frames in which the gate clamped some control's speed.
+    pub clamped: u64,
+    /// Tracked frames whose output moved some control more than `gate.jump_report` (IOD)
+    /// since the previous frame.
+    pub jumps: u64,
 }
 
 /// The result of one step; allocate it once with [`Retargeter::new_output`] and reuse it.
@@ -168,6 +176,10 @@ pub struct Retargeter {
     neutral_controls: Vec<Vec3>,
     /// Target-space displacements longer than this (target units) are outliers.
     outlier_limit: f32,
+    /// Inter-ocular distance of the target's controls (target units): the gate's length unit.
+    face_size: f32,
+    /// Gate bound of each control's displacement, target units.
+    gate_bounds: Vec<f32>,
     to_target: Option<SourceToTarget>,
     accumulator: Option<Accumulator>,
     // Per-frame state.
@@ -178,6 +190,21 @@ pub struct Retargeter {
     last_pose: HeadPose,
     last_time_us: Option<i64>,
     lost_since_us: Option<i64>,
+    // Gate state: the last frame it accepted (head rotation, time) and the hold clock.
+    accepted_rotation: Quat,
+    accepted_time_us: Option<i64>,
+    gated_since_us: Option<i64>,
+    gate_reading: GateReading,
+    /// Output `d` and time of the previous frame, for the speed clamp and [`Stats::jumps`].
+    previous_out: Vec<Vec3>,
+    previous_time_us: Option<i64>,
+    /// The last intervals between frames (seconds, a ring; 0: not yet seen), whose median is the
+    /// speed clamp's frame time, so that jittery timestamps (the GFE stamps fall on a 15.6 ms
+    /// timer grid) and gaps (dropped frames) do not open it.
+    intervals: [f32; INTERVALS],
+    next_interval: usize,
+    raw_d: Vec<Vec3>,
+    raw_e: Vec<Vec3>,
     // Scratch.
     stable_src: Vec<Vec3>,
     stable_dst: Vec<Vec3>,
@@ -220,6 +247,14 @@ impl Retargeter {
             })
             .collect::<Result<Vec<_>, _>>()?;
         let p = layout.point_count;
+        let fdps: Vec<Fdp> = rig.controls.iter().map(|c| c.fdp).collect();
+        let target_controls = rig.control_positions();
+        // A rig too degenerate to measure has no face size: the gate then never holds a frame.
+        let face = face_size(&fdps, &target_controls).unwrap_or(f32::INFINITY);
+        let gate_bounds = fdps
+            .iter()
+            .map(|f| settings.gate.bound(*f) * face)
+            .collect();
         let mut r = Retargeter {
             layout: layout.clone(),
             patch: if settings.positions {
@@ -233,12 +268,14 @@ impl Retargeter {
             basis,
             rest: rig.mesh.positions.clone(),
             triangles: rig.mesh.triangles.clone(),
-            target_controls: rig.control_positions(),
+            target_controls,
             source_control,
             neutral_points: vec![Vec3::ZERO; p],
             neutral_valid: vec![false; p],
             neutral_controls: vec![Vec3::ZERO; m],
             outlier_limit: f32::INFINITY,
+            face_size: face,
+            gate_bounds,
             to_target: None,
             accumulator: None,
             filters: vec![[OneEuro::default(); 3]; m],
@@ -248,6 +285,16 @@ impl Retargeter {
             last_pose: HeadPose::IDENTITY,
             last_time_us: None,
             lost_since_us: None,
+            accepted_rotation: Quat::IDENTITY,
+            accepted_time_us: None,
+            gated_since_us: None,
+            gate_reading: GateReading::default(),
+            previous_out: vec![Vec3::ZERO; m],
+            previous_time_us: None,
+            intervals: [0.0; INTERVALS],
+            next_interval: 0,
+            raw_d: vec![Vec3::ZERO; m],
+            raw_e: vec![Vec3::ZERO; m],
             stable_src: Vec::with_capacity(layout.stable.len()),
             stable_dst: Vec::with_capacity(layout.stable.len()),
             stable_residual: Vec::with_capacity(layout.stable.len()),
@@ -354,17 +401,56 @@ impl Retargeter {
 
     /// Processes one frame into `out` (from [`Retargeter::new_output`]); allocates nothing.
     pub fn step(&mut self, frame: &LandmarkFrame, out: &mut FrameOutput) -> FrameStatus {
+        let status = self.step_frame(frame, out);
+        if status != FrameStatus::Rejected {
+            let limit = self.settings.gate.jump_report * self.face_size;
+            let jump = out
+                .displacements
+                .iter()
+                .zip(&self.previous_out)
+                .any(|(d, p)| d.distance(*p) > limit);
+            if status == FrameStatus::Tracked && jump {
+                self.stats.jumps += 1;
+            }
+            for (p, d) in self.previous_out.iter_mut().zip(&out.displacements) {
+                *p = *d;
+            }
+            if let Some(t) = self.previous_time_us {
+                let dt = frame.timestamp_us.saturating_sub(t) as f32 * 1e-6;
+                if dt > 0.0 && dt <= 1.0 {
+                    self.intervals[self.next_interval] = dt;
+                    self.next_interval = (self.next_interval + 1) % INTERVALS;
+                }
+            }
+            self.previous_time_us = Some(frame.timestamp_us);
+        }
+        status
+    }
+
+    /// What the plausibility gate measured on the last tracked frame, and whether it held it.
+    pub fn gate_reading(&self) -> GateReading {
+        self.gate_reading
+    }
+
+    /// The target's inter-ocular distance (target units): the gate's unit of length.
+    pub fn face_size(&self) -> f32 {
+        self.face_size
+    }
+
+    fn step_frame(&mut self, frame: &LandmarkFrame, out: &mut FrameOutput) -> FrameStatus {
         self.stats.frames += 1;
         out.timestamp_us = frame.timestamp_us;
         out.filled = 0;
         out.times = StageTimes::default();
+        // A lost frame needs no points: the documented forms are `points: []` (OpenFace
+        // imports, UDP P = 0) and a full point list with `tracked: false`; both are held.
+        if !frame.tracked {
+            return self.lost(frame.timestamp_us, out);
+        }
         if frame.points.len() != self.layout.point_count {
             self.stats.rejected += 1;
             out.status = FrameStatus::Rejected;
             return out.status;
-        }
-        if !frame.tracked {
-            return self.lost(frame.timestamp_us, out);
         }
         if self.accumulator.is_some() {
             return self.calibrate(frame, out);
@@ -406,9 +492,20 @@ impl Retargeter {
                     self.last_e[j]
                 }
             };
+            self.raw_e[j] = e;
+            self.raw_d[j] = to_target.apply(e);
+        }
+        if self.gate(&pose, frame.timestamp_us).is_some() {
+            return self.hold_gated(frame.timestamp_us, filled, &to_target, out);
+        }
+        self.gated_since_us = None;
+        self.accepted_rotation = pose.rotation;
+        self.accepted_time_us = Some(frame.timestamp_us);
+        for j in 0..self.controls_now.len() {
+            let e = self.raw_e[j];
             self.frame_delta[j] = e - self.last_e[j];
             self.last_e[j] = e;
-            let mut d = to_target.apply(e);
+            let mut d = self.raw_d[j];
             if let Some(fs) = &self.settings.filter {
                 let f = &mut self.filters[j];
                 d = Vec3::new(
@@ -418,7 +515,12 @@ impl Retargeter {
                 );
             }
             out.displacements[j] = d;
-            self.last_d[j] = d;
+        }
+        if self.clamp_speed(frame.timestamp_us, out) {
+            self.stats.clamped += 1;
+        }
+        for (l, d) in self.last_d.iter_mut().zip(&out.displacements) {
+            *l = *d;
         }
         let t3 = Instant::now();
         self.stats.tracked += 1;
@@ -463,17 +565,107 @@ impl Retargeter {
     fn lost(&mut self, t_us: i64, out: &mut FrameOutput) -> FrameStatus {
         self.stats.lost += 1;
         let since = *self.lost_since_us.get_or_insert(t_us);
+        self.gated_since_us = None;
+        self.hold_and_ease(since, t_us, out);
+        for f in &mut self.filters {
+            f.iter_mut().for_each(OneEuro::reset);
+        }
+        out.pose = self.last_pose;
+        out.status = FrameStatus::Lost;
+        self.deform(out);
+        out.status
+    }
+
+    /// `out.displacements`: the last accepted `d`, held `lost_hold_secs` after `since`, then eased
+    /// to neutral over `lost_ease_secs`.
+    fn hold_and_ease(&self, since: i64, t_us: i64, out: &mut FrameOutput) {
         let elapsed = t_us.saturating_sub(since) as f32 * 1e-6;
         let ease = self.settings.lost_ease_secs.max(1e-6);
         let k = 1.0 - ((elapsed - self.settings.lost_hold_secs) / ease).clamp(0.0, 1.0);
         for (o, d) in out.displacements.iter_mut().zip(&self.last_d) {
             *o = *d * k;
         }
-        for f in &mut self.filters {
-            f.iter_mut().for_each(OneEuro::reset);
+    }
+
+    /// Judges the raw `d` of this frame (in `raw_d`) and its head pose; `Some` holds the frame.
+    fn gate(&mut self, pose: &HeadPose, t_us: i64) -> Option<GateReason> {
+        let g = self.settings.gate;
+        let secs = |t: Option<i64>| {
+            t.map(|t| (t_us.saturating_sub(t) as f32 * 1e-6).max(0.0))
+                .unwrap_or(0.0)
+        };
+        let mut r = GateReading {
+            since_accepted_s: secs(self.accepted_time_us),
+            frame_dt_s: secs(self.previous_time_us),
+            holding_s: self.gated_since_us.map(|t| secs(Some(t))),
+            rotation_deg: angle_deg(pose.rotation),
+            turn_deg: angle_deg(pose.rotation * self.accepted_rotation.inverse()),
+            ..GateReading::default()
+        };
+        for (d, bound) in self.raw_d.iter().zip(&self.gate_bounds) {
+            r.displacement = r.displacement.max(ratio(d.length(), *bound));
         }
+        r.reason = if g.enabled { r.judge(&g) } else { None };
+        self.gate_reading = r;
+        r.reason
+    }
+
+    /// Limits each control's step from the previous output to `gate.max_control_speed` over
+    /// the typical frame time; true if some control was clamped.
+    fn clamp_speed(&self, t_us: i64, out: &mut FrameOutput) -> bool {
+        let g = &self.settings.gate;
+        if !g.enabled {
+            return false;
+        }
+        let dt = if let Some(typical) = self.typical_interval() {
+            typical
+        } else {
+            self.previous_time_us
+                .map(|t| (t_us.saturating_sub(t) as f32 * 1e-6).clamp(0.0, 1.0))
+                .unwrap_or(0.0)
+        };
+        let limit = (g.step_floor + g.max_control_speed * dt) * self.face_size;
+        let mut clamped = false;
+        for (d, p) in out.displacements.iter_mut().zip(&self.previous_out) {
+            let step = *d - *p;
+            let len = step.length();
+            if len > limit {
+                *d = *p + step * (limit / len);
+                clamped = true;
+            }
+        }
+        clamped
+    }
+
+    /// Median of the intervals seen so far (of the last [`INTERVALS`]), seconds.
+    fn typical_interval(&self) -> Option<f32> {
+        let mut sorted = self.intervals;
+        let seen = sorted.iter().filter(|t| **t > 0.0).count();
+        if seen == 0 {
+            return None;
+        }
+        sorted.sort_unstable_by(|a, b| b.total_cmp(a));
+        Some(sorted[seen / 2])
+    }
+
+    /// A tracked frame the gate refused: counted, last expression held then eased, pose held.
+    fn hold_gated(
+        &mut self,
+        t_us: i64,
+        filled: u32,
+        to_target: &SourceToTarget,
+        out: &mut FrameOutput,
+    ) -> FrameStatus {
+        self.stats.tracked += 1;
+        self.stats.gated += 1;
+        self.stats.filled_controls += u64::from(filled);
+        let since = *self.gated_since_us.get_or_insert(t_us);
+        self.hold_and_ease(since, t_us, out);
+        self.lost_since_us = None;
+        out.filled = filled;
         out.pose = self.last_pose;
-        out.status = FrameStatus::Lost;
+        out.target_rotation = to_target.rotation_in_target(self.last_pose.rotation);
+        out.status = FrameStatus::Tracked;
         self.deform(out);
         out.status
     }
@@ -525,6 +717,7 @@ impl Retargeter {
             if self.finish_neutral() {
                 self.accumulator = None;
                 self.last_time_us = Some(frame.timestamp_us);
+                self.accepted_time_us = Some(frame.timestamp_us);
             } else if let Some(acc) = self.accumulator.as_mut() {
                 // Some control never had a valid point: keep accumulating.
                 acc.wanted += 1;
@@ -613,6 +806,14 @@ impl Retargeter {
         self.outlier_limit = self.settings.outlier_fraction * rms_radius;
         stable_ok && self.to_target.is_some()
     }
+}
+
+/// Frame intervals the speed clamp takes the median of.
+const INTERVALS: usize = 15;
+
+/// `x / limit`, 0 when `x` is 0, infinite past a zero limit; NaN stays NaN (and fails the gate).
+fn ratio(x: f32, limit: f32) -> f32 {
+    if x == 0.0 { 0.0 } else { x / limit }
 }
 
 fn nanos(a: Instant, b: Instant) -> u32 {

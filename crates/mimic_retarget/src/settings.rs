@@ -1,6 +1,6 @@
 //! Settings of the per-frame pipeline.
 
-use crate::OneEuroSettings;
+use crate::{GateSettings, OneEuroSettings};
 use mimic_types::LandmarkFrame;
 
 /// Where the neutral (expressionless) face comes from.
@@ -40,6 +40,9 @@ pub struct RetargetSettings {
     /// Stable points whose residual after the head-pose fit exceeds this many times the median
     /// residual are dropped and the pose refitted (robust to a bad stable point).
     pub stable_trim: f32,
+    /// The plausibility gate: tracked frames no face can make are held and eased like lost
+    /// ones (`docs/gate.md`).
+    pub gate: GateSettings,
 }
 
 impl Default for RetargetSettings {
@@ -55,6 +58,7 @@ impl Default for RetargetSettings {
             positions: true,
             outlier_fraction: 0.8,
             stable_trim: 3.0,
+            gate: GateSettings::default(),
         }
     }
 }

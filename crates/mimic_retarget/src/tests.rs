@@ -124,11 +124,24 @@ fn setup(settings: RetargetSettings) -> (Retargeter, Vec<Vec3>) {
     )
 }
 
+/// No jitter filter and no plausibility gate: one frame's `d` is that frame's alone.
 fn plain() -> RetargetSettings {
     RetargetSettings {
         neutral: Neutral::FirstFrames(1),
         filter: None,
+        gate: GateSettings {
+            enabled: false,
+            ..GateSettings::default()
+        },
         ..Default::default()
+    }
+}
+
+/// [`plain`] with the gate at its defaults.
+fn gated() -> RetargetSettings {
+    RetargetSettings {
+        gate: GateSettings::default(),
+        ..plain()
     }
 }
 
@@ -368,4 +381,127 @@ fn positions_off_gives_the_same_displacements_and_keeps_the_rest_mesh() {
     }
     assert!(out_on.displacements.iter().any(|d| d.length() > 0.01));
     assert_eq!(off.moving_vertex_count(), 0);
+}
+
+#[test]
+fn lost_frames_without_points_are_lost_not_rejected() {
+    let (mut r, neutral) = setup(plain());
+    let mut out = r.new_output();
+    r.step(&frame(0, neutral.clone()), &mut out);
+    let mut open = neutral.clone();
+    open[5] += Vec3::new(0.0, -0.004, 0.0);
+    r.step(&frame(33_000, open), &mut out);
+    let held = out.displacements.clone();
+    // The documented forms: no points at all (OpenFace's failed frames, UDP P = 0), and a
+    // point list of another length, which a lost frame does not need either.
+    let empty = LandmarkFrame {
+        timestamp_us: 66_000,
+        points: vec![],
+        valid: vec![],
+        tracked: false,
+    };
+    assert_eq!(r.step(&empty, &mut out), FrameStatus::Lost);
+    assert_eq!(out.displacements, held, "held right after the loss");
+    let short = LandmarkFrame {
+        tracked: false,
+        ..frame(99_000, neutral[..3].to_vec())
+    };
+    assert_eq!(r.step(&short, &mut out), FrameStatus::Lost);
+    let s = r.stats();
+    assert_eq!((s.lost, s.rejected, s.tracked), (2, 0, 1));
+}
+
+#[test]
+fn gate_holds_a_head_that_turns_faster_than_a_head_does_until_it_comes_back() {
+    let (mut r, neutral) = setup(gated());
+    let mut out = r.new_output();
+    r.step(&frame(0, neutral.clone()), &mut out);
+    let mut smile = neutral.clone();
+    smile[3] += Vec3::new(0.001, 0.0005, 0.0);
+    // Ease into the smile slowly enough for the speed clamp.
+    for k in 1..=10 {
+        r.step(&frame(k * 66_000, smile.clone()), &mut out);
+    }
+    assert_eq!(r.gate_reading().reason, None);
+    let held = out.displacements.clone();
+    assert!(held[3].length() > 0.05);
+    // 40 degrees in one 66 ms frame (600 deg/s), with the chin dropped 2 cm: held.
+    let turn = Quat::from_rotation_x(40f32.to_radians());
+    let mut bad: Vec<Vec3> = smile.iter().map(|p| turn * *p).collect();
+    bad[5] += turn * Vec3::new(0.0, -0.02, 0.0);
+    for k in 11..=13 {
+        assert_eq!(
+            r.step(&frame(k * 66_000, bad.clone()), &mut out),
+            FrameStatus::Tracked
+        );
+        assert_eq!(r.gate_reading().reason, Some(GateReason::Turn), "frame {k}");
+        assert_eq!(
+            out.displacements, held,
+            "frame {k}: the last expression is held"
+        );
+    }
+    // Back where it was: accepted again.
+    r.step(&frame(14 * 66_000, smile.clone()), &mut out);
+    assert_eq!(r.gate_reading().reason, None);
+    let s = r.stats();
+    assert_eq!((s.gated, s.tracked), (3, 14));
+}
+
+#[test]
+fn gate_clamps_control_speed_and_counts_jumps() {
+    let (mut r, neutral) = setup(gated());
+    let mut out = r.new_output();
+    r.step(&frame(0, neutral.clone()), &mut out);
+    r.step(&frame(66_000, neutral.clone()), &mut out);
+    let mut open = neutral.clone();
+    // 1.5 cm of chin drop (on the cm rig) in one frame: faster than a face moves.
+    open[5] += Vec3::new(0.0, -0.015, 0.0);
+    let face = r.face_size();
+    let g = GateSettings::default();
+    let step = (g.step_floor + g.max_control_speed * 0.066) * face;
+    let mut last = 0.0;
+    for k in 2..40 {
+        r.step(&frame(k * 66_000, open.clone()), &mut out);
+        let now = out.displacements[5].length();
+        assert!(
+            now - last <= step * 1.001,
+            "frame {k}: {last} -> {now} (step {step})"
+        );
+        last = now;
+    }
+    assert!((last - 1.5).abs() < 1e-3, "reaches the target: {last}");
+    let s = r.stats();
+    assert!(s.clamped >= 2, "{s:?}");
+    assert_eq!(s.jumps, 0, "{s:?}");
+    assert_eq!(s.gated, 0, "{s:?}");
+    // Without the gate the same step is one jump.
+    let (mut r, neutral) = setup(plain());
+    r.step(&frame(0, neutral.clone()), &mut out);
+    r.step(&frame(66_000, open.clone()), &mut out);
+    assert_eq!((r.stats().jumps, r.stats().clamped), (1, 0));
+}
+
+#[test]
+fn gate_holds_a_control_beyond_its_bound() {
+    let (mut r, neutral) = setup(gated());
+    let mut out = r.new_output();
+    r.step(&frame(0, neutral.clone()), &mut out);
+    let mut far = neutral.clone();
+    // The nose control (9.3) 0.55 face sizes up: past its bound (0.5), short of the outlier
+    // limit that would fill the control instead.
+    let bound = GateSettings::default().max_other;
+    far[2] += Vec3::new(0.0, 1.1 * bound * r.face_size() * SRC_SCALE, 0.0);
+    r.step(&frame(66_000, far), &mut out);
+    assert_eq!(r.gate_reading().reason, Some(GateReason::Displacement));
+    assert!(out.displacements.iter().all(|d| d.length() < 1e-6));
+    assert_eq!(r.stats().gated, 1);
+}
+
+#[test]
+fn gate_settings_load_from_an_empty_table() {
+    let g: GateSettings = serde_json::from_str("{}").unwrap();
+    assert_eq!(g, GateSettings::default());
+    let g: GateSettings = serde_json::from_str(r#"{"max_rotation_deg": 30}"#).unwrap();
+    assert_eq!(g.max_rotation_deg, 30.0);
+    assert!(serde_json::from_str::<GateSettings>(r#"{"max_rotaton_deg": 30}"#).is_err());
 }

@@ -10,7 +10,9 @@ use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 
 use glam::{Quat, Vec3};
-use mimic_retarget::{FrameOutput, FrameStatus, Neutral, RetargetSettings, Retargeter};
+use mimic_retarget::{
+    FrameOutput, FrameStatus, GateSettings, Neutral, RetargetSettings, Retargeter,
+};
 use mimic_solve::{Basis, build_basis};
 use mimic_types::{LandmarkFrame, Layout, Rig};
 use proptest::prelude::*;
@@ -56,11 +58,16 @@ fn retargeter(settings: RetargetSettings) -> (Retargeter, FrameOutput) {
     (rt, out)
 }
 
-/// Pipeline without the jitter filter (so one frame's `d` depends on that frame alone).
+/// Pipeline without the jitter filter and the plausibility gate (so one frame's `d` depends on
+/// that frame alone, however far the head turned).
 fn unfiltered(neutral: &LandmarkFrame) -> RetargetSettings {
     RetargetSettings {
         neutral: Neutral::Frame(neutral.clone()),
         filter: None,
+        gate: GateSettings {
+            enabled: false,
+            ..GateSettings::default()
+        },
         ..RetargetSettings::default()
     }
 }
