@@ -3,6 +3,11 @@
 //! 0.5 px pixel noise, depth missing on a third of the points). Inputs are built outside the timed
 //! closures.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a bench: a failed unwrap is the failure report"
+)]
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{DQuat, DVec2, DVec3};
 use mimic_fit::{AUV_COUNT, Camera, Candide3, FitSettings, Fitter, PointObservation, Pose};

@@ -2,6 +2,11 @@
 //! observed through the `kinect-gfe100` correspondences as a Kinect would: pixels with noise,
 //! depth with noise, and depth missing at random.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test: a failed unwrap is the failure report"
+)]
+
 use glam::{DQuat, DVec2, DVec3};
 use mimic_fit::{AUV_COUNT, Camera, Candide3, FitSettings, Fitter, PointObservation, Pose};
 use mimic_testkit::XorShift64Star;

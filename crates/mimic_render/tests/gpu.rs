@@ -2,6 +2,11 @@
 //!
 //! With no adapter these fail with the renderer's message, unless MIMIC_SKIP_GPU_TESTS is set.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test: a failed unwrap is the failure report"
+)]
+
 use glam::Vec3;
 use mimic_render::{Camera, Deform, Image, Renderer, Shading, View};
 use mimic_solve::{Basis, vertex_normals};

@@ -3,6 +3,11 @@
 //! allocation the current thread makes while `Retargeter::step` (positions and normals on) and
 //! `Basis::apply` run on the real ICT-FaceKit rig and a real Kinect recording, after a warm-up.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test: a failed unwrap is the failure report"
+)]
+
 use std::alloc::{GlobalAlloc, Layout as AllocLayout, System};
 use std::cell::Cell;
 use std::path::PathBuf;

@@ -6,6 +6,11 @@
 //! vertices with 38 controls spread over them; everything is built outside the timed closures.
 //! Debug builds (`cargo test --benches`) shrink the sizes so the smoke run is quick.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a bench: a failed unwrap is the failure report"
+)]
+
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use glam::Vec3;
 use mimic_solve::kabsch::fit_similarity;

@@ -3,7 +3,9 @@
 use crate::test_meshes::{control_lattice, grid, random_d, rig};
 use crate::{Basis, SolveError, build_basis};
 use glam::Vec3;
-use mimic_types::{LaplacianWeights, RbfKernel, Rig, RigError, SolverKind, SolverSettings};
+use mimic_types::{
+    LaplacianWeights, RbfDistance, RbfKernel, Rig, RigError, SolverKind, SolverSettings,
+};
 
 fn settings(kind: SolverKind, regions: bool) -> SolverSettings {
     SolverSettings {
