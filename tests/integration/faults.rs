@@ -126,7 +126,7 @@ fn a_recorded_session_holds_exactly_the_accepted_frames_and_replays_like_the_ori
     ]);
     let mut v = viewer(&server.tcp, "r", false);
     server.wait_for("the viewer", |s| s["viewers_active"] == 1);
-    let tv = std::thread::spawn(move || read_session(&mut v));
+    let tv = mimic_testkit::spawn("viewer v", move || read_session(&mut v));
     // The 100 shipped frames with, between them, a repeat of an old frame (late), garbage
     // (bad_json), a frame an hour ahead (future_timestamp) and a blank line (ignored).
     let lines = frame_lines(REC);

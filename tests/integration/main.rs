@@ -1,5 +1,10 @@
 //! End-to-end tests of the `mimic` binary on the shipped configs and recordings.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test: a failed unwrap is the failure report"
+)]
+
 mod config_limits;
 mod faults;
 mod fit;

@@ -36,8 +36,8 @@ fn a_sent_recording_reaches_two_viewers_as_replay_computes_it() {
     let mut a = viewer(&server.tcp, "eq", false);
     let mut b = viewer(&server.tcp, "eq", true);
     server.wait_for("two viewers", |s| s["viewers_active"] == 2);
-    let ta = std::thread::spawn(move || read_session(&mut a));
-    let tb = std::thread::spawn(move || read_session(&mut b));
+    let ta = mimic_testkit::spawn("viewer a", move || read_session(&mut a));
+    let tb = mimic_testkit::spawn("viewer b", move || read_session(&mut b));
     let sent = mimic(&[
         "send",
         rec,
@@ -146,9 +146,9 @@ fn garbage_oversized_and_half_sent_messages_get_errors_while_another_session_str
     ]);
     let mut g = viewer(&server.tcp, "good", false);
     server.wait_for("the viewer", |s| s["viewers_active"] == 1);
-    let tg = std::thread::spawn(move || read_session(&mut g));
+    let tg = mimic_testkit::spawn("viewer g", move || read_session(&mut g));
     let tcp = server.tcp.clone();
-    let good = std::thread::spawn(move || {
+    let good = mimic_testkit::spawn("good sender", move || {
         mimic(&[
             "send",
             rec,
@@ -261,7 +261,7 @@ fn a_stalled_viewer_does_not_delay_the_other_viewer() {
     let mut stalled = viewer(&server.tcp, "st", true);
     let mut live = viewer(&server.tcp, "st", false);
     server.wait_for("two viewers", |s| s["viewers_active"] == 2);
-    let tl = std::thread::spawn(move || read_session(&mut live));
+    let tl = mimic_testkit::spawn("live viewer", move || read_session(&mut live));
     let sent = mimic(&["send", rec, "--to", &server.tcp, "--session", "st"]);
     assert!(sent.status.success(), "{}", text(&sent).1);
     // The live viewer got every frame and the end while the stalled one had read nothing.
@@ -302,7 +302,7 @@ fn udp_frames_are_retargeted_and_late_ones_dropped() {
     let server = Serve::start(&["--rig", "candide3", "--viewer-queue", "100000"]);
     let mut v = viewer(&server.tcp, "u", false);
     server.wait_for("the viewer", |s| s["viewers_active"] == 1);
-    let tv = std::thread::spawn(move || read_session(&mut v));
+    let tv = mimic_testkit::spawn("viewer v", move || read_session(&mut v));
     // The session opens over TCP, which also carries the first 10 frames (the neutral).
     let mut t = connect(&server.tcp);
     t.write_all(header_with_session(rec, "u").as_bytes())

@@ -1,5 +1,10 @@
 //! Reading and writing v1 recordings: a real 1390-frame, 100-point GFE recording, in memory.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a bench: a failed unwrap is the failure report"
+)]
+
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use mimic_capture::{RecordedFrame, RecordingReader, RecordingWriter};
 use std::hint::black_box;

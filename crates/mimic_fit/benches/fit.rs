@@ -3,6 +3,11 @@
 //! 0.5 px pixel noise, depth missing on a third of the points). Inputs are built outside the timed
 //! closures.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a bench: a failed unwrap is the failure report"
+)]
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::{DQuat, DVec2, DVec3};
 use mimic_fit::{AUV_COUNT, Camera, Candide3, FitSettings, Fitter, PointObservation, Pose};
@@ -25,13 +30,8 @@ fn setup() -> (Fitter, Vec<Vec<PointObservation>>) {
         FitSettings::default(),
     )
     .unwrap();
-    let mut seed = 7u64;
-    let mut noise = || {
-        seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((seed >> 11) as f64 / (1u64 << 53) as f64) * 2.0 - 1.0
-    };
+    let mut rng = mimic_testkit::Lcg::new(7);
+    let mut noise = || rng.next_f64();
     let mut verts = Vec::new();
     let frames = (0..60)
         .map(|i| {

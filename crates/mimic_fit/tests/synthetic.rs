@@ -2,8 +2,14 @@
 //! observed through the `kinect-gfe100` correspondences as a Kinect would: pixels with noise,
 //! depth with noise, and depth missing at random.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test: a failed unwrap is the failure report"
+)]
+
 use glam::{DQuat, DVec2, DVec3};
 use mimic_fit::{AUV_COUNT, Camera, Candide3, FitSettings, Fitter, PointObservation, Pose};
+use mimic_testkit::XorShift64Star;
 use mimic_types::ModelCorrespondence;
 use std::path::PathBuf;
 
@@ -19,22 +25,6 @@ fn model() -> Candide3 {
 fn correspondences() -> (Vec<ModelCorrespondence>, usize) {
     let l = mimic_assets::load_layout(&repo().join("configs/layouts/kinect-gfe100.toml")).unwrap();
     (l.candide_correspondences, l.point_count)
-}
-
-/// xorshift64* and Box-Muller: a reproducible noise source without a dependency.
-struct Rng(u64);
-
-impl Rng {
-    fn uniform(&mut self) -> f64 {
-        self.0 ^= self.0 >> 12;
-        self.0 ^= self.0 << 25;
-        self.0 ^= self.0 >> 27;
-        ((self.0.wrapping_mul(0x2545_F491_4F6C_DD1D) >> 11) as f64 + 0.5) / (1u64 << 53) as f64
-    }
-    fn normal(&mut self) -> f64 {
-        let (u, v) = (self.uniform(), self.uniform());
-        (-2.0 * u.ln()).sqrt() * (std::f64::consts::TAU * v).cos()
-    }
 }
 
 const FRAMES: usize = 150;
@@ -89,7 +79,7 @@ struct Sequence {
 
 fn sequence(model: &Candide3, corr: &[ModelCorrespondence], point_count: usize) -> Sequence {
     let camera = Camera::KINECT_V1_COLOUR;
-    let mut rng = Rng(0x9E37_79B9_7F4A_7C15);
+    let mut rng = XorShift64Star(0x9E37_79B9_7F4A_7C15);
     let shape: Vec<f64> = (0..model.shape_units.len())
         .map(|_| 0.3 * (2.0 * rng.uniform() - 1.0))
         .collect();

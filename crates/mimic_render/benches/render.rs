@@ -3,6 +3,11 @@
 //!
 //! `cargo bench -p mimic_render --bench render` (lavapipe unless a GPU is present).
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a bench: a failed unwrap is the failure report"
+)]
+
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::Vec3;
 use mimic_render::{Camera, Deform, Renderer, View};

@@ -836,7 +836,7 @@ impl Renderer {
 
     /// Waits for the queue, maps `buffer` and copies it out.
     fn map_read(&self, buffer: &wgpu::Buffer) -> Result<Vec<u8>, RenderError> {
-        let (tx, rx) = mpsc::channel();
+        let (tx, rx) = mpsc::sync_channel(1);
         buffer.map_async(wgpu::MapMode::Read, .., move |r| {
             // The receiver outlives the poll below; a failed send only means it is gone.
             let _ = tx.send(r);

@@ -2,9 +2,15 @@
 //!
 //! With no adapter these fail with the renderer's message, unless MIMIC_SKIP_GPU_TESTS is set.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test: a failed unwrap is the failure report"
+)]
+
 use glam::Vec3;
 use mimic_render::{Camera, Deform, Image, Renderer, Shading, View};
 use mimic_solve::{Basis, vertex_normals};
+use mimic_testkit::Lcg;
 use std::path::PathBuf;
 
 fn renderer(w: u32, h: u32) -> Option<Renderer> {
@@ -23,18 +29,6 @@ fn ict() -> mimic_types::Rig {
     mimic_assets::load_rig(&root).unwrap()
 }
 
-/// Deterministic pseudo-random numbers in [-1, 1) (a 64-bit LCG), independent of the code under test.
-struct Lcg(u64);
-impl Lcg {
-    fn next(&mut self) -> f32 {
-        self.0 = self
-            .0
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((self.0 >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    }
-}
-
 #[test]
 fn gpu_morph_and_normals_equal_the_cpu() {
     let Some(r) = renderer(64, 64) else { return };
@@ -43,9 +37,9 @@ fn gpu_morph_and_normals_equal_the_cpu() {
     let m = 38;
     let mut rng = Lcg(7);
     // A dense random basis (weights in [-1, 1)) and displacements of up to 2 cm per axis.
-    let basis = Basis::from_row_major(n, m, (0..n * m).map(|_| rng.next()).collect()).unwrap();
+    let basis = Basis::from_row_major(n, m, (0..n * m).map(|_| rng.next_f32()).collect()).unwrap();
     let d: Vec<Vec3> = (0..m)
-        .map(|_| Vec3::new(rng.next(), rng.next(), rng.next()) * 2.0)
+        .map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 2.0)
         .collect();
     let gpu = r
         .upload_rig(&rig.mesh.positions, &rig.mesh.triangles, Some(&basis))
@@ -126,7 +120,7 @@ fn full_positions_path_draws_what_the_morph_draws() {
     let m = 4;
     let mut rng = Lcg(11);
     // A smooth random basis: each column a bump in y, so the face really moves (up to ~1 cm).
-    let centres: Vec<f32> = (0..m).map(|_| rng.next() * 8.0).collect();
+    let centres: Vec<f32> = (0..m).map(|_| rng.next_f32() * 8.0).collect();
     let data: Vec<f32> = (0..n * m)
         .map(|k| {
             let y = rig.mesh.positions[k / m].y;
@@ -135,7 +129,7 @@ fn full_positions_path_draws_what_the_morph_draws() {
         .collect();
     let basis = Basis::from_row_major(n, m, data).unwrap();
     let d: Vec<Vec3> = (0..m)
-        .map(|_| Vec3::new(rng.next(), rng.next(), rng.next()) * 0.5)
+        .map(|_| Vec3::new(rng.next_f32(), rng.next_f32(), rng.next_f32()) * 0.5)
         .collect();
     let tris = shown(&rig);
     let gpu = r

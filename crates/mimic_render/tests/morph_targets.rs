@@ -4,6 +4,11 @@
 //! weights as control displacements; the GPU's `P0 + B d` must equal `P0 + sum_k w_k dP_k`.
 //! With no adapter this fails with the renderer's message, unless MIMIC_SKIP_GPU_TESTS is set.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test: a failed unwrap is the failure report"
+)]
+
 use glam::Vec3;
 use mimic_render::{Deform, Renderer};
 use mimic_solve::morph_basis::{morph_basis, morph_controls};

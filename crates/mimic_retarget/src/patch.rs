@@ -133,13 +133,7 @@ impl MovingPatch {
 mod tests {
     use super::*;
 
-    /// Deterministic pseudo-random value in [-1, 1) (64-bit LCG).
-    fn lcg(seed: &mut u64) -> f32 {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    }
+    use mimic_testkit::lcg;
 
     #[test]
     fn patch_on_the_ict_head_equals_full_apply_and_reference_normals() {

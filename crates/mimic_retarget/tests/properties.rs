@@ -6,6 +6,11 @@
 //! lost tracking, wrong point counts, timestamps out of order or from far in the future) makes
 //! any output non-finite or breaks the frame accounting.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test: a failed unwrap is the failure report"
+)]
+
 use std::path::PathBuf;
 use std::sync::{Arc, OnceLock};
 

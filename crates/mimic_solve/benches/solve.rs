@@ -6,6 +6,11 @@
 //! vertices with 38 controls spread over them; everything is built outside the timed closures.
 //! Debug builds (`cargo test --benches`) shrink the sizes so the smoke run is quick.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a bench: a failed unwrap is the failure report"
+)]
+
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
 use glam::Vec3;
 use mimic_solve::kabsch::fit_similarity;
@@ -27,13 +32,7 @@ fn sides() -> Vec<usize> {
     }
 }
 
-/// Deterministic pseudo-random value in [-1, 1).
-fn lcg(seed: &mut u64) -> f32 {
-    *seed = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-}
+use mimic_testkit::lcg;
 
 /// A `side x side` sheet bent like a face (cylinder around y), 20 x 24 units, with 38 controls on a
 /// 7 x 6 lattice (four corners dropped), regions by thirds of the height.

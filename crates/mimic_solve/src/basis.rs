@@ -526,13 +526,7 @@ fn apply_aos(b: &[f32], m: usize, d: &[Vec3], out: &mut [Vec3]) {
 mod tests {
     use super::*;
 
-    /// Deterministic pseudo-random values in [-1, 1) (64-bit LCG).
-    fn lcg(seed: &mut u64) -> f32 {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    }
+    use mimic_testkit::lcg;
 
     #[test]
     fn moving_rows_keep_the_non_zero_rows_in_order() {

@@ -1,7 +1,9 @@
 //! Least-squares similarity between point sets (Kabsch / Umeyama), via Horn's quaternion method.
 
-// The Jacobi sweeps index rows and columns of a 4x4 matrix as in the textbook formulas.
-#![allow(clippy::needless_range_loop)]
+#![allow(
+    clippy::needless_range_loop,
+    reason = "the Jacobi sweeps index rows and columns of a 4x4 matrix as in the textbook formulas"
+)]
 
 use glam::{DQuat, DVec3, Quat, Vec3};
 use mimic_types::HeadPose;
@@ -123,12 +125,7 @@ fn jacobi_eigen4(a: &mut [[f64; 4]; 4]) -> ([f64; 4], [[f64; 4]; 4]) {
 mod tests {
     use super::*;
 
-    fn lcg(seed: &mut u64) -> f32 {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    }
+    use mimic_testkit::lcg;
 
     /// Distance between rotations as quaternions up to sign (f32 `angle_between` goes through
     /// `acos` near 1, which only resolves ~1e-3 rad).

@@ -17,8 +17,10 @@
 //!   Laplacian energy does not see translations): it is held at zero displacement, as if frozen,
 //!   with a `tracing::warn`.
 
-// Index loops mirror the matrix formulas (rows i, columns j) and touch several arrays at once.
-#![allow(clippy::needless_range_loop)]
+#![allow(
+    clippy::needless_range_loop,
+    reason = "index loops mirror the matrix formulas (rows i, columns j) and touch several arrays at once"
+)]
 
 use crate::SolveError;
 use faer::Side;

@@ -167,12 +167,7 @@ impl MorphFit {
 mod tests {
     use super::*;
 
-    fn lcg(seed: &mut u64) -> f32 {
-        *seed = seed
-            .wrapping_mul(6364136223846793005)
-            .wrapping_add(1442695040888963407);
-        ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-    }
+    use mimic_testkit::lcg;
 
     fn targets(seed: &mut u64, k: usize, m: usize) -> Vec<Vec<Vec3>> {
         (0..k)

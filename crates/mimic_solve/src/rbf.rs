@@ -75,6 +75,28 @@ pub enum Metric<'a> {
     },
 }
 
+/// What [`rbf_columns`] builds an RBF from.
+#[derive(Clone, Copy, Debug)]
+pub struct RbfInputs<'a> {
+    /// Rest positions of every vertex (the rows of the result).
+    pub positions: &'a [Vec3],
+    /// Frozen vertices, whose rows are left zero (shorter than `positions`, or empty: the rest
+    /// move).
+    pub frozen: &'a [bool],
+    /// Rest positions of the centres (the controls).
+    pub centres: &'a [Vec3],
+    /// FDP name of each centre, for errors and warnings.
+    pub fdps: &'a [Fdp],
+    /// The radial kernel.
+    pub kernel: RbfKernel,
+    /// Adds the affine term `(1, x, y, z)`.
+    pub affine: bool,
+    /// How distances are measured.
+    pub metric: Metric<'a>,
+    /// Names the solve in errors (e.g. `RBF of region top`).
+    pub system: &'a str,
+}
+
 /// Basis columns of an RBF through `centres` (rest positions of the controls, named by `fdps` for
 /// errors): returns `n x k` values, row-major, for the `positions` (frozen rows are left zero).
 /// `system` names the solve in errors (e.g. `RBF of region top`).
@@ -84,17 +106,15 @@ pub enum Metric<'a> {
 /// separately: they are merged into one centre driven by the **mean** of their displacements (the
 /// least-squares compromise), each keeping `1 / count` of the merged column. Every other control
 /// is still reproduced exactly. (With geodesic distances such vertices are usually far apart.)
-#[allow(clippy::too_many_arguments)]
-pub fn rbf_columns(
-    positions: &[Vec3],
-    frozen: &[bool],
-    centres: &[Vec3],
-    fdps: &[Fdp],
-    kernel: RbfKernel,
-    affine: bool,
-    metric: Metric<'_>,
-    system: &str,
-) -> Result<Vec<f64>, SolveError> {
+pub fn rbf_columns(inputs: &RbfInputs<'_>) -> Result<Vec<f64>, SolveError> {
+    let RbfInputs {
+        positions,
+        centres,
+        fdps,
+        metric,
+        system,
+        ..
+    } = *inputs;
     let k = centres.len();
     let n = positions.len();
     if fdps.len() != k {
@@ -147,7 +167,7 @@ pub fn rbf_columns(
         }
     }
     if unique.len() == k {
-        return rbf_columns_distinct(positions, frozen, centres, kernel, affine, metric, system);
+        return rbf_columns_distinct(inputs);
     }
     let u_centres: Vec<Vec3> = unique.iter().map(|&a| centres[a]).collect();
     let (u_table, u_vertices): (Vec<Vec<f64>>, Vec<usize>) = match metric {
@@ -167,9 +187,11 @@ pub fn rbf_columns(
             centre_vertices: &u_vertices,
         },
     };
-    let merged = rbf_columns_distinct(
-        positions, frozen, &u_centres, kernel, affine, u_metric, system,
-    )?;
+    let merged = rbf_columns_distinct(&RbfInputs {
+        centres: &u_centres,
+        metric: u_metric,
+        ..*inputs
+    })?;
     let ku = unique.len();
     let mut sizes = vec![0f64; ku];
     for &u in &cluster {
@@ -184,17 +206,18 @@ pub fn rbf_columns(
     Ok(cols)
 }
 
-/// [`rbf_columns`] for centres that are pairwise distinct under the metric.
-#[allow(clippy::too_many_arguments)]
-fn rbf_columns_distinct(
-    positions: &[Vec3],
-    frozen: &[bool],
-    centres: &[Vec3],
-    kernel: RbfKernel,
-    affine: bool,
-    metric: Metric<'_>,
-    system: &str,
-) -> Result<Vec<f64>, SolveError> {
+/// [`rbf_columns`] for centres that are pairwise distinct under the metric (`fdps` unread).
+fn rbf_columns_distinct(inputs: &RbfInputs<'_>) -> Result<Vec<f64>, SolveError> {
+    let RbfInputs {
+        positions,
+        frozen,
+        centres,
+        kernel,
+        affine,
+        metric,
+        system,
+        ..
+    } = *inputs;
     check_kernel(kernel, affine)?;
     let k = centres.len();
     let n = positions.len();
@@ -359,16 +382,16 @@ mod tests {
         // Interpolation: the column of control c is 1 at c and 0 at every other control.
         let (_, centres, fdps) = setup();
         for (kernel, affine) in KERNELS {
-            let cols = rbf_columns(
-                &centres,
-                &[],
-                &centres,
-                &fdps,
+            let cols = rbf_columns(&RbfInputs {
+                positions: &centres,
+                frozen: &[],
+                centres: &centres,
+                fdps: &fdps,
                 kernel,
                 affine,
-                Metric::Euclidean,
-                "t",
-            )
+                metric: Metric::Euclidean,
+                system: "t",
+            })
             .unwrap();
             let k = centres.len();
             for a in 0..k {
@@ -391,16 +414,16 @@ mod tests {
         let t = glam::DVec3::new(0.1, -0.2, 0.3);
         let k = centres.len();
         for (kernel, _) in KERNELS.into_iter().filter(|(_, a)| *a) {
-            let cols = rbf_columns(
-                &positions,
-                &[],
-                &centres,
-                &fdps,
+            let cols = rbf_columns(&RbfInputs {
+                positions: &positions,
+                frozen: &[],
+                centres: &centres,
+                fdps: &fdps,
                 kernel,
-                true,
-                Metric::Euclidean,
-                "t",
-            )
+                affine: true,
+                metric: Metric::Euclidean,
+                system: "t",
+            })
             .unwrap();
             for (p, row) in positions.iter().zip(cols.chunks_exact(k)) {
                 let u = row
@@ -421,16 +444,16 @@ mod tests {
         // exp(-r/s) columns far from every control (r >> s) vanish: a far point's row is ~0.
         let (_, centres, fdps) = setup();
         let far = [Vec3::new(100.0, 0.0, 0.0)];
-        let cols = rbf_columns(
-            &far,
-            &[],
-            &centres,
-            &fdps,
-            RbfKernel::Exponential { radius: 0.3 },
-            false,
-            Metric::Euclidean,
-            "t",
-        )
+        let cols = rbf_columns(&RbfInputs {
+            positions: &far,
+            frozen: &[],
+            centres: &centres,
+            fdps: &fdps,
+            kernel: RbfKernel::Exponential { radius: 0.3 },
+            affine: false,
+            metric: Metric::Euclidean,
+            system: "t",
+        })
         .unwrap();
         assert!(cols.iter().all(|v| v.abs() < 1e-100));
     }
@@ -439,16 +462,16 @@ mod tests {
     fn frozen_rows_stay_zero() {
         let (positions, centres, fdps) = setup();
         let frozen: Vec<bool> = (0..positions.len()).map(|i| i % 3 == 0).collect();
-        let cols = rbf_columns(
-            &positions,
-            &frozen,
-            &centres,
-            &fdps,
-            RbfKernel::default(),
-            false,
-            Metric::Euclidean,
-            "t",
-        )
+        let cols = rbf_columns(&RbfInputs {
+            positions: &positions,
+            frozen: &frozen,
+            centres: &centres,
+            fdps: &fdps,
+            kernel: RbfKernel::default(),
+            affine: false,
+            metric: Metric::Euclidean,
+            system: "t",
+        })
         .unwrap();
         let k = centres.len();
         for (i, row) in cols.chunks_exact(k).enumerate() {
@@ -459,54 +482,54 @@ mod tests {
     #[test]
     fn degenerate_setups_are_errors() {
         let (_, mut centres, fdps) = setup();
-        let thin = rbf_columns(
-            &centres,
-            &[],
-            &centres,
-            &fdps,
-            RbfKernel::ThinPlate,
-            false,
-            Metric::Euclidean,
-            "t",
-        );
+        let thin = rbf_columns(&RbfInputs {
+            positions: &centres,
+            frozen: &[],
+            centres: &centres,
+            fdps: &fdps,
+            kernel: RbfKernel::ThinPlate,
+            affine: false,
+            metric: Metric::Euclidean,
+            system: "t",
+        });
         assert!(matches!(thin, Err(SolveError::InvalidSetting(_))));
-        let zero = rbf_columns(
-            &centres,
-            &[],
-            &centres,
-            &fdps,
-            RbfKernel::Gaussian { radius: 0.0 },
-            false,
-            Metric::Euclidean,
-            "t",
-        );
+        let zero = rbf_columns(&RbfInputs {
+            positions: &centres,
+            frozen: &[],
+            centres: &centres,
+            fdps: &fdps,
+            kernel: RbfKernel::Gaussian { radius: 0.0 },
+            affine: false,
+            metric: Metric::Euclidean,
+            system: "t",
+        });
         assert!(matches!(zero, Err(SolveError::InvalidSetting(_))));
         // All controls on the plane z = 0 make the affine system singular.
         let flat: Vec<Vec3> = centres.iter().map(|c| Vec3::new(c.x, c.y, 0.0)).collect();
-        let r = rbf_columns(
-            &flat,
-            &[],
-            &flat,
-            &fdps,
-            RbfKernel::ThinPlate,
-            true,
-            Metric::Euclidean,
-            "t",
-        );
+        let r = rbf_columns(&RbfInputs {
+            positions: &flat,
+            frozen: &[],
+            centres: &flat,
+            fdps: &fdps,
+            kernel: RbfKernel::ThinPlate,
+            affine: true,
+            metric: Metric::Euclidean,
+            system: "t",
+        });
         assert!(matches!(r, Err(SolveError::Singular { .. })), "{r:?}");
         // Coincident centres merge: both columns are half the merged one, so each of the pair
         // follows the mean of the two displacements while every other control stays exact.
         centres[3] = centres[5];
-        let cols = rbf_columns(
-            &centres,
-            &[],
-            &centres,
-            &fdps,
-            RbfKernel::default(),
-            false,
-            Metric::Euclidean,
-            "t",
-        )
+        let cols = rbf_columns(&RbfInputs {
+            positions: &centres,
+            frozen: &[],
+            centres: &centres,
+            fdps: &fdps,
+            kernel: RbfKernel::default(),
+            affine: false,
+            metric: Metric::Euclidean,
+            system: "t",
+        })
         .unwrap();
         let k = centres.len();
         for a in 0..k {

@@ -3,13 +3,7 @@
 use glam::Vec3;
 use mimic_types::{Fdp, Mesh, RegionBands, Rig, RigControl, SolverSettings};
 
-/// Deterministic pseudo-random value in [-1, 1) (64-bit LCG).
-pub fn lcg(seed: &mut u64) -> f32 {
-    *seed = seed
-        .wrapping_mul(6364136223846793005)
-        .wrapping_add(1442695040888963407);
-    ((*seed >> 40) as f32 / (1u64 << 24) as f32) * 2.0 - 1.0
-}
+pub use mimic_testkit::lcg;
 
 /// `nx x ny` vertices on the unit square (x right, y up), z a Gaussian bump of height `bump`;
 /// `jitter` moves interior vertices in the plane by up to that fraction of a cell (seeded).

@@ -7,6 +7,11 @@
 //! regions off) reproduces a uniform translation everywhere (`L 1 = 0`); and translating the whole
 //! mesh leaves the basis unchanged (both solvers depend on positions only through differences).
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test: a failed unwrap is the failure report"
+)]
+
 use glam::Vec3;
 use mimic_solve::{Basis, build_basis};
 use mimic_types::{

@@ -9,6 +9,11 @@
 //! anywhere, and the process CPU time. Not a criterion bench: the quantity is a latency
 //! distribution under a fixed offered load, not the time of one call.
 
+#![allow(
+    clippy::unwrap_used,
+    reason = "a bench: a failed unwrap is the failure report"
+)]
+
 use mimic_assets::{ConfigDirs, load_rig};
 use mimic_stream::wire::{KIND_END, KIND_FRAME};
 use mimic_stream::{Catalog, RigEntry, Server, ServerSettings};

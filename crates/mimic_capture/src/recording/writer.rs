@@ -369,12 +369,10 @@ mod tests {
     fn fast_coordinate_text_equals_exact_six_digit_rounding() {
         // Reference: Rust's exact decimal rounding to 6 significant digits ({:.5e}). The two may
         // differ only when v·10^d lies within f64 rounding (1e-9 relative) of a .5 tie.
-        let mut state = 0x9E37_79B9_7F4A_7C15u64;
+        let mut rng = mimic_testkit::Lcg::new(0x9E37_79B9_7F4A_7C15);
         let mut ties = 0;
         for _ in 0..20_000 {
-            state = state
-                .wrapping_mul(6_364_136_223_846_793_005)
-                .wrapping_add(1_442_695_040_888_963_407);
+            let state = rng.next_u64();
             let mantissa = (state >> 40) as f64 / (1u64 << 24) as f64; // [0, 1)
             let exponent = ((state >> 8) % 24) as i32 - 12; // 1e-12 .. 1e11
             let sign = if state & 1 == 0 { 1.0 } else { -1.0 };

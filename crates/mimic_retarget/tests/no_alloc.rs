@@ -1,0 +1,149 @@
+//! "The per-frame step allocates nothing" (docs/ARCHITECTURE.md, "Invariants"), checked: a
+//! counting global allocator around the system one, in its own test binary, counts every
+//! allocation the current thread makes while `Retargeter::step` (positions and normals on) and
+//! `Basis::apply` run on the real ICT-FaceKit rig and a real Kinect recording, after a warm-up.
+
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test: a failed unwrap is the failure report"
+)]
+
+use std::alloc::{GlobalAlloc, Layout as AllocLayout, System};
+use std::cell::Cell;
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use glam::Vec3;
+use mimic_retarget::{FrameStatus, RetargetSettings, Retargeter};
+use mimic_solve::build_basis;
+use mimic_types::LandmarkFrame;
+
+/// The system allocator, counting the allocations of threads that asked to be counted (the test
+/// harness's own threads allocate at any time and are not counted).
+struct Counting;
+
+thread_local! {
+    static COUNTING: Cell<bool> = const { Cell::new(false) };
+    static COUNT: Cell<u64> = const { Cell::new(0) };
+}
+
+fn note() {
+    // `try_with`: the allocator also runs while thread-locals are torn down.
+    let _ = COUNTING.try_with(|on| {
+        if on.get() {
+            let _ = COUNT.try_with(|c| c.set(c.get() + 1));
+        }
+    });
+}
+
+// SAFETY: every call forwards to `System` with the same arguments; counting touches only
+// const-initialised thread-locals, which never allocate.
+unsafe impl GlobalAlloc for Counting {
+    unsafe fn alloc(&self, layout: AllocLayout) -> *mut u8 {
+        note();
+        // SAFETY: the caller's contract for `alloc` is passed on unchanged.
+        unsafe { System.alloc(layout) }
+    }
+    unsafe fn alloc_zeroed(&self, layout: AllocLayout) -> *mut u8 {
+        note();
+        // SAFETY: as for `alloc`.
+        unsafe { System.alloc_zeroed(layout) }
+    }
+    unsafe fn realloc(&self, ptr: *mut u8, layout: AllocLayout, new_size: usize) -> *mut u8 {
+        note();
+        // SAFETY: `ptr` came from this allocator, that is from `System`, with `layout`.
+        unsafe { System.realloc(ptr, layout, new_size) }
+    }
+    unsafe fn dealloc(&self, ptr: *mut u8, layout: AllocLayout) {
+        note();
+        // SAFETY: as for `realloc`.
+        unsafe { System.dealloc(ptr, layout) }
+    }
+}
+
+#[global_allocator]
+static GLOBAL: Counting = Counting;
+
+/// Allocations, reallocations and frees made by this thread while `f` runs.
+fn allocations_during(f: impl FnOnce()) -> u64 {
+    COUNT.with(|c| c.set(0));
+    COUNTING.with(|on| on.set(true));
+    f();
+    COUNTING.with(|on| on.set(false));
+    COUNT.with(|c| c.get())
+}
+
+fn repo() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
+}
+
+/// The frames of a real recording: the shipped Kinect 121-point yes/no question.
+fn frames(point_count: usize) -> Vec<LandmarkFrame> {
+    let path = repo().join("recordings/a_yn_question.kinect121.jsonl");
+    let mut reader = mimic_capture::RecordingReader::open(&path, Some(point_count)).unwrap();
+    let mut frames = Vec::new();
+    while let Some(f) = reader.next_frame() {
+        frames.push(f.unwrap().frame);
+    }
+    frames
+}
+
+#[test]
+fn counting_allocator_sees_an_allocation() {
+    // The check below would pass vacuously if the counter missed allocations.
+    let n = allocations_during(|| {
+        let v: Vec<u64> = std::hint::black_box(vec![1, 2, 3]);
+        drop(std::hint::black_box(v));
+    });
+    assert_eq!(n, 2, "one allocation and one free");
+}
+
+#[test]
+fn step_and_apply_allocate_nothing_on_the_ict_rig() {
+    let rig = mimic_assets::load_rig(&repo().join("configs/rigs/ict-face.toml")).unwrap();
+    let layout = mimic_assets::load_layout(&repo().join("configs/layouts/kinect121.toml")).unwrap();
+    let basis = Arc::new(build_basis(&rig, &rig.solver).unwrap());
+    let settings = RetargetSettings {
+        normals: true,
+        positions: true,
+        ..RetargetSettings::default()
+    };
+    let mut rt = Retargeter::new(&rig, &layout, basis.clone(), settings).unwrap();
+    let mut out = rt.new_output();
+    let frames = frames(layout.point_count);
+    assert!(frames.len() > 40, "{} frames", frames.len());
+    // Every path of `step`: tracked frames, a lost one, a wrong point count (rejected).
+    let mut lost = frames[20].clone();
+    lost.tracked = false;
+    let mut short = frames[21].clone();
+    short.points.pop();
+    short.valid.pop();
+    let (warm, measured) = frames.split_at(10);
+    for f in warm {
+        rt.step(f, &mut out);
+    }
+    let mut tracked = 0;
+    let n = allocations_during(|| {
+        for f in measured.iter().chain([&lost, &short]).chain(measured) {
+            if rt.step(f, &mut out) == FrameStatus::Tracked {
+                tracked += 1;
+            }
+        }
+    });
+    assert!(tracked > measured.len(), "{tracked} tracked frames");
+    assert!(out.normals.iter().all(|v| v.is_finite()));
+    assert_eq!(n, 0, "{n} allocations in {} steps", 2 * measured.len() + 2);
+
+    let d: Vec<Vec3> = (0..basis.control_count())
+        .map(|j| Vec3::new(0.01 * j as f32, -0.02, 0.005))
+        .collect();
+    let mut u = vec![Vec3::ZERO; basis.vertex_count()];
+    basis.apply(&d, &mut u);
+    let n = allocations_during(|| {
+        for _ in 0..20 {
+            basis.apply(std::hint::black_box(&d), &mut u);
+        }
+    });
+    assert!(u.iter().any(|v| *v != Vec3::ZERO));
+    assert_eq!(n, 0, "{n} allocations in 20 Basis::apply calls");
+}

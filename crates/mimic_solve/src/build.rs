@@ -1,0 +1,166 @@
+//! [`build_basis`]: the basis `B` of a rig, from RBF or Laplacian solves per region part.
+
+use crate::{Basis, SolveError, geodesic, laplacian, rbf, regions};
+use mimic_types::{RbfDistance, Rig, SolverKind, SolverSettings};
+
+/// Builds the deformation basis of `rig` with `settings` (the rig's own `rig.solver` is not read).
+///
+/// Without regions, one solve over all controls. With regions, `B = sum_r diag(alpha_r) B_r`
+/// blended by the rig's [`mimic_types::RegionBands`], where `B_r` has non-zero columns only for
+/// region r's controls: for RBF, `B_r` is an RBF through region r's controls alone; for the
+/// Laplacian, `B_r` is region r's columns of the one solve constrained by every control (one
+/// factorisation; measured better than per-region solves on real expressions, see
+/// docs/quality.md, but it no longer reproduces a uniform translation). A region without controls
+/// contributes nothing (its vertices stay still). Rows of frozen vertices are zero.
+/// RBF reproduces each control displacement exactly when regions are off (with regions, a control
+/// inside a blend band is only weighted by its own region's share). With
+/// [`SolverSettings::top_split`] (RBF only) the top region is two solves (controls above / below
+/// the split height), blended within the top region's weight (see [`regions::Part`]), each with
+/// its own kernel if the split names one.
+pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveError> {
+    rig.validate()?;
+    let m = rig.controls.len();
+    if m == 0 {
+        return Err(SolveError::NoControls);
+    }
+    if settings.kind == SolverKind::Rbf {
+        rbf::check_kernel(settings.kernel, settings.affine)?;
+        if let Some(split) = settings.top_split {
+            if !(split.at.is_finite() && split.band.is_finite() && split.band >= 0.0) {
+                return Err(SolveError::InvalidSetting(format!(
+                    "top split at {} with band {}: both must be finite, the band >= 0",
+                    split.at, split.band
+                )));
+            }
+            for k in [split.upper_kernel, split.lower_kernel]
+                .into_iter()
+                .flatten()
+            {
+                rbf::check_kernel(k, settings.affine)?;
+            }
+        }
+    }
+    let positions = &rig.mesh.positions;
+    let n = positions.len();
+    // The top split is an RBF setting (its lower radius is a kernel radius); measured worse for
+    // the Laplacian (median 0.681 vs 0.653 on the ICT expressions), which keeps three regions.
+    let split = settings
+        .top_split
+        .filter(|_| settings.kind == SolverKind::Rbf);
+    let parts = regions::Part::all(settings.regions, split);
+    let groups: Vec<(regions::Part, Vec<usize>)> = parts
+        .into_iter()
+        .map(|p| {
+            let subset = (0..m)
+                .filter(|&j| {
+                    let c = &rig.controls[j];
+                    p.owns(c, positions[c.vertex as usize].y)
+                })
+                .collect();
+            (p, subset)
+        })
+        .collect();
+    let weights = regions::vertex_region_weights(&rig.regions, positions);
+    let lap_rows = (settings.kind == SolverKind::Laplacian)
+        .then(|| laplacian::laplacian_rows(positions, &rig.mesh.triangles, settings.weights));
+    // Geodesic RBF: one Dijkstra per control, shared by every region.
+    let geodesic = (settings.kind == SolverKind::Rbf && settings.distance == RbfDistance::Geodesic)
+        .then(|| {
+            let graph = geodesic::EdgeGraph::new(positions, &rig.mesh.triangles);
+            rig.controls
+                .iter()
+                .map(|c| graph.distances_from(c.vertex as usize))
+                .collect::<Vec<_>>()
+        });
+    // Laplacian: one solve constrained by every control; with regions, region r keeps its own
+    // controls' columns of it (measured better than per-region solves, docs/quality.md).
+    let lap_all = match &lap_rows {
+        Some(rows) => {
+            let all: Vec<usize> = rig.controls.iter().map(|c| c.vertex as usize).collect();
+            let system = format!("{:?} solve", settings.kind);
+            Some(laplacian::laplacian_columns(
+                rows,
+                &rig.frozen,
+                &all,
+                settings.constraint_weight,
+                &system,
+            )?)
+        }
+        None => None,
+    };
+    let mut b = vec![0f64; n * m];
+    for (part, subset) in &groups {
+        if subset.is_empty() {
+            continue;
+        }
+        let system = match part {
+            regions::Part::All => format!("{:?} solve", settings.kind),
+            regions::Part::Region(r) => format!("{:?} solve of region {r}", settings.kind),
+            regions::Part::TopHalf { upper, .. } => format!(
+                "{:?} solve of the {} part of region top",
+                settings.kind,
+                if *upper { "upper" } else { "lower" }
+            ),
+        };
+        let kernel = match part {
+            regions::Part::TopHalf { split, upper } => {
+                let own = if *upper {
+                    split.upper_kernel
+                } else {
+                    split.lower_kernel
+                };
+                own.unwrap_or(settings.kernel)
+            }
+            _ => settings.kernel,
+        };
+        let cols = match &lap_all {
+            None => {
+                let centres: Vec<_> = subset
+                    .iter()
+                    .map(|&j| positions[rig.controls[j].vertex as usize])
+                    .collect();
+                let fdps: Vec<_> = subset.iter().map(|&j| rig.controls[j].fdp).collect();
+                let table: Vec<Vec<f64>>;
+                let vertices: Vec<usize>;
+                let metric = match &geodesic {
+                    None => rbf::Metric::Euclidean,
+                    Some(all) => {
+                        table = subset.iter().map(|&j| all[j].clone()).collect();
+                        vertices = subset
+                            .iter()
+                            .map(|&j| rig.controls[j].vertex as usize)
+                            .collect();
+                        rbf::Metric::Table {
+                            to_vertex: &table,
+                            centre_vertices: &vertices,
+                        }
+                    }
+                };
+                rbf::rbf_columns(&rbf::RbfInputs {
+                    positions,
+                    frozen: &rig.frozen,
+                    centres: &centres,
+                    fdps: &fdps,
+                    kernel,
+                    affine: settings.affine,
+                    metric,
+                    system: &system,
+                })?
+            }
+            Some(all) => {
+                let k = subset.len();
+                (0..n * k)
+                    .map(|x| all[(x / k) * m + subset[x % k]])
+                    .collect()
+            }
+        };
+        regions::blend_into(&mut b, m, &cols, subset, *part, positions, &weights);
+    }
+    for (row, &frozen) in b.chunks_exact_mut(m).zip(&rig.frozen) {
+        if frozen {
+            row.fill(0.0);
+        }
+    }
+    let data = b.into_iter().map(|v| v as f32).collect();
+    Basis::from_row_major(n, m, data).ok_or(SolveError::NoControls)
+}
