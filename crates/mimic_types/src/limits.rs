@@ -124,7 +124,7 @@ impl From<ReadError> for std::io::Error {
 
 /// A cap for messages: whole MiB as `64 MiB`, anything else in bytes.
 fn cap_text(cap: u64) -> String {
-    if cap >= MIB && cap % MIB == 0 {
+    if cap >= MIB && cap.is_multiple_of(MIB) {
         format!("{} MiB", cap / MIB)
     } else {
         format!("{cap} bytes")
