@@ -531,7 +531,13 @@ mod tests {
     #[test]
     fn moving_rows_keep_the_non_zero_rows_in_order() {
         // Rows 0 and 3 are zero, row 2 has one non-zero weight.
-        let data = vec![0.0, 0.0, 0.5, -1.0, 0.0, 0.25, 0.0, 0.0, 0.0, 2.0, 0.0, 0.0];
+        #[rustfmt::skip]
+        let data = vec![
+            0.0, 0.0, 0.0,
+            0.5, -1.0, 0.25,
+            0.0, 0.0, 2.0,
+            0.0, 0.0, 0.0,
+        ];
         let b = Basis::from_row_major(4, 3, data).unwrap();
         let moving = b.moving_rows(usize::MAX);
         assert_eq!(moving.rows, vec![1, 2]);
