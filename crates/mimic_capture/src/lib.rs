@@ -8,6 +8,7 @@
 
 pub mod gfe;
 mod imported;
+pub mod named_csv;
 pub mod openface;
 pub mod recording;
 pub mod replay;

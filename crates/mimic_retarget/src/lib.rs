@@ -13,6 +13,7 @@
 
 mod blendshape;
 mod filter;
+pub mod frame_metrics;
 mod patch;
 mod pipeline;
 pub mod quality;
