@@ -9,6 +9,7 @@
 
 pub mod gfe;
 mod imported;
+pub mod named_csv;
 pub mod openface;
 pub mod recording;
 #[cfg(feature = "replay")]

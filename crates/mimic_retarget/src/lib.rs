@@ -13,6 +13,7 @@
 
 mod blendshape;
 mod filter;
+pub mod frame_metrics;
 mod gate;
 mod patch;
 mod pipeline;

@@ -189,14 +189,8 @@ fn apply(
     let fitter = BlendshapeFitter::new(&rig, &targets, &BlendshapeSettings::default())
         .with_context(|| format!("blendshapes of rig `{}`", rig.name))?;
     let map = WeightMap::new(fitter.names());
-    let text = std::fs::read_to_string(weights).with_context(|| weights.display().to_string())?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines
-        .next()
-        .with_context(|| format!("{}: empty file", weights.display()))?
-        .split(',')
-        .map(str::trim)
-        .collect();
+    let csv = mimic_capture::named_csv::read_named_csv(weights)?;
+    let header: Vec<&str> = csv.header.iter().map(String::as_str).collect();
     // Columns that drive at least one target (checked one by one against the map).
     let mut probe = vec![0f32; fitter.target_count()];
     let used: Vec<usize> = (0..header.len())
@@ -215,19 +209,15 @@ fn apply(
     let mut pairs: Vec<(&str, f32)> = Vec::with_capacity(used.len());
     let mut positions = rig.mesh.positions.clone();
     let (mut frames, mut written) = (0usize, 0usize);
-    for (i, line) in lines.enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
+    for row in &csv.rows {
         pairs.clear();
         for &c in &used {
-            let field = fields.get(c).copied().unwrap_or("");
+            let field = row.field(c);
             let v: f32 = field.parse().with_context(|| {
                 format!(
                     "{}:{}: column `{}`: `{field}` is not a number",
                     weights.display(),
-                    i + 2,
+                    row.line,
                     header[c]
                 )
             })?;

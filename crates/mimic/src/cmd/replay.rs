@@ -6,6 +6,7 @@ use crate::cmd::setup::{
 use anyhow::{Context, bail};
 use mimic_assets::{FramesWriter, load_morph_targets};
 use mimic_capture::{FileSource, Pace, RecordingReader, Replay, ReplayOptions};
+use mimic_retarget::frame_metrics::{max_vertex_motion, region_motion};
 use mimic_retarget::{
     BlendshapeFitter, FrameOutput, FrameStatus, StageSamples, WeightStats, WeightSummary,
     elapsed_ns,
@@ -197,35 +198,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 non_finite_frames += 1;
             }
             if let Some(w) = metrics.as_mut() {
-                let mut sum = [0f32; 3];
-                let mut count = [0u32; 3];
-                for (d, r) in out.displacements.iter().zip(&regions) {
-                    sum[r.index()] += d.length();
-                    count[r.index()] += 1;
-                }
-                let mean = |k: usize| {
-                    if count[k] > 0 {
-                        sum[k] / count[k] as f32
-                    } else {
-                        0.0
-                    }
-                };
-                let max_vertex = out
-                    .positions
-                    .iter()
-                    .zip(&rest)
-                    .map(|(p, r)| p.distance(*r))
-                    .fold(0f32, f32::max);
+                let [top, middle, bottom] = region_motion(&out.displacements, &regions);
+                let max_vertex = max_vertex_motion(&out.positions, &rest);
                 let label = rf.label.map(|l| l.to_string()).unwrap_or_default();
                 writeln!(
                     w,
-                    "{frame_index},{},{},{label},{:.6},{:.6},{:.6},{:.6}",
+                    "{frame_index},{},{},{label},{top:.6},{middle:.6},{bottom:.6},{max_vertex:.6}",
                     rf.frame.timestamp_us,
                     status_code(status),
-                    mean(0),
-                    mean(1),
-                    mean(2),
-                    max_vertex
                 )?;
             }
             if let Some(w) = controls_csv.as_mut() {

@@ -126,14 +126,8 @@ const NOT_WEIGHTS: [&str; 6] = [
 
 /// Weight frame lines (`{"t_us", "weights"}`) of a weights CSV, with their times.
 fn weight_lines(csv: &std::path::Path, rate: f64) -> anyhow::Result<Vec<(i64, String)>> {
-    let text = std::fs::read_to_string(csv).with_context(|| csv.display().to_string())?;
-    let mut lines = text.lines();
-    let header: Vec<&str> = lines
-        .next()
-        .with_context(|| format!("{}: empty file", csv.display()))?
-        .split(',')
-        .map(str::trim)
-        .collect();
+    let table = mimic_capture::named_csv::read_named_csv(csv)?;
+    let header: Vec<&str> = table.header.iter().map(String::as_str).collect();
     let time_col = header.iter().position(|h| h.eq_ignore_ascii_case("t_us"));
     let sent: Vec<usize> = (0..header.len())
         .filter(|&c| {
@@ -145,18 +139,14 @@ fn weight_lines(csv: &std::path::Path, rate: f64) -> anyhow::Result<Vec<(i64, St
     anyhow::ensure!(!sent.is_empty(), "{}: no weight columns", csv.display());
     anyhow::ensure!(rate > 0.0 && rate.is_finite(), "--rate must be positive");
     let mut out = Vec::new();
-    for (i, line) in lines.enumerate() {
-        if line.trim().is_empty() {
-            continue;
-        }
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        let at = |c: usize| fields.get(c).copied().unwrap_or("");
+    for row in &table.rows {
+        let at = |c: usize| row.field(c);
         let t_us = match time_col {
             Some(c) => at(c).parse::<i64>().with_context(|| {
                 format!(
                     "{}:{}: `t_us` `{}` is not an integer",
                     csv.display(),
-                    i + 2,
+                    row.line,
                     at(c)
                 )
             })?,
@@ -172,7 +162,7 @@ fn weight_lines(csv: &std::path::Path, rate: f64) -> anyhow::Result<Vec<(i64, St
                     format!(
                         "{}:{}: column `{}`: `{}` is not a number",
                         csv.display(),
-                        i + 2,
+                        row.line,
                         header[c],
                         at(c)
                     )
