@@ -100,8 +100,8 @@ fn rig_whose_mesh_is_over_the_obj_cap_is_refused_at_its_line() {
         &path,
         "big.obj: 67108865 bytes, over the 64 MiB cap for OBJ meshes",
     );
-    let line = String::from_utf8_lossy(&mimic_4gb(&["info", path.to_str().unwrap()]).stderr)
-        .into_owned();
+    let line =
+        String::from_utf8_lossy(&mimic_4gb(&["info", path.to_str().unwrap()]).stderr).into_owned();
     assert!(line.contains("r.toml:3: "), "{line}");
 }
 
