@@ -5,7 +5,9 @@
 //! buffer the pipeline needs. [`Retargeter::step`] then takes one [`LandmarkFrame`](mimic_types::LandmarkFrame)
 //! at a time: select the controls -> remove rigid head motion (Kabsch on the layout's stable points)
 //! -> displacement against the neutral -> scale to the target -> One Euro filter -> `u = B d`
-//! -> normals, writing into a caller-owned [`FrameOutput`] and allocating nothing.
+//! -> normals, writing into a caller-owned [`FrameOutput`] and allocating nothing. A plausibility
+//! gate ([`GateSettings`], `docs/gate.md`) holds tracked frames no face can make (a fit failure's
+//! head turn) like lost ones and clamps control speeds.
 //! [`BlendshapeFitter`] turns the same control displacements into morph-target weights and the
 //! blended mesh (blendshape mode). [`StageSamples`] turns many steps' [`StageTimes`] into
 //! median / p99 per stage.

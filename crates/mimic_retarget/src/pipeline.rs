@@ -400,6 +400,10 @@ impl Retargeter {
     }
 
     /// Processes one frame into `out` (from [`Retargeter::new_output`]); allocates nothing.
+    ///
+    /// A lost frame (`tracked: false`, with any point count, none included) holds the last
+    /// expression and eases it to neutral. A tracked frame the plausibility gate refuses is held
+    /// the same way and counted in [`Stats::gated`]; control speeds are clamped (`docs/gate.md`).
     pub fn step(&mut self, frame: &LandmarkFrame, out: &mut FrameOutput) -> FrameStatus {
         let status = self.step_frame(frame, out);
         if status != FrameStatus::Rejected {
@@ -432,7 +436,8 @@ impl Retargeter {
         self.gate_reading
     }
 
-    /// The target's inter-ocular distance (target units): the gate's unit of length.
+    /// The target's inter-ocular distance (target units): the gate's unit of length (infinite,
+    /// which turns the gate's bounds off, for a rig too degenerate to measure).
     pub fn face_size(&self) -> f32 {
         self.face_size
     }

@@ -108,10 +108,9 @@ fn replay(
     let mut r = Replayed::default();
     for (k, f) in frames.iter().enumerate() {
         let status = rt.step(f, &mut out);
-        if rt.stats().gated > r.gated_frames.len() as u64 {
-            if let Some(why) = rt.gate_reading().reason {
-                r.gated_frames.push((k, why));
-            }
+        let held = rt.stats().gated > r.gated_frames.len() as u64;
+        if let (true, Some(why)) = (held, rt.gate_reading().reason) {
+            r.gated_frames.push((k, why));
         }
         if let (FrameStatus::Tracked, Some(p)) = (status, &prev) {
             let jump = p
