@@ -69,10 +69,12 @@ pub fn parse_named_csv(text: &str) -> Option<NamedCsv> {
 
 /// Reads a named-column CSV file.
 pub fn read_named_csv(path: &Path) -> Result<NamedCsv, CsvError> {
-    let text = std::fs::read_to_string(path).map_err(|source| CsvError::Io {
-        path: path.to_path_buf(),
-        source,
-    })?;
+    let text = mimic_types::limits::read_capped(path, &mimic_types::limits::WEIGHTS_FILE).map_err(
+        |e| CsvError::Io {
+            path: path.to_path_buf(),
+            source: e.into(),
+        },
+    )?;
     parse_named_csv(&text).ok_or_else(|| CsvError::Empty {
         path: path.to_path_buf(),
     })

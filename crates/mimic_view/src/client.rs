@@ -42,6 +42,9 @@ pub enum Event {
     Closed(String),
 }
 
+/// Session events the socket thread may queue before it waits for the window.
+pub const EVENT_QUEUE: usize = 16;
+
 /// The consumer side of a live connection.
 #[derive(Debug)]
 pub struct Live {
@@ -57,7 +60,9 @@ pub fn connect(addr: &str, session: &str) -> std::io::Result<Live> {
     stream.set_nodelay(true)?;
     let hello = serde_json::json!({"type": "viewer", "session": session, "positions": false});
     stream.write_all(format!("{hello}\n").as_bytes())?;
-    let (tx, events) = mpsc::channel();
+    // Session events are few (SESSION, RIG, END, ERROR, the close): a small bound, which makes
+    // the socket thread wait for the window rather than queue without limit.
+    let (tx, events) = mpsc::sync_channel(EVENT_QUEUE);
     let frames = Arc::new(Latest::new(FRAME_QUEUE));
     let queue = frames.clone();
     std::thread::Builder::new()
@@ -73,7 +78,7 @@ pub fn connect(addr: &str, session: &str) -> std::io::Result<Live> {
 /// Reads messages until the connection ends; returns why it ended.
 pub fn read_messages<R: Read>(
     mut r: R,
-    tx: &mpsc::Sender<Event>,
+    tx: &mpsc::SyncSender<Event>,
     frames: &Latest<Arrived>,
 ) -> String {
     let mut payload = Vec::new();
@@ -137,7 +142,7 @@ mod tests {
             KIND_END,
             &serde_json::json!({"reason": "closed"}),
         ));
-        let (tx, rx) = mpsc::channel();
+        let (tx, rx) = mpsc::sync_channel(EVENT_QUEUE);
         let q = Latest::new(2);
         let why = read_messages(bytes.as_slice(), &tx, &q);
         assert_eq!(why, "the server closed the connection");
@@ -150,7 +155,7 @@ mod tests {
 
     #[test]
     fn a_bad_length_or_kind_ends_the_connection() {
-        let (tx, _rx) = mpsc::channel();
+        let (tx, _rx) = mpsc::sync_channel(EVENT_QUEUE);
         let q = Latest::new(2);
         assert_eq!(
             read_messages(&0u32.to_le_bytes()[..], &tx, &q),

@@ -89,7 +89,10 @@ mod tests {
     fn works_across_threads() {
         let q = std::sync::Arc::new(Latest::new(4));
         let p = q.clone();
-        std::thread::spawn(move || (0..1000).for_each(|k| p.push(k)))
+        std::thread::Builder::new()
+            .name("latest-producer".into())
+            .spawn(move || (0..1000).for_each(|k| p.push(k)))
+            .unwrap()
             .join()
             .unwrap();
         assert_eq!(q.take_latest(), Some(999));

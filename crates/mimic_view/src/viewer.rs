@@ -387,11 +387,15 @@ impl Viewer {
             l.active = other;
             self.dirty = true;
         } else {
-            let (tx, rx) = mpsc::channel();
-            std::thread::spawn(move || {
-                // The viewer may have closed meanwhile: nothing to deliver to then.
-                let _ = tx.send(build());
-            });
+            // One result, sent once: a queue of one.
+            let (tx, rx) = mpsc::sync_channel(1);
+            std::thread::Builder::new()
+                .name("mimic-view-basis".into())
+                .spawn(move || {
+                    // The viewer may have closed meanwhile: nothing to deliver to then.
+                    let _ = tx.send(build());
+                })
+                .map_err(|e| ViewError::Solver(format!("cannot start the basis thread: {e}")))?;
             l.slots[other].building = Some(rx);
             self.note = format!("building the {} basis", solver_label(&settings));
         }

@@ -30,7 +30,8 @@ fn kind_of(path: &Path) -> anyhow::Result<Kind> {
     match path.extension().and_then(|e| e.to_str()) {
         Some("jsonl") | Some("json") => Ok(Kind::Recording),
         Some("toml") => {
-            let text = std::fs::read_to_string(path).with_context(|| path.display().to_string())?;
+            let text = mimic_types::limits::read_capped(path, &mimic_types::limits::RIG_FILE)
+                .with_context(|| path.display().to_string())?;
             let is_rig = text.lines().any(|l| l.trim_start().starts_with("mesh"));
             Ok(if is_rig { Kind::Rig } else { Kind::Layout })
         }

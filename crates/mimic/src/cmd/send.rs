@@ -232,18 +232,20 @@ fn connect(to: &str) -> anyhow::Result<(TcpStream, std::thread::JoinHandle<Optio
     let stream = TcpStream::connect(to).with_context(|| format!("connecting to {to}"))?;
     stream.set_nodelay(true)?;
     let replies = stream.try_clone()?;
-    let reader = std::thread::spawn(move || {
-        let mut bye = None;
-        for line in BufReader::new(replies).lines() {
-            let Ok(line) = line else { break };
-            let v: Value = serde_json::from_str(&line).unwrap_or(Value::Null);
-            match v["type"].as_str() {
-                Some("welcome") => tracing::info!("{line}"),
-                Some("bye") => bye = Some(v),
-                _ => eprintln!("server: {line}"),
+    let reader = std::thread::Builder::new()
+        .name("mimic-send-replies".into())
+        .spawn(move || {
+            let mut bye = None;
+            for line in BufReader::new(replies).lines() {
+                let Ok(line) = line else { break };
+                let v: Value = serde_json::from_str(&line).unwrap_or(Value::Null);
+                match v["type"].as_str() {
+                    Some("welcome") => tracing::info!("{line}"),
+                    Some("bye") => bye = Some(v),
+                    _ => eprintln!("server: {line}"),
+                }
             }
-        }
-        bye
-    });
+            bye
+        })?;
     Ok((stream, reader))
 }

@@ -528,7 +528,8 @@ pub fn fit_candide3(
         );
     }
     let wfm = configs.root.join("models/candide3/candide3.wfm");
-    let bytes = std::fs::read(&wfm).with_context(|| format!("{}: cannot read", wfm.display()))?;
+    let bytes = mimic_types::limits::read_bytes_capped(&wfm, &mimic_types::limits::MODEL_FILE)
+        .with_context(|| format!("{}: cannot read", wfm.display()))?;
     let candide = Candide3::parse(&String::from_utf8_lossy(&bytes))
         .with_context(|| format!("{}: not a CANDIDE-3 model", wfm.display()))?;
     Ok(fit_capture(
