@@ -154,6 +154,10 @@ pub struct SessionSnapshot {
     pub calibrating: u64,
     /// Frames with lost tracking.
     pub lost: u64,
+    /// Tracked frames the plausibility gate held like lost ones (`docs/gate.md`).
+    pub gated: u64,
+    /// Frames where some output control moved more than the jump bound from the previous frame.
+    pub jumps: u64,
     /// Frames dropped because their timestamp was not after the last accepted one (late or out of order).
     pub late: u64,
     /// Frames dropped because their timestamp ran ahead of the last accepted one by more than

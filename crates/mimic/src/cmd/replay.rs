@@ -272,6 +272,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "calibrating": stats.calibrating,
         "tracked": stats.tracked,
         "lost": stats.lost,
+        "gated": stats.gated,
+        "clamped": stats.clamped,
+        "jumps": stats.jumps,
         "filled_controls": stats.filled_controls,
         "frames_with_non_finite_vertices": non_finite_frames,
         "source_to_target": map.map(|m| json!({"scale": m.scale, "mirrored": m.mirrored, "rms_residual": m.rms_residual})),
@@ -287,11 +290,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&summary)?);
     } else {
         println!(
-            "{}: {} frames in ({} rejected, {} lost, {} calibrating), {} controls filled; rig {} ({} moving vertices), basis {:.0} ms",
+            "{}: {} frames in ({} rejected, {} lost, {} gated, {} clamped, {} jumps, {} calibrating), {} controls filled; rig {} ({} moving vertices), basis {:.0} ms",
             args.recording.display(),
             read.accepted,
             read.rejected.total(),
             stats.lost,
+            stats.gated,
+            stats.clamped,
+            stats.jumps,
             stats.calibrating,
             stats.filled_controls,
             prepared.rig.name,

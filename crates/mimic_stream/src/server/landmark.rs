@@ -140,6 +140,7 @@ impl Landmark {
         if let Err(p) = s.check_time(&mut self.clock, frame.timestamp_us, arrival) {
             return Outcome::Refused(p);
         }
+        let before = self.retargeter.stats();
         let status = if self.retargeter.source_to_target().is_none() && self.multi_thread {
             // Finishing the neutral fits the source-to-target map (a consensus search of up to
             // tens of milliseconds): let the runtime move other sessions off this worker meanwhile.
@@ -148,6 +149,9 @@ impl Landmark {
             self.retargeter.step(frame, &mut self.out)
         };
         let r = &s.record;
+        let after = self.retargeter.stats();
+        r.gated.add(after.gated.saturating_sub(before.gated));
+        r.jumps.add(after.jumps.saturating_sub(before.jumps));
         match status {
             FrameStatus::Tracked => r.tracked.bump(),
             FrameStatus::Calibrating => r.calibrating.bump(),
