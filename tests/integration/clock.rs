@@ -70,11 +70,19 @@ fn a_wild_first_frame_is_refused_and_the_next_29_are_taken() {
             "first t_us {wild}: {bye}"
         );
         // Today's replies: `future_timestamp` for a frame from the future, nothing for a late one.
-        let want_codes = if late { vec![] } else { vec!["future_timestamp"] };
+        let want_codes = if late {
+            vec![]
+        } else {
+            vec!["future_timestamp"]
+        };
         assert_eq!(codes, want_codes, "first t_us {wild}");
         let s = server.wait_for_session(&name, "the ended session", |s| s["active"] == false);
         assert_eq!(
-            (s["frames"].as_u64(), s["late"].as_u64(), s["future"].as_u64()),
+            (
+                s["frames"].as_u64(),
+                s["late"].as_u64(),
+                s["future"].as_u64()
+            ),
             (Some(29), Some(want_late), Some(want_future)),
             "stats after first t_us {wild}: {s}"
         );
@@ -97,4 +105,88 @@ fn wild_frames_in_the_middle_are_refused_and_the_session_goes_on() {
     assert_eq!(counts(&bye), (Some(29), Some(1), Some(2)), "{bye}");
     assert_eq!(codes, ["future_timestamp", "future_timestamp"]);
     server.stop();
+}
+
+#[test]
+fn duration_options_out_of_range_are_refused_naming_the_option() {
+    let cases: [(&[&str], &str); 9] = [
+        (&["serve", "--idle-timeout", "1e19"], "--idle-timeout"),
+        (&["serve", "--shutdown-grace", "1e19"], "--shutdown-grace"),
+        (
+            &["serve", "--viewer-write-timeout", "1e7"],
+            "--viewer-write-timeout",
+        ),
+        (&["serve", "--max-time-jump=-1"], "--max-time-jump"),
+        (&["serve", "--idle-timeout", "nan"], "--idle-timeout"),
+        (&["serve", "--lost-hold", "inf"], "--lost-hold"),
+        (&["send", REC, "--speed", "1e-300"], "--speed"),
+        (&["send", REC, "--speed", "0"], "--speed"),
+        (&["send", "--weights", "x.csv", "--rate", "1e300"], "--rate"),
+    ];
+    for (args, option) in cases {
+        let out = mimic(args);
+        let (_, stderr) = text(&out);
+        assert!(!out.status.success(), "{args:?} succeeded");
+        assert!(stderr.contains(option), "{args:?}: {stderr}");
+        assert!(stderr.contains("out of range"), "{args:?}: {stderr}");
+    }
+}
+
+/// Waits (at most a minute) for a child to exit and returns its output.
+fn wait_output(mut child: std::process::Child, what: &str) -> std::process::Output {
+    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(60);
+    while child.try_wait().unwrap().is_none() {
+        if std::time::Instant::now() > deadline {
+            let _ = child.kill();
+            panic!("{what} did not exit");
+        }
+        std::thread::sleep(std::time::Duration::from_millis(20));
+    }
+    child.wait_with_output().unwrap()
+}
+
+#[test]
+fn send_reports_the_servers_bye_when_the_server_shuts_down_mid_send() {
+    let server = Serve::start(&["--rig", "candide3"]);
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_mimic"))
+        .args(["send", REC, "--loop", "--to", &server.tcp, "--session", "s"])
+        .current_dir(crate::repo())
+        .env_remove("RUST_LOG")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    server.wait_for_session("s", "frames arriving", |s| {
+        s["frames"].as_u64().is_some_and(|f| f >= 3)
+    });
+    server.stop();
+    let out = wait_output(child, "mimic send");
+    let (stdout, stderr) = text(&out);
+    // Exit status 3 (docs/protocol.md): the server ended the session, its reason reported.
+    assert_eq!(out.status.code(), Some(3), "{stdout}\n{stderr}");
+    assert!(stderr.contains("(shutdown)"), "{stderr}");
+    assert!(!stderr.contains("Broken pipe"), "{stderr}");
+    assert!(stdout.contains("(\"shutdown\")"), "{stdout}");
+}
+
+#[test]
+fn send_stops_reading_a_reply_line_over_64_kib() {
+    let listener = std::net::TcpListener::bind("127.0.0.1:0").unwrap();
+    let addr = listener.local_addr().unwrap().to_string();
+    // A fake server: a 100 KiB line without end, then it reads until `send` is done.
+    let fake = mimic_testkit::spawn("fake server", move || {
+        let (mut s, _) = listener.accept().unwrap();
+        s.write_all(&vec![b'x'; 100 * 1024]).unwrap();
+        let mut got = Vec::new();
+        std::io::Read::read_to_end(&mut s, &mut got).unwrap();
+        got.len()
+    });
+    let out = mimic(&["send", REC, "--fast", "--max-frames", "5", "--to", &addr]);
+    let (stdout, stderr) = text(&out);
+    assert!(out.status.success(), "{stderr}");
+    assert!(stderr.contains("over 65536 bytes"), "{stderr}");
+    assert!(stdout.contains("sent 5 frames"), "{stdout}");
+    assert!(stdout.contains("no reply from the server"), "{stdout}");
+    // The header and 5 frames reached the fake server.
+    assert!(fake.join().unwrap() > 0);
 }

@@ -122,7 +122,11 @@ mod tests {
         ] {
             let mut c = FrameClock::new(Duration::from_secs(10));
             let got = c.advance(wild, t0);
-            assert_eq!(matches!(got, Err(TimeProblem::Late)), late, "{wild}: {got:?}");
+            assert_eq!(
+                matches!(got, Err(TimeProblem::Late)),
+                late,
+                "{wild}: {got:?}"
+            );
             assert_eq!(
                 matches!(got, Err(TimeProblem::Future { .. })),
                 !late,
@@ -136,7 +140,12 @@ mod tests {
             assert_eq!(c.advance(67_666, t0), Ok(()), "after {wild} in the middle");
         }
         // Unix time in µs (2026) is a sane first timestamp; so are 0 and the range's ends.
-        for first in [1_764_000_000_000_000, 0, MAX_ABS_TIMESTAMP_US, -MAX_ABS_TIMESTAMP_US] {
+        for first in [
+            1_764_000_000_000_000,
+            0,
+            MAX_ABS_TIMESTAMP_US,
+            -MAX_ABS_TIMESTAMP_US,
+        ] {
             assert_eq!(FrameClock::new(Duration::ZERO).advance(first, t0), Ok(()));
         }
     }
