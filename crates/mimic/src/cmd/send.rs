@@ -254,7 +254,7 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
     // Sent once (`--loop` would repeat timestamps, which the server drops as late).
     for (t, line) in &lines {
         if !args.fast {
-            let due = (*t - first_t).max(0) as f64 / 1e6 / speed;
+            let due = t.saturating_sub(first_t).max(0) as f64 / 1e6 / speed;
             let now = start.elapsed().as_secs_f64();
             if due > now {
                 let wait = Duration::try_from_secs_f64(due - now)
