@@ -1,7 +1,15 @@
 //! The timestamp rule of a session: frames must come after the last accepted one, and not run
 //! ahead of it by more than the wall-clock time between their arrivals plus a tolerance.
+//!
+//! Before a session's first accepted frame the clock stands at 0 with a range of
+//! ±[`MAX_ABS_TIMESTAMP_US`]: a first frame outside it (`i64::MAX`, `1e18`, `i64::MIN`) is refused
+//! and counted like any other and the clock stays unanchored, so the next sane frame anchors it.
 
 use std::time::{Duration, Instant};
+
+/// The largest `t_us` magnitude taken: 2^53 µs (about 285 years), the largest integer a JSON
+/// double holds exactly. Unix time in µs (about 1.8e15 in 2026) is well inside.
+pub const MAX_ABS_TIMESTAMP_US: i64 = 1 << 53;
 
 /// Why a frame's timestamp was not taken.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -36,7 +44,19 @@ impl FrameClock {
     }
 
     /// Takes `t_us` (arrived at `arrival`) as the new last timestamp, or says why not.
+    ///
+    /// A timestamp beyond ±[`MAX_ABS_TIMESTAMP_US`] is never taken: below it is `Late`, above it
+    /// `Future` (judged against 0 with the range as the allowed jump while nothing was accepted).
     pub fn advance(&mut self, t_us: i64, arrival: Instant) -> Result<(), TimeProblem> {
+        if t_us < -MAX_ABS_TIMESTAMP_US {
+            return Err(TimeProblem::Late);
+        }
+        if self.last.is_none() && t_us > MAX_ABS_TIMESTAMP_US {
+            return Err(TimeProblem::Future {
+                jump_us: t_us.unsigned_abs(),
+                allowed_us: MAX_ABS_TIMESTAMP_US.unsigned_abs(),
+            });
+        }
         if let Some((last, at)) = self.last {
             if t_us <= last {
                 return Err(TimeProblem::Late);
@@ -45,7 +65,7 @@ impl FrameClock {
             let jump = i128::from(t_us) - i128::from(last);
             let allowed = arrival.saturating_duration_since(at) + self.max_jump;
             let allowed_us = i128::try_from(allowed.as_micros()).unwrap_or(i128::MAX);
-            if jump > allowed_us {
+            if jump > allowed_us || t_us > MAX_ABS_TIMESTAMP_US {
                 return Err(TimeProblem::Future {
                     jump_us: u64::try_from(jump).unwrap_or(u64::MAX),
                     allowed_us: u64::try_from(allowed_us).unwrap_or(u64::MAX),
@@ -65,7 +85,7 @@ mod tests {
     fn late_and_future_frames_leave_the_clock_where_it_was() {
         let t0 = Instant::now();
         let mut c = FrameClock::new(Duration::from_secs(10));
-        assert_eq!(c.advance(i64::MIN + 1, t0), Ok(()));
+        assert_eq!(c.advance(-MAX_ABS_TIMESTAMP_US, t0), Ok(()));
         // From the far past to the far future in one step: refused, no overflow.
         assert!(matches!(
             c.advance(i64::MAX, t0),
@@ -88,5 +108,45 @@ mod tests {
         let later = t0 + Duration::from_secs(60);
         assert_eq!(c.advance(1_000 + 10_000_000 + 65_000_000, later), Ok(()));
         assert_eq!(c.advance(1_000 + 75_000_001, later), Ok(()));
+    }
+
+    #[test]
+    fn a_wild_first_timestamp_is_refused_and_the_next_sane_one_anchors_the_clock() {
+        let t0 = Instant::now();
+        for (wild, late) in [
+            (i64::MAX, false),
+            (1_000_000_000_000_000_000, false),
+            (MAX_ABS_TIMESTAMP_US + 1, false),
+            (i64::MIN, true),
+            (-MAX_ABS_TIMESTAMP_US - 1, true),
+        ] {
+            let mut c = FrameClock::new(Duration::from_secs(10));
+            let got = c.advance(wild, t0);
+            assert_eq!(
+                matches!(got, Err(TimeProblem::Late)),
+                late,
+                "{wild}: {got:?}"
+            );
+            assert_eq!(
+                matches!(got, Err(TimeProblem::Future { .. })),
+                !late,
+                "{wild}: {got:?}"
+            );
+            // The session goes on: sane frames from any origin are taken, in order.
+            assert_eq!(c.advance(1_000, t0), Ok(()), "after {wild}");
+            assert_eq!(c.advance(34_333, t0), Ok(()), "after {wild}");
+            // A wild frame in the middle is refused too, and leaves the clock where it was.
+            assert!(c.advance(wild, t0).is_err(), "{wild} in the middle");
+            assert_eq!(c.advance(67_666, t0), Ok(()), "after {wild} in the middle");
+        }
+        // Unix time in µs (2026) is a sane first timestamp; so are 0 and the range's ends.
+        for first in [
+            1_764_000_000_000_000,
+            0,
+            MAX_ABS_TIMESTAMP_US,
+            -MAX_ABS_TIMESTAMP_US,
+        ] {
+            assert_eq!(FrameClock::new(Duration::ZERO).advance(first, t0), Ok(()));
+        }
     }
 }

@@ -6,7 +6,7 @@ use mimic_capture::{
     FileSource, Pace, RecordedFrame, RecordingReader, RecordingWriter, Replay, ReplayOptions,
 };
 use serde_json::Value;
-use std::io::{BufRead, BufReader};
+use std::io::{BufRead, BufReader, Read};
 use std::net::{Shutdown, TcpStream};
 use std::path::PathBuf;
 use std::time::Duration;
@@ -24,7 +24,7 @@ pub struct Args {
     #[arg(long)]
     pub weights: Option<PathBuf>,
     /// Frame rate of a weights CSV without a `t_us` column.
-    #[arg(long, default_value_t = 60.0)]
+    #[arg(long, default_value_t = 60.0, value_parser = parse_rate)]
     pub rate: f64,
     /// Server address (host:port of `mimic serve`).
     #[arg(long, default_value = mimic_stream::DEFAULT_LISTEN)]
@@ -36,7 +36,7 @@ pub struct Args {
     #[arg(long)]
     pub rig: Option<String>,
     /// Speed factor of the recorded pace (2 is twice as fast).
-    #[arg(long, default_value_t = 1.0)]
+    #[arg(long, default_value_t = 1.0, value_parser = parse_speed)]
     pub speed: f64,
     /// Send as fast as the connection takes frames, ignoring the recorded pace.
     #[arg(long)]
@@ -49,8 +49,45 @@ pub struct Args {
     pub max_frames: Option<usize>,
 }
 
+/// Longest reply line read from the server (its replies are short JSON lines); a longer one is
+/// reported and the replies are no longer read.
+const MAX_REPLY_BYTES: usize = 64 * 1024;
+
+/// Exit status of `mimic send` when the server ended the session (its `bye`, e.g. `shutdown`,
+/// is printed) before everything was sent.
+pub const EXIT_SERVER_ENDED: u8 = 3;
+
+/// Parses a positive factor or rate in [1e-3, 1e6].
+fn parse_factor(text: &str) -> Result<f64, String> {
+    let v: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{text}` is not a number"))?;
+    if !(1e-3..=1e6).contains(&v) {
+        return Err(format!("{text} is out of range: 0.001 to 1000000"));
+    }
+    Ok(v)
+}
+
+/// `--speed`: a factor in [1e-3, 1e6].
+fn parse_speed(text: &str) -> Result<f64, String> {
+    parse_factor(text)
+}
+
+/// `--rate`: frames per second in [1e-3, 1e6].
+fn parse_rate(text: &str) -> Result<f64, String> {
+    parse_factor(text)
+}
+
 /// Runs `mimic send`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // Socket writes after the server closed must come back as errors (to report its `bye`),
+    // not kill the process: main restores SIGPIPE's default for stdout pipes.
+    #[cfg(unix)]
+    // SAFETY: setting a signal disposition before this command starts any thread.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_IGN);
+    }
     if let Some(csv) = &args.weights {
         return send_weights(&args, csv);
     }
@@ -81,15 +118,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .enable_time()
         .build()?;
     let mut sent = 0usize;
+    let mut write_failed = None;
     let result = runtime.block_on(async {
         while let Some(item) = replay.next().await {
             let f = item?;
-            writer
-                .write(&RecordedFrame {
-                    frame: f.frame,
-                    label: f.label,
-                })
-                .context("sending a frame")?;
+            if let Err(e) = writer.write(&RecordedFrame {
+                frame: f.frame,
+                label: f.label,
+            }) {
+                write_failed = Some(anyhow::Error::from(e).context("sending a frame"));
+                break;
+            }
             sent += 1;
             if args.max_frames.is_some_and(|m| sent >= m) {
                 break;
@@ -101,17 +140,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     stream.set_read_timeout(Some(Duration::from_secs(10)))?;
     let bye = reader.join().ok().flatten();
     result?;
-    match bye {
+    match &bye {
         Some(b) => println!(
             "sent {sent} frames to {}; server: {} frames retargeted, {} late, {} malformed ({})",
             args.to, b["frames"], b["late"], b["malformed"], b["reason"]
         ),
-        None => println!(
+        None if write_failed.is_none() => println!(
             "sent {sent} frames to {}; no reply from the server",
             args.to
         ),
+        None => {}
     }
-    Ok(())
+    ended_early(write_failed, bye.as_ref())
+}
+
+/// After the sending stopped: a write error after the server's `bye` came is reported as that
+/// `bye` (its reason, exit status [`EXIT_SERVER_ENDED`]); one without a `bye` as itself.
+fn ended_early(write_failed: Option<anyhow::Error>, bye: Option<&Value>) -> anyhow::Result<()> {
+    match (write_failed, bye) {
+        (None, _) => Ok(()),
+        (Some(_), Some(b)) => {
+            let reason = b["reason"].as_str().unwrap_or("unknown");
+            eprintln!(
+                "error: the server ended the session ({reason}) while frames were still being sent"
+            );
+            std::process::exit(i32::from(EXIT_SERVER_ENDED));
+        }
+        (Some(e), None) => Err(e),
+    }
 }
 
 /// Columns of a weights CSV that are not weights.
@@ -193,17 +249,21 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
     let start = std::time::Instant::now();
     let speed = if args.speed > 0.0 { args.speed } else { 1.0 };
     let mut sent = 0usize;
+    let mut write_failed = None;
     let first_t = lines.first().map_or(0, |(t, _)| *t);
     // Sent once (`--loop` would repeat timestamps, which the server drops as late).
     for (t, line) in &lines {
         if !args.fast {
-            let due = (*t - first_t).max(0) as f64 / 1e6 / speed;
+            let due = t.saturating_sub(first_t).max(0) as f64 / 1e6 / speed;
             let now = start.elapsed().as_secs_f64();
             if due > now {
-                std::thread::sleep(Duration::from_secs_f64(due - now));
+                let wait = Duration::try_from_secs_f64(due - now)
+                    .with_context(|| format!("t_us {t}: {due} s after the first frame"))?;
+                std::thread::sleep(wait);
             }
         }
-        if stream.write_all(line.as_bytes()).is_err() {
+        if let Err(e) = stream.write_all(line.as_bytes()) {
+            write_failed = Some(anyhow::Error::from(e).context("sending a weight frame"));
             break;
         }
         sent += 1;
@@ -212,18 +272,20 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
         }
     }
     let _ = stream.shutdown(Shutdown::Write);
+    stream.set_read_timeout(Some(Duration::from_secs(10)))?;
     let bye = reader.join().ok().flatten();
-    match bye {
+    match &bye {
         Some(b) => println!(
             "sent {sent} weight frames to {}; server: {} frames, {} late, {} malformed, {} unknown weight names ({})",
             args.to, b["frames"], b["late"], b["malformed"], b["unknown_weights"], b["reason"]
         ),
-        None => println!(
+        None if write_failed.is_none() => println!(
             "sent {sent} weight frames to {}; no reply from the server",
             args.to
         ),
+        None => {}
     }
-    Ok(())
+    ended_early(write_failed, bye.as_ref())
 }
 
 /// Connects to a server as a tracker; its replies (welcome, errors, bye) are read on their own
@@ -236,9 +298,25 @@ fn connect(to: &str) -> anyhow::Result<(TcpStream, std::thread::JoinHandle<Optio
         .name("mimic-send-replies".into())
         .spawn(move || {
             let mut bye = None;
-            for line in BufReader::new(replies).lines() {
-                let Ok(line) = line else { break };
-                let v: Value = serde_json::from_str(&line).unwrap_or(Value::Null);
+            let mut replies = BufReader::new(replies);
+            let mut buf = Vec::new();
+            loop {
+                buf.clear();
+                // At most one byte over the cap is read: a line that long is not a reply.
+                let cap = u64::try_from(MAX_REPLY_BYTES + 1).unwrap_or(u64::MAX);
+                match (&mut replies).take(cap).read_until(b'\n', &mut buf) {
+                    Ok(0) | Err(_) => break,
+                    Ok(_) => {}
+                }
+                if buf.len() > MAX_REPLY_BYTES {
+                    eprintln!(
+                        "server: a reply line over {MAX_REPLY_BYTES} bytes; no longer reading replies"
+                    );
+                    break;
+                }
+                let line = String::from_utf8_lossy(&buf);
+                let line = line.trim_end_matches(['\n', '\r']);
+                let v: Value = serde_json::from_str(line).unwrap_or(Value::Null);
                 match v["type"].as_str() {
                     Some("welcome") => tracing::info!("{line}"),
                     Some("bye") => bye = Some(v),

@@ -1,6 +1,6 @@
 //! `mimic serve`: live sessions over sockets (see docs/protocol.md).
 
-use crate::cmd::setup::{PipelineArgs, RigArgs};
+use crate::cmd::setup::{PipelineArgs, RigArgs, parse_seconds};
 use anyhow::Context;
 use mimic_assets::load_rig;
 use mimic_stream::{Catalog, DEFAULT_LISTEN, RigEntry, Server, ServerSettings};
@@ -39,7 +39,7 @@ pub struct Args {
     #[arg(long, default_value_t = ServerSettings::default().max_message_bytes)]
     pub max_message_bytes: usize,
     /// Seconds of silence after which a tracker connection is closed.
-    #[arg(long, default_value_t = ServerSettings::default().idle_timeout.as_secs_f64())]
+    #[arg(long, default_value_t = ServerSettings::default().idle_timeout.as_secs_f64(), value_parser = parse_seconds)]
     pub idle_timeout: f64,
     /// Frames each viewer's queue holds before the oldest is dropped.
     #[arg(long, default_value_t = ServerSettings::default().viewer_queue_frames)]
@@ -48,11 +48,11 @@ pub struct Args {
     #[arg(long, default_value_t = ServerSettings::default().max_errors_in_a_row)]
     pub max_errors: u32,
     /// Seconds a viewer's socket may take to accept one message before it is disconnected.
-    #[arg(long, default_value_t = ServerSettings::default().viewer_write_timeout.as_secs_f64())]
+    #[arg(long, default_value_t = ServerSettings::default().viewer_write_timeout.as_secs_f64(), value_parser = parse_seconds)]
     pub viewer_write_timeout: f64,
     /// Seconds a frame's timestamp may run ahead of the last accepted frame's, beyond the time
     /// between their arrivals; further ahead it is refused (`future_timestamp`).
-    #[arg(long, default_value_t = ServerSettings::default().max_time_jump.as_secs_f64())]
+    #[arg(long, default_value_t = ServerSettings::default().max_time_jump.as_secs_f64(), value_parser = parse_seconds)]
     pub max_time_jump: f64,
     /// Record every landmark session's accepted frames in this folder (created if missing), one
     /// v1 recording per session (`<session>-<id>-<peer>-<UTC time>.jsonl`), flushed per frame.
@@ -63,7 +63,7 @@ pub struct Args {
     #[arg(long, default_value_t = ServerSettings::default().record_queue_frames)]
     pub record_queue: usize,
     /// Seconds viewers get after Ctrl-C to receive what was accepted.
-    #[arg(long, default_value_t = ServerSettings::default().shutdown_grace.as_secs_f64())]
+    #[arg(long, default_value_t = ServerSettings::default().shutdown_grace.as_secs_f64(), value_parser = parse_seconds)]
     pub shutdown_grace: f64,
     /// Print the final counters as JSON on exit.
     #[arg(long)]

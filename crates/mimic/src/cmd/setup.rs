@@ -155,6 +155,30 @@ pub enum WeightsArg {
     Cotangent,
 }
 
+/// The longest duration an option takes: 10^6 s (about 11.6 days). Longer ones would overflow
+/// instants advanced by them (`Instant + Duration` panics) and mean nothing anyway.
+pub const MAX_OPTION_SECONDS: f64 = 1e6;
+
+/// Parses a duration option in seconds: a finite number in [0, [`MAX_OPTION_SECONDS`]].
+pub fn parse_seconds(text: &str) -> Result<f64, String> {
+    let s: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{text}` is not a number of seconds"))?;
+    if !(0.0..=MAX_OPTION_SECONDS).contains(&s) {
+        return Err(format!(
+            "{text} s is out of range: 0 to {MAX_OPTION_SECONDS} s (about 11.6 days)"
+        ));
+    }
+    Ok(s)
+}
+
+/// [`parse_seconds`] for an `f32` option.
+pub fn parse_seconds_f32(text: &str) -> Result<f32, String> {
+    // In range, so the narrowing only rounds.
+    parse_seconds(text).map(|s| s as f32)
+}
+
 /// A number, or `off`.
 #[derive(Clone, Copy, Debug)]
 pub struct Split(pub Option<f64>);
@@ -315,10 +339,10 @@ pub struct PipelineArgs {
     #[arg(long)]
     pub per_axis_scale: bool,
     /// Seconds to hold the last expression after tracking is lost, before easing to neutral.
-    #[arg(long, default_value_t = 0.25)]
+    #[arg(long, default_value_t = 0.25, value_parser = parse_seconds_f32)]
     pub lost_hold: f32,
     /// Seconds over which a lost face eases to neutral.
-    #[arg(long, default_value_t = 0.5)]
+    #[arg(long, default_value_t = 0.5, value_parser = parse_seconds_f32)]
     pub lost_ease: f32,
 }
 
@@ -564,6 +588,18 @@ mod tests {
         assert!(parse_hidden(Some("1-x"), &look).is_err());
         assert_eq!(parse_size("640x480").unwrap(), (640, 480));
         assert!(parse_size("640").is_err());
+    }
+
+    #[test]
+    fn duration_options_are_range_checked() {
+        assert_eq!(parse_seconds("0"), Ok(0.0));
+        assert_eq!(parse_seconds("2.5"), Ok(2.5));
+        assert_eq!(parse_seconds("1e6"), Ok(1e6));
+        for bad in ["1e19", "1000001", "-1", "nan", "inf", "soon", ""] {
+            assert!(parse_seconds(bad).is_err(), "{bad}");
+        }
+        assert_eq!(parse_seconds_f32("0.25"), Ok(0.25));
+        assert!(parse_seconds_f32("1e39").is_err());
     }
 
     #[test]
