@@ -77,6 +77,18 @@ impl FrameClock {
     }
 }
 
+/// `t + d`, or about a century after `t` where that sum does not fit an `Instant` (a duration
+/// setting of a library caller can be as large as `Duration::MAX`; the CLI bounds its own).
+pub(crate) fn instant_after(
+    t: tokio::time::Instant,
+    d: std::time::Duration,
+) -> tokio::time::Instant {
+    const CENTURY: std::time::Duration = std::time::Duration::from_secs(100 * 365 * 24 * 3600);
+    t.checked_add(d)
+        .or_else(|| t.checked_add(CENTURY))
+        .unwrap_or(t)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -148,5 +160,15 @@ mod tests {
         ] {
             assert_eq!(FrameClock::new(Duration::ZERO).advance(first, t0), Ok(()));
         }
+    }
+
+    #[test]
+    fn instant_after_never_overflows() {
+        let t = tokio::time::Instant::now();
+        let d = std::time::Duration::from_millis(1500);
+        assert_eq!(instant_after(t, d), t + d);
+        // Duration::MAX does not fit: a century later instead of a panic.
+        let far = instant_after(t, std::time::Duration::MAX);
+        assert!(far > t + std::time::Duration::from_secs(50 * 365 * 24 * 3600));
     }
 }

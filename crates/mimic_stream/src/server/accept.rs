@@ -77,7 +77,8 @@ impl Server {
         drop(listener);
         tracing::info!("shutting down");
         let _ = stop_tx.send(true);
-        let deadline = tokio::time::Instant::now() + settings.shutdown_grace;
+        let deadline =
+            crate::timing::instant_after(tokio::time::Instant::now(), settings.shutdown_grace);
         // Sessions end first (their END message reaches the viewers), then the viewer queues close.
         while shared.sessions_active.load(Ordering::Acquire) > 0
             && tokio::time::Instant::now() < deadline

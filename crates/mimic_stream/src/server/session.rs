@@ -318,7 +318,7 @@ pub(crate) async fn run<P: Protocol>(
     let mut line_no = 1u64;
     let mut last_activity = tokio::time::Instant::now();
     let mut log_tick = tokio::time::interval_at(
-        tokio::time::Instant::now() + settings.log_every,
+        crate::timing::instant_after(tokio::time::Instant::now(), settings.log_every),
         settings
             .log_every
             .max(std::time::Duration::from_millis(100)),
@@ -335,7 +335,7 @@ pub(crate) async fn run<P: Protocol>(
                 proto.on_event(&s, event).await;
             }
             _ = log_tick.tick() => log_counters(&s.record),
-            _ = sleep_until(last_activity + settings.idle_timeout) => {
+            _ = sleep_until(crate::timing::instant_after(last_activity, settings.idle_timeout)) => {
                 s.reply_idle_timeout(line_no);
                 break "idle_timeout".into();
             }
