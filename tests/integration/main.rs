@@ -12,6 +12,7 @@ mod fit;
 mod import;
 mod info;
 mod loopback;
+mod lost;
 mod morph;
 mod regression;
 mod render;
