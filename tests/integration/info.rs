@@ -74,3 +74,24 @@ fn control_vertex_out_of_range_names_file_and_line() {
         "{stderr}"
     );
 }
+
+#[test]
+fn info_warns_about_controls_that_share_a_rest_position() {
+    // CANDIDE-3's inner-lip middles (FDPs 2.2 and 2.3, vertices 87 and 40) coincide at rest.
+    let out = mimic(&["info", "configs/rigs/candide3.toml", "--json"]);
+    let (stdout, stderr) = text(&out);
+    assert!(out.status.success(), "{stderr}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let warnings = v["warnings"].as_array().unwrap();
+    assert_eq!(warnings.len(), 1, "{warnings:?}");
+    let w = warnings[0].as_str().unwrap();
+    assert!(w.contains("controls 2.2 and 2.3"), "{w}");
+    assert!(stderr.contains(&format!("warning: {w}")), "{stderr}");
+    // The ICT head's controls are all apart.
+    let out = mimic(&["info", "configs/rigs/ict-face.toml", "--json"]);
+    let (stdout, stderr) = text(&out);
+    assert!(out.status.success(), "{stderr}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(v["warnings"], serde_json::json!([]));
+    assert!(!stderr.contains("warning:"), "{stderr}");
+}

@@ -128,6 +128,31 @@ impl Rig {
             .map(|c| self.mesh.positions[c.vertex as usize])
             .collect()
     }
+
+    /// Pairs of controls that sit on one rest position (the same vertex, or vertices within
+    /// `1e-9` of the control cloud's extent): an RBF solve can only move such a pair together
+    /// (it merges them into one centre driven by their mean), so the rig cannot show them apart.
+    pub fn coincident_controls(&self) -> Vec<(Fdp, Fdp)> {
+        let at = self.control_positions();
+        let (lo, hi) = at.iter().fold(
+            (
+                glam::Vec3::splat(f32::INFINITY),
+                glam::Vec3::splat(f32::NEG_INFINITY),
+            ),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        let tol = 1e-9 * f64::from((hi - lo).length().max(0.0));
+        let mut pairs = Vec::new();
+        for (a, ca) in self.controls.iter().enumerate() {
+            for (b, cb) in self.controls.iter().enumerate().skip(a + 1) {
+                let apart = f64::from(at[a].distance(at[b]));
+                if ca.vertex == cb.vertex || apart <= tol {
+                    pairs.push((ca.fdp, cb.fdp));
+                }
+            }
+        }
+        pairs
+    }
 }
 
 /// Which deformation solver builds the basis.

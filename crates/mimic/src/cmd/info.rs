@@ -110,6 +110,20 @@ fn rig_summary(r: &Rig) -> Value {
         }
     }
     let (lo, hi) = r.mesh.bounds().unwrap_or_default();
+    let warnings: Vec<String> = r
+        .coincident_controls()
+        .into_iter()
+        .map(|(a, b)| {
+            format!(
+                "controls {a} and {b} share one rest position: an RBF solve merges them into one \
+                 centre driven by their mean, so they cannot move apart (use --solver laplacian, or \
+                 put them on different vertices)"
+            )
+        })
+        .collect();
+    for w in &warnings {
+        eprintln!("warning: {w}");
+    }
     json!({
         "kind": "rig",
         "name": r.name,
@@ -127,6 +141,7 @@ fn rig_summary(r: &Rig) -> Value {
         "bounds_min": [lo.x, lo.y, lo.z],
         "bounds_max": [hi.x, hi.y, hi.z],
         "solver": serde_json::to_value(r.solver).unwrap_or(Value::Null),
+        "warnings": warnings,
     })
 }
 
