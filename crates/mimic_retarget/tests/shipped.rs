@@ -38,13 +38,15 @@ fn layout(name: &str) -> Layout {
     mimic_assets::load_layout(&root().join(format!("configs/layouts/{name}.toml"))).unwrap()
 }
 
-fn frames(path: &Path, layout: &Layout) -> Vec<LandmarkFrame> {
-    let mut reader = mimic_capture::RecordingReader::open(path, Some(layout.point_count)).unwrap();
-    let mut v = Vec::new();
-    while let Some(f) = reader.next_frame() {
-        v.push(f.unwrap().frame);
-    }
-    v
+/// A shipped recording, opened once: the layout its header names and every frame (none may be
+/// rejected).
+fn recording(path: &Path) -> (Layout, Vec<LandmarkFrame>) {
+    let mut reader = mimic_capture::RecordingReader::open(path, None).unwrap();
+    let layout = layout(&reader.header().layout);
+    reader.expect_points(layout.point_count).unwrap();
+    let read = reader.read_all();
+    assert_eq!(read.stats.rejected.total(), 0, "{}", path.display());
+    (layout, read.frames.into_iter().map(|f| f.frame).collect())
 }
 
 /// A rig with its bases for both solvers, built once.
@@ -166,12 +168,7 @@ fn gate_keeps_jumps_and_fit_failures_out_on_every_shipped_recording() {
         "recording rig solver: tracked gated clamped | jump frames, max jump cm | max vertex 99-109 cm (ungated -> gated)"
     );
     for path in recordings() {
-        let header = mimic_capture::RecordingReader::open(&path, None)
-            .unwrap()
-            .header()
-            .clone();
-        let layout = layout(&header.layout);
-        let frames = frames(&path, &layout);
+        let (layout, frames) = recording(&path);
         let name = path.file_name().unwrap().to_string_lossy().into_owned();
         let failure = name == "a_yn_question.kinect121.jsonl";
         for rig_name in ["ict-face", "candide3"] {
@@ -235,12 +232,7 @@ fn dump_gate_readings() {
     let rb = rig("ict-face");
     let face = ict_face_size();
     for path in recordings() {
-        let header = mimic_capture::RecordingReader::open(&path, None)
-            .unwrap()
-            .header()
-            .clone();
-        let layout = layout(&header.layout);
-        let frames = frames(&path, &layout);
+        let (layout, frames) = recording(&path);
         let s = ungated();
         let mut rt = Retargeter::new(&rb.rig, &layout, rb.rbf.clone(), s).unwrap();
         let mut out = rt.new_output();
