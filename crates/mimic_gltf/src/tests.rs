@@ -1,0 +1,189 @@
+//! Round trip: write a GLB, read it back by hand, and rebuild what a viewer would draw.
+
+use crate::*;
+use glam::{Quat, Vec2, Vec3};
+use serde_json::Value;
+
+/// Splits a GLB into its JSON and binary chunks, checking the container.
+fn read_glb(bytes: &[u8]) -> (Value, Vec<u8>) {
+    let u = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+    assert_eq!(&bytes[0..4], b"glTF");
+    assert_eq!(u(4), 2);
+    assert_eq!(u(8), bytes.len());
+    let json_len = u(12);
+    assert_eq!(&bytes[16..20], b"JSON");
+    assert_eq!(json_len % 4, 0);
+    let json: Value = serde_json::from_slice(&bytes[20..20 + json_len]).unwrap();
+    let at = 20 + json_len;
+    assert_eq!(&bytes[at + 4..at + 8], b"BIN\0");
+    let bin = bytes[at + 8..at + 8 + u(at)].to_vec();
+    (json, bin)
+}
+
+fn view<'a>(json: &Value, bin: &'a [u8], v: usize) -> &'a [u8] {
+    let v = &json["bufferViews"][v];
+    let at = v["byteOffset"].as_u64().unwrap() as usize;
+    &bin[at..at + v["byteLength"].as_u64().unwrap() as usize]
+}
+
+/// An accessor's floats (sparse ones rebuilt on zeros), as a viewer reads them.
+fn floats(json: &Value, bin: &[u8], a: usize) -> Vec<f32> {
+    let acc = &json["accessors"][a];
+    let comps = match acc["type"].as_str().unwrap() {
+        "SCALAR" => 1,
+        "VEC2" => 2,
+        "VEC3" => 3,
+        _ => 4,
+    };
+    let count = acc["count"].as_u64().unwrap() as usize;
+    let f = |b: &[u8]| -> Vec<f32> {
+        b.chunks_exact(4)
+            .map(|c| f32::from_le_bytes(c.try_into().unwrap()))
+            .collect()
+    };
+    let mut out = match acc.get("bufferView") {
+        Some(v) => f(view(json, bin, v.as_u64().unwrap() as usize)),
+        None => vec![0.0; count * comps],
+    };
+    if let Some(s) = acc.get("sparse") {
+        let idx = view(json, bin, s["indices"]["bufferView"].as_u64().unwrap() as usize);
+        let vals = f(view(json, bin, s["values"]["bufferView"].as_u64().unwrap() as usize));
+        for (k, i) in idx.chunks_exact(4).enumerate() {
+            let i = u32::from_le_bytes(i.try_into().unwrap()) as usize;
+            out[i * comps..(i + 1) * comps].copy_from_slice(&vals[k * comps..(k + 1) * comps]);
+        }
+    }
+    assert_eq!(out.len(), count * comps);
+    out
+}
+
+#[test]
+fn the_glb_morphs_reproduce_b_d_on_every_vertex_including_seams() {
+    // A quad strip of 6 vertices with a UV seam at vertex 2, and a basis of 2 controls: control
+    // 0 moves vertices 0-4 (6 of the 7 glTF vertices: dense), control 1 only vertex 5 (sparse).
+    let positions: Vec<Vec3> = (0..6)
+        .map(|i| Vec3::new((i / 2) as f32, (i % 2) as f32, 0.1 * i as f32))
+        .collect();
+    let triangles = vec![[0, 2, 1], [1, 2, 3], [2, 4, 3], [3, 4, 5]];
+    let uvs: Vec<Vec2> = (0..7).map(|i| Vec2::new(i as f32 / 7.0, 0.5)).collect();
+    let uv_triangles = vec![[0, 2, 1], [1, 2, 3], [6, 4, 3], [3, 4, 5]];
+    let basis = mimic_solve::Basis::from_row_major(
+        6,
+        2,
+        vec![1.0, 0.0, 0.5, 0.0, 0.25, 0.0, 0.1, 0.0, 0.2, 0.0, 0.0, 1.0],
+    )
+    .unwrap();
+    let names = vec!["2.1".to_string(), "8.3".to_string()];
+    let morphs = basis_morphs(&basis, &names);
+    let s = 0.01;
+    let frames = [
+        [Vec3::new(1.0, 2.0, -1.0), Vec3::new(0.5, 0.0, 3.0)],
+        [Vec3::new(-2.0, 0.5, 0.0), Vec3::new(0.0, -1.0, 1.0)],
+    ];
+    let mut take = Take::new(6, Interpolation::Linear, true);
+    for (k, d) in frames.iter().enumerate() {
+        let mut w = [0.0; 6];
+        basis_weights(d, s, &mut w);
+        take.push(
+            1_000_000 + 40_000 * k as i64,
+            &w,
+            (Quat::from_rotation_y(0.1 * k as f32), Vec3::X * k as f32),
+        );
+    }
+    let materials = [GltfMaterial {
+        name: "skin".into(),
+        base_color: [0.8, 0.6, 0.5, 1.0],
+        blend: false,
+    }];
+    let triangle_material = [Some(0), Some(0), None, Some(0)];
+    let scene = Scene {
+        name: "strip",
+        mesh: GltfMesh {
+            positions: &positions,
+            triangles: &triangles,
+            uvs: &uvs,
+            uv_triangles: &uv_triangles,
+            materials: &materials,
+            triangle_material: &triangle_material,
+        },
+        metres_per_unit: s,
+        morphs: &morphs,
+        take: Some(&take),
+        pivot: Vec3::new(1.0, 0.5, 0.0),
+    };
+    let mut bytes = Vec::new();
+    let summary = write_glb(&scene, &mut bytes).unwrap();
+    assert_eq!(summary.bytes, bytes.len());
+    assert_eq!((summary.vertices, summary.primitives, summary.targets), (7, 2, 6));
+    assert_eq!(summary.sparse_targets, 3, "control 8.3 moves one vertex of 7");
+    let (json, bin) = read_glb(&bytes);
+    let mesh = &json["meshes"][0];
+    assert_eq!(mesh["extras"]["targetNames"][4], "8.3.y");
+    let prim = &mesh["primitives"][0];
+    let pos = floats(&json, &bin, prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
+    let targets: Vec<Vec<f32>> = prim["targets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| floats(&json, &bin, t["POSITION"].as_u64().unwrap() as usize))
+        .collect();
+    let anim = &json["animations"][0];
+    let times = floats(&json, &bin, anim["samplers"][0]["input"].as_u64().unwrap() as usize);
+    assert_eq!(times, vec![0.0, 0.04]);
+    let weights = floats(&json, &bin, anim["samplers"][0]["output"].as_u64().unwrap() as usize);
+    // glTF vertex 6 is rig vertex 2 again (the seam).
+    let source = [0usize, 1, 2, 3, 4, 5, 2];
+    for (k, d) in frames.iter().enumerate() {
+        let mut u = vec![Vec3::ZERO; 6];
+        basis.apply(d, &mut u);
+        for (g, &i) in source.iter().enumerate() {
+            let mut p = Vec3::from_slice(&pos[3 * g..3 * g + 3]);
+            for (t, delta) in targets.iter().enumerate() {
+                p += weights[k * 6 + t] * Vec3::from_slice(&delta[3 * g..3 * g + 3]);
+            }
+            let want = (positions[i] + u[i]) * s;
+            // f32 sums of at most 6 terms of size <= 0.05 m: a few ulps of 0.05.
+            assert!((p - want).abs().max_element() <= 8.0 * f32::EPSILON * 0.05, "{g}: {p} vs {want}");
+        }
+    }
+    // The pose: the head node's rotation and its translation from the pivot.
+    let rot = floats(&json, &bin, anim["samplers"][1]["output"].as_u64().unwrap() as usize);
+    assert!((Quat::from_slice(&rot[4..8]).dot(Quat::from_rotation_y(0.1))).abs() > 1.0 - 1e-6);
+    let tr = floats(&json, &bin, anim["samplers"][2]["output"].as_u64().unwrap() as usize);
+    let near = |a: &[f32], b: [f32; 3]| (Vec3::from_slice(a) - Vec3::from(b)).length() <= 1e-6;
+    assert!(near(&tr[3..6], [1.01, 0.005, 0.0]), "{tr:?}");
+    let node: Vec<f32> = json["nodes"][1]["translation"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap() as f32)
+        .collect();
+    assert!(near(&node, [-0.01, -0.005, 0.0]), "{node:?}");
+}
+
+#[test]
+fn a_take_with_the_wrong_target_count_is_refused() {
+    let positions = [Vec3::ZERO, Vec3::X, Vec3::Y];
+    let take = {
+        let mut t = Take::new(1, Interpolation::Step, false);
+        t.push(0, &[1.0], (Quat::IDENTITY, Vec3::ZERO));
+        t
+    };
+    let scene = Scene {
+        name: "tri",
+        mesh: GltfMesh {
+            positions: &positions,
+            triangles: &[[0, 1, 2]],
+            uvs: &[],
+            uv_triangles: &[],
+            materials: &[],
+            triangle_material: &[],
+        },
+        metres_per_unit: 1.0,
+        morphs: &[],
+        take: Some(&take),
+        pivot: Vec3::ZERO,
+    };
+    let e = write_glb(&scene, &mut Vec::new()).unwrap_err();
+    assert!(matches!(e, GltfError::TargetCount { take: 1, mesh: 0 }), "{e}");
+}
