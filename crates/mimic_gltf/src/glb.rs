@@ -31,6 +31,8 @@ pub struct GltfMesh<'a> {
     pub materials: &'a [GltfMaterial],
     /// Material of each triangle (index into `materials`); empty or `None`: a default grey.
     pub triangle_material: &'a [Option<usize>],
+    /// Linear RGB per rig vertex (glTF `COLOR_0`, which multiplies the base colour); empty if none.
+    pub colors: &'a [[f32; 3]],
 }
 
 /// What to write.
@@ -231,6 +233,14 @@ pub fn write_glb(scene: &Scene<'_>, w: &mut impl Write) -> Result<GlbSummary, Gl
         "POSITION": b.floats(&positions, 3, "VEC3", Some(ARRAY_BUFFER)),
         "NORMAL": b.floats(&normals, 3, "VEC3", Some(ARRAY_BUFFER)),
     });
+    if mesh.colors.len() == n {
+        let colors: Vec<f32> = split
+            .source
+            .iter()
+            .flat_map(|i| mesh.colors[*i as usize].map(|c| c.clamp(0.0, 1.0)))
+            .collect();
+        attributes["COLOR_0"] = json!(b.floats(&colors, 3, "VEC3", Some(ARRAY_BUFFER)));
+    }
     if !split.uvs.is_empty() {
         let uvs: Vec<f32> = split.uvs.iter().flat_map(|v| v.to_array()).collect();
         attributes["TEXCOORD_0"] = json!(b.floats(&uvs, 2, "VEC2", Some(ARRAY_BUFFER)));

@@ -11,12 +11,14 @@
 
 mod glb;
 mod morphs;
+mod rig;
 mod take;
 mod units;
 mod vertices;
 
 pub use glb::{GlbSummary, GltfMaterial, GltfMesh, Scene, write_glb};
 pub use morphs::{Morph, basis_morphs, basis_weights, target_morphs};
+pub use rig::{RigLookParts, rig_look_parts, write_rig_glb};
 pub use take::{Interpolation, Take, head_translation};
 pub use units::metres_per_unit;
 pub use vertices::{SplitVertices, split_vertices};
@@ -68,6 +70,12 @@ pub enum GltfError {
         /// Morph targets.
         mesh: usize,
     },
+    /// Reading the rig's files failed.
+    #[error(transparent)]
+    Asset(#[from] mimic_assets::AssetError),
+    /// The rig's `units` has no known length in metres.
+    #[error("rig units `{0}`: not one of m, cm, mm, in, candide (glTF needs metres)")]
+    Units(String),
     /// The binary chunk would pass glTF's 4 GiB limit.
     #[error("the binary chunk would be {0} bytes, over glTF's 4 GiB limit")]
     TooLarge(usize),

@@ -1,17 +1,20 @@
-//! `mimic replay`: a recorded performance onto a rig, written as OBJ frames or one binary file.
+//! `mimic replay`: a recorded performance onto a rig, written as OBJ frames, one binary file or
+//! one GLB (docs/gltf.md).
 
 use crate::cmd::setup::{
     BlendshapeArgs, Mode, PipelineArgs, RigArgs, prepare_with, write_obj_frame,
 };
 use anyhow::{Context, bail};
+use glam::Vec3;
 use mimic_assets::{FramesWriter, load_morph_targets};
+use mimic_gltf::{Interpolation, Take, basis_morphs, basis_weights, head_translation, target_morphs};
 use mimic_capture::{FileSource, Pace, RecordingReader, Replay, ReplayOptions};
 use mimic_retarget::frame_metrics::{max_vertex_motion, region_motion};
 use mimic_retarget::{
     BlendshapeFitter, FrameOutput, FrameStatus, StageSamples, WeightStats, WeightSummary,
     elapsed_ns,
 };
-use mimic_types::{Region, Rig};
+use mimic_types::{MorphTarget, Region, Rig};
 use serde_json::json;
 use std::fs::File;
 use std::io::{BufWriter, IsTerminal, Write};
@@ -25,6 +28,8 @@ pub enum OutFormat {
     Obj,
     /// One `frames.bin` (see docs/frames-format.md).
     Bin,
+    /// One GLB: the rig, its morph targets and the take as an animation (docs/gltf.md).
+    Glb,
 }
 
 /// Arguments of `mimic replay`.
@@ -38,9 +43,16 @@ pub struct Args {
     pub pipeline: PipelineArgs,
     #[command(flatten)]
     pub blend: BlendshapeArgs,
-    /// Directory for the deformed frames (nothing is written without it).
+    /// Directory for the deformed frames (nothing is written without it); with `--format glb`
+    /// the GLB file (a path not ending in `.glb` is a directory, and gets `take.glb`).
     #[arg(long)]
     pub out: Option<PathBuf>,
+    /// Leave the head pose out of the GLB (`--format glb`): the face animates in place.
+    #[arg(long)]
+    pub no_pose: bool,
+    /// Hold each GLB key until the next (glTF STEP) instead of interpolating linearly.
+    #[arg(long)]
+    pub step_keys: bool,
     /// Format of the deformed frames.
     #[arg(long, value_enum, default_value = "obj")]
     pub format: OutFormat,
@@ -79,6 +91,19 @@ enum Sink {
         path: PathBuf,
         written: usize,
     },
+    Glb(Box<GlbSink>),
+}
+
+/// The keys of a GLB being collected.
+struct GlbSink {
+    path: PathBuf,
+    take: Take,
+    /// Metres per rig unit.
+    scale: f32,
+    /// This frame's weights.
+    weights: Vec<f32>,
+    /// The head's last translation (metres), held over frames without one.
+    translation: Vec3,
 }
 
 impl Sink {
@@ -86,6 +111,7 @@ impl Sink {
         match self {
             Sink::None => 0,
             Sink::Obj { written, .. } | Sink::Bin { written, .. } => *written,
+            Sink::Glb(g) => g.take.len(),
         }
     }
 }
@@ -125,6 +151,36 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
     let mut sink = match (&args.out, args.format) {
         (None, _) => Sink::None,
+        (Some(out), OutFormat::Glb) => {
+            let path = if out.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb")) {
+                out.clone()
+            } else {
+                out.join("take.glb")
+            };
+            if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
+                std::fs::create_dir_all(dir)
+                    .with_context(|| format!("creating {}", dir.display()))?;
+            }
+            let scale = mimic_gltf::metres_per_unit(&rig.units).with_context(|| {
+                format!("rig `{}`: units `{}` have no length in metres for glTF", rig.name, rig.units)
+            })?;
+            let targets = match &blend {
+                Some(b) => b.fitter.target_count(),
+                None => 3 * rig.controls.len(),
+            };
+            let interpolation = if args.step_keys {
+                Interpolation::Step
+            } else {
+                Interpolation::Linear
+            };
+            Sink::Glb(Box::new(GlbSink {
+                path,
+                take: Take::new(targets, interpolation, !args.no_pose),
+                scale,
+                weights: vec![0.0; targets],
+                translation: Vec3::ZERO,
+            }))
+        }
         (Some(dir), format) => {
             std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
             match format {
@@ -132,6 +188,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     dir: dir.clone(),
                     written: 0,
                 },
+                OutFormat::Glb => unreachable!("matched above"),
                 OutFormat::Bin => {
                     let path = dir.join("frames.bin");
                     let file = File::create(&path).with_context(|| path.display().to_string())?;
@@ -220,7 +277,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 }
                 writeln!(w)?;
             }
-            if frame_index.is_multiple_of(args.every.max(1)) {
+            if let Sink::Glb(g) = &mut sink
+                && frame_index.is_multiple_of(args.every.max(1))
+            {
+                match blend.as_ref() {
+                    Some(b) => g.weights.copy_from_slice(b.fitter.weights()),
+                    None => basis_weights(&out.displacements, g.scale, &mut g.weights),
+                }
+                if status == FrameStatus::Tracked
+                    && let Some(map) = prepared.retargeter.source_to_target()
+                {
+                    let f = &rf.frame;
+                    let points = (0..f.points.len())
+                        .filter(|i| f.is_valid(*i))
+                        .map(|i| f.points[i]);
+                    if let Some(t) = head_translation(points, &out.pose, map.linear) {
+                        g.translation = t * g.scale;
+                    }
+                }
+                g.take
+                    .push(out.timestamp_us, &g.weights, (out.target_rotation, g.translation));
+            } else if frame_index.is_multiple_of(args.every.max(1)) {
                 write_frame(
                     &mut sink,
                     frame_index,
@@ -245,8 +322,35 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let wall_s = wall.elapsed().as_secs_f64();
     let files = sink.written();
-    if let Sink::Bin { writer, .. } = sink {
-        writer.finish()?;
+    let mut gltf = None;
+    match sink {
+        Sink::Bin { writer, .. } => {
+            writer.finish()?;
+        }
+        Sink::Glb(g) => {
+            let started = Instant::now();
+            let morphs = match &blend {
+                Some(b) => target_morphs(&b.targets, g.scale),
+                None => {
+                    let names: Vec<String> = rig.controls.iter().map(|c| c.fdp.to_string()).collect();
+                    basis_morphs(prepared.retargeter.basis(), &names)
+                }
+            };
+            let file = File::create(&g.path).with_context(|| g.path.display().to_string())?;
+            let mut w = BufWriter::new(file);
+            let written = mimic_gltf::write_rig_glb(
+                &args.rig.rig_path(),
+                &prepared.rig,
+                &morphs,
+                Some(&g.take),
+                mimic_render::SKIN_ALBEDO,
+                &mut w,
+            )
+            .with_context(|| g.path.display().to_string())?;
+            w.flush().with_context(|| g.path.display().to_string())?;
+            gltf = Some((g.path, written, g.take.skipped(), started.elapsed().as_secs_f64()));
+        }
+        Sink::None | Sink::Obj { .. } => {}
     }
     for w in [metrics, controls_csv].into_iter().flatten() {
         w.into_inner().map_err(|e| e.into_error())?;
@@ -285,6 +389,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "frames_written": files,
         "out": args.out.as_ref().map(|p| p.display().to_string()),
         "blendshapes": blendshapes,
+        "gltf": gltf.as_ref().map(|(path, w, skipped, secs)| json!({
+            "path": path.display().to_string(), "summary": w, "skipped_frames": skipped, "write_s": secs,
+        })),
     });
     if args.json {
         println!("{}", serde_json::to_string_pretty(&summary)?);
@@ -310,7 +417,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "step",
             step.per_second()
         );
-        if let Some(dir) = &args.out {
+        if let Some((path, w, skipped, secs)) = &gltf {
+            println!(
+                "  wrote {}: {} keys over {:.2} s, {} vertices, {} morph targets ({} sparse), {:.1} MB in {secs:.2} s{}",
+                path.display(),
+                w.keys,
+                w.duration_s,
+                w.vertices,
+                w.targets,
+                w.sparse_targets,
+                w.bytes as f64 / 1e6,
+                if *skipped > 0 {
+                    format!("; {skipped} frames skipped (time not after the previous key)")
+                } else {
+                    String::new()
+                }
+            );
+        } else if let Some(dir) = &args.out {
             println!("  wrote {files} frames to {}", dir.display());
         }
     }
@@ -325,7 +448,7 @@ fn write_frame(
     rig: &str,
 ) -> anyhow::Result<()> {
     match sink {
-        Sink::None => {}
+        Sink::None | Sink::Glb(_) => {}
         Sink::Obj { dir, written } => {
             let header = format!(
                 "mimic replay onto rig {rig}: frame {index}, t = {} us",
@@ -357,6 +480,8 @@ fn write_frame(
 /// The blendshape stage of a replay: fitter, weights CSV and running statistics.
 struct Blend {
     fitter: BlendshapeFitter,
+    /// The rig's morph targets (written into a GLB).
+    targets: Vec<MorphTarget>,
     csv: Option<(PathBuf, BufWriter<File>)>,
     stats: WeightStats,
 }
@@ -387,7 +512,12 @@ impl Blend {
             None => None,
         };
         let stats = WeightStats::new(fitter.target_count());
-        Ok(Some(Self { fitter, csv, stats }))
+        Ok(Some(Self {
+            fitter,
+            targets,
+            csv,
+            stats,
+        }))
     }
 
     /// Replaces `out`'s mesh with the blend fitted to its displacements and writes the CSV row.
