@@ -9,6 +9,7 @@ mod clock;
 mod config_limits;
 mod faults;
 mod fit;
+mod gltf;
 mod import;
 mod info;
 mod loopback;

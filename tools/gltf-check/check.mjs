@@ -46,10 +46,14 @@ if (expectFile) {
     console.log(`  FAIL: duration differs by more than ${durTol}`);
     failed = true;
   }
-  const names = mesh.geometry.userData.targetNames;
-  if (!names || names.length !== mesh.morphTargetInfluences.length) {
-    console.log(`  FAIL: targetNames missing or of the wrong length`);
+  // GLTFLoader copies mesh.extras to the mesh's userData and names the influences by them.
+  const names = mesh.userData.targetNames;
+  const dict = mesh.morphTargetDictionary;
+  if (!names || names.length !== mesh.morphTargetInfluences.length || names.some((n, i) => dict[n] !== i)) {
+    console.log(`  FAIL: mesh.extras.targetNames missing, of the wrong length, or not the influences' names`);
     failed = true;
+  } else {
+    console.log(`  ${names.length} targets: ${names.slice(0, 3).join(', ')}, ...`);
   }
   const mixer = new THREE.AnimationMixer(gltf.scene);
   const action = mixer.clipAction(clip);

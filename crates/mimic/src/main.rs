@@ -32,6 +32,9 @@ enum Command {
     /// Export a rig's morph targets as a morph data file, or check one against the rig.
     #[command(subcommand)]
     Morph(cmd::morph::MorphCommand),
+    /// Tools for target rigs: `mimic rig export R -o head.glb`.
+    #[command(subcommand)]
+    Rig(cmd::rig::RigCommand),
     /// Serve live sessions: trackers in over TCP/UDP, viewers out (docs/protocol.md).
     Serve(cmd::serve::Args),
     /// Replay a recording into `mimic serve` at its recorded pace, as a tracker would.
@@ -63,6 +66,7 @@ fn main() -> ExitCode {
         Command::Import(c) => cmd::import::run(c),
         Command::Morph(c) => cmd::morph::run(c),
         Command::Eval(a) => cmd::eval::run(a),
+        Command::Rig(c) => cmd::rig::run(c),
         Command::Serve(a) => cmd::serve::run(a),
         Command::Send(a) => cmd::send::run(a),
         Command::Render(a) => cmd::render::run(a),

@@ -118,7 +118,9 @@ impl Builder {
     /// when that is smaller than dense. Returns the accessor and whether it is sparse.
     fn vec3_sparse(&mut self, count: usize, entries: &[(u32, Vec3)]) -> (usize, bool) {
         let mut min = entries.iter().fold(Vec3::INFINITY, |a, (_, v)| a.min(*v));
-        let mut max = entries.iter().fold(Vec3::NEG_INFINITY, |a, (_, v)| a.max(*v));
+        let mut max = entries
+            .iter()
+            .fold(Vec3::NEG_INFINITY, |a, (_, v)| a.max(*v));
         if entries.len() < count {
             min = min.min(Vec3::ZERO);
             max = max.max(Vec3::ZERO);
@@ -359,13 +361,17 @@ pub fn write_glb(scene: &Scene<'_>, w: &mut impl Write) -> Result<GlbSummary, Gl
         if !targets.is_empty() {
             let out = b.floats(take.weights(), 1, "SCALAR", None);
             samplers.push(json!({"input": input, "output": out, "interpolation": interpolation}));
-            channels.push(json!({"sampler": samplers.len() - 1, "target": {"node": 1, "path": "weights"}}));
+            channels.push(
+                json!({"sampler": samplers.len() - 1, "target": {"node": 1, "path": "weights"}}),
+            );
         }
         if take.has_pose() {
             let r: Vec<f32> = take.rotations().iter().flat_map(|q| q.to_array()).collect();
             let out = b.floats(&r, 4, "VEC4", None);
             samplers.push(json!({"input": input, "output": out, "interpolation": interpolation}));
-            channels.push(json!({"sampler": samplers.len() - 1, "target": {"node": 0, "path": "rotation"}}));
+            channels.push(
+                json!({"sampler": samplers.len() - 1, "target": {"node": 0, "path": "rotation"}}),
+            );
             let p: Vec<f32> = take
                 .translations()
                 .iter()
@@ -376,7 +382,8 @@ pub fn write_glb(scene: &Scene<'_>, w: &mut impl Write) -> Result<GlbSummary, Gl
             channels.push(json!({"sampler": samplers.len() - 1, "target": {"node": 0, "path": "translation"}}));
         }
         if !channels.is_empty() {
-            root["animations"] = json!([{"name": "take", "samplers": samplers, "channels": channels}]);
+            root["animations"] =
+                json!([{"name": "take", "samplers": samplers, "channels": channels}]);
         }
     }
 

@@ -1,4 +1,10 @@
-#![cfg_attr(test, allow(clippy::unwrap_used, reason = "tests: a failed unwrap is the failure report"))]
+#![cfg_attr(
+    test,
+    allow(
+        clippy::unwrap_used,
+        reason = "tests: a failed unwrap is the failure report"
+    )
+)]
 //! glTF 2.0 out: a rig and a performance as one binary glTF (GLB) file.
 //!
 //! mimic's deformation is linear, `u = B d`, so it maps onto glTF morph targets exactly: one

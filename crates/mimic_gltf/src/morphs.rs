@@ -112,6 +112,10 @@ mod tests {
             let tol = 4.0 * f32::EPSILON * s * 4.0;
             assert!((*a - *b * s).abs().max_element() <= tol, "{a} vs {b}");
         }
-        assert!(morphs.iter().all(|m| m.positions.iter().all(|(i, _)| *i < 2)));
+        assert!(
+            morphs
+                .iter()
+                .all(|m| m.positions.iter().all(|(i, _)| *i < 2))
+        );
     }
 }

@@ -25,7 +25,11 @@ pub struct RigLookParts {
 }
 
 /// The materials and colours of the rig at `rig_path` (loaded as `rig`), `skin` for its skin.
-pub fn rig_look_parts(rig_path: &Path, rig: &Rig, skin: [f32; 3]) -> Result<RigLookParts, GltfError> {
+pub fn rig_look_parts(
+    rig_path: &Path,
+    rig: &Rig,
+    skin: [f32; 3],
+) -> Result<RigLookParts, GltfError> {
     let look = mimic_assets::load_rig_look(rig_path)?;
     let mats = mimic_assets::load_rig_materials(rig_path)?;
     let (p, t) = (&rig.mesh.positions, &rig.mesh.triangles);

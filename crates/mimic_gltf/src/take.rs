@@ -185,7 +185,11 @@ mod tests {
         assert!(take.push(1_000_000, &[0.5, 1.0], pose));
         assert!(take.push(1_033_333, &[f32::NAN, 1.0], pose));
         assert!(!take.push(1_033_333, &[0.0, 0.0], pose));
-        assert!(take.push(2_000_000, &[0.0, 0.0], (Quat::from_xyzw(0.0, 0.0, 0.0, 2.0), Vec3::X)));
+        assert!(take.push(
+            2_000_000,
+            &[0.0, 0.0],
+            (Quat::from_xyzw(0.0, 0.0, 0.0, 2.0), Vec3::X)
+        ));
         assert_eq!(take.times(), &[0.0, 0.033_333, 1.0]);
         assert_eq!(take.weights()[2], 0.0);
         assert_eq!((take.skipped(), take.non_finite()), (1, 1));
@@ -195,7 +199,11 @@ mod tests {
 
     #[test]
     fn a_rigid_move_of_the_points_is_the_translation_of_their_centroid() {
-        let neutral = [Vec3::new(1.0, 0.0, 0.0), Vec3::new(-1.0, 0.5, 0.2), Vec3::new(0.0, 2.0, -1.0)];
+        let neutral = [
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(-1.0, 0.5, 0.2),
+            Vec3::new(0.0, 2.0, -1.0),
+        ];
         let pose = HeadPose {
             rotation: Quat::from_rotation_y(0.3),
             translation: Vec3::new(0.1, -0.2, 0.05),
@@ -205,7 +213,10 @@ mod tests {
         let c0 = neutral.iter().copied().sum::<Vec3>() / 3.0;
         let c1 = moved.iter().copied().sum::<Vec3>() / 3.0;
         let t = head_translation(moved, &pose, Mat3::from_diagonal(Vec3::splat(2.0))).unwrap();
-        assert!((t - 2.0 * (c1 - c0)).length() <= 1e-5 * (1.0 + c1.length()), "{t}");
+        assert!(
+            (t - 2.0 * (c1 - c0)).length() <= 1e-5 * (1.0 + c1.length()),
+            "{t}"
+        );
         assert_eq!(head_translation([], &pose, Mat3::IDENTITY), None);
     }
 }

@@ -46,8 +46,16 @@ fn floats(json: &Value, bin: &[u8], a: usize) -> Vec<f32> {
         None => vec![0.0; count * comps],
     };
     if let Some(s) = acc.get("sparse") {
-        let idx = view(json, bin, s["indices"]["bufferView"].as_u64().unwrap() as usize);
-        let vals = f(view(json, bin, s["values"]["bufferView"].as_u64().unwrap() as usize));
+        let idx = view(
+            json,
+            bin,
+            s["indices"]["bufferView"].as_u64().unwrap() as usize,
+        );
+        let vals = f(view(
+            json,
+            bin,
+            s["values"]["bufferView"].as_u64().unwrap() as usize,
+        ));
         for (k, i) in idx.chunks_exact(4).enumerate() {
             let i = u32::from_le_bytes(i.try_into().unwrap()) as usize;
             out[i * comps..(i + 1) * comps].copy_from_slice(&vals[k * comps..(k + 1) * comps]);
@@ -115,13 +123,23 @@ fn the_glb_morphs_reproduce_b_d_on_every_vertex_including_seams() {
     let mut bytes = Vec::new();
     let summary = write_glb(&scene, &mut bytes).unwrap();
     assert_eq!(summary.bytes, bytes.len());
-    assert_eq!((summary.vertices, summary.primitives, summary.targets), (7, 2, 6));
-    assert_eq!(summary.sparse_targets, 3, "control 8.3 moves one vertex of 7");
+    assert_eq!(
+        (summary.vertices, summary.primitives, summary.targets),
+        (7, 2, 6)
+    );
+    assert_eq!(
+        summary.sparse_targets, 3,
+        "control 8.3 moves one vertex of 7"
+    );
     let (json, bin) = read_glb(&bytes);
     let mesh = &json["meshes"][0];
     assert_eq!(mesh["extras"]["targetNames"][4], "8.3.y");
     let prim = &mesh["primitives"][0];
-    let pos = floats(&json, &bin, prim["attributes"]["POSITION"].as_u64().unwrap() as usize);
+    let pos = floats(
+        &json,
+        &bin,
+        prim["attributes"]["POSITION"].as_u64().unwrap() as usize,
+    );
     let targets: Vec<Vec<f32>> = prim["targets"]
         .as_array()
         .unwrap()
@@ -129,9 +147,17 @@ fn the_glb_morphs_reproduce_b_d_on_every_vertex_including_seams() {
         .map(|t| floats(&json, &bin, t["POSITION"].as_u64().unwrap() as usize))
         .collect();
     let anim = &json["animations"][0];
-    let times = floats(&json, &bin, anim["samplers"][0]["input"].as_u64().unwrap() as usize);
+    let times = floats(
+        &json,
+        &bin,
+        anim["samplers"][0]["input"].as_u64().unwrap() as usize,
+    );
     assert_eq!(times, vec![0.0, 0.04]);
-    let weights = floats(&json, &bin, anim["samplers"][0]["output"].as_u64().unwrap() as usize);
+    let weights = floats(
+        &json,
+        &bin,
+        anim["samplers"][0]["output"].as_u64().unwrap() as usize,
+    );
     // glTF vertex 6 is rig vertex 2 again (the seam).
     let source = [0usize, 1, 2, 3, 4, 5, 2];
     for (k, d) in frames.iter().enumerate() {
@@ -144,13 +170,24 @@ fn the_glb_morphs_reproduce_b_d_on_every_vertex_including_seams() {
             }
             let want = (positions[i] + u[i]) * s;
             // f32 sums of at most 6 terms of size <= 0.05 m: a few ulps of 0.05.
-            assert!((p - want).abs().max_element() <= 8.0 * f32::EPSILON * 0.05, "{g}: {p} vs {want}");
+            assert!(
+                (p - want).abs().max_element() <= 8.0 * f32::EPSILON * 0.05,
+                "{g}: {p} vs {want}"
+            );
         }
     }
     // The pose: the head node's rotation and its translation from the pivot.
-    let rot = floats(&json, &bin, anim["samplers"][1]["output"].as_u64().unwrap() as usize);
+    let rot = floats(
+        &json,
+        &bin,
+        anim["samplers"][1]["output"].as_u64().unwrap() as usize,
+    );
     assert!((Quat::from_slice(&rot[4..8]).dot(Quat::from_rotation_y(0.1))).abs() > 1.0 - 1e-6);
-    let tr = floats(&json, &bin, anim["samplers"][2]["output"].as_u64().unwrap() as usize);
+    let tr = floats(
+        &json,
+        &bin,
+        anim["samplers"][2]["output"].as_u64().unwrap() as usize,
+    );
     let near = |a: &[f32], b: [f32; 3]| (Vec3::from_slice(a) - Vec3::from(b)).length() <= 1e-6;
     assert!(near(&tr[3..6], [1.01, 0.005, 0.0]), "{tr:?}");
     let node: Vec<f32> = json["nodes"][1]["translation"]
@@ -187,5 +224,8 @@ fn a_take_with_the_wrong_target_count_is_refused() {
         pivot: Vec3::ZERO,
     };
     let e = write_glb(&scene, &mut Vec::new()).unwrap_err();
-    assert!(matches!(e, GltfError::TargetCount { take: 1, mesh: 0 }), "{e}");
+    assert!(
+        matches!(e, GltfError::TargetCount { take: 1, mesh: 0 }),
+        "{e}"
+    );
 }

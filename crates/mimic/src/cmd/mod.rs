@@ -7,6 +7,8 @@ pub mod info;
 pub mod morph;
 pub mod render;
 pub mod replay;
+pub mod rig;
+pub mod rig_export;
 pub mod send;
 pub mod serve;
 pub mod setup;

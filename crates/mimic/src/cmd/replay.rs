@@ -7,8 +7,10 @@ use crate::cmd::setup::{
 use anyhow::{Context, bail};
 use glam::Vec3;
 use mimic_assets::{FramesWriter, load_morph_targets};
-use mimic_gltf::{Interpolation, Take, basis_morphs, basis_weights, head_translation, target_morphs};
 use mimic_capture::{FileSource, Pace, RecordingReader, Replay, ReplayOptions};
+use mimic_gltf::{
+    Interpolation, Take, basis_morphs, basis_weights, head_translation, target_morphs,
+};
 use mimic_retarget::frame_metrics::{max_vertex_motion, region_motion};
 use mimic_retarget::{
     BlendshapeFitter, FrameOutput, FrameStatus, StageSamples, WeightStats, WeightSummary,
@@ -152,7 +154,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut sink = match (&args.out, args.format) {
         (None, _) => Sink::None,
         (Some(out), OutFormat::Glb) => {
-            let path = if out.extension().is_some_and(|e| e.eq_ignore_ascii_case("glb")) {
+            let path = if out
+                .extension()
+                .is_some_and(|e| e.eq_ignore_ascii_case("glb"))
+            {
                 out.clone()
             } else {
                 out.join("take.glb")
@@ -162,7 +167,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     .with_context(|| format!("creating {}", dir.display()))?;
             }
             let scale = mimic_gltf::metres_per_unit(&rig.units).with_context(|| {
-                format!("rig `{}`: units `{}` have no length in metres for glTF", rig.name, rig.units)
+                format!(
+                    "rig `{}`: units `{}` have no length in metres for glTF",
+                    rig.name, rig.units
+                )
             })?;
             let targets = match &blend {
                 Some(b) => b.fitter.target_count(),
@@ -295,8 +303,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         g.translation = t * g.scale;
                     }
                 }
-                g.take
-                    .push(out.timestamp_us, &g.weights, (out.target_rotation, g.translation));
+                g.take.push(
+                    out.timestamp_us,
+                    &g.weights,
+                    (out.target_rotation, g.translation),
+                );
             } else if frame_index.is_multiple_of(args.every.max(1)) {
                 write_frame(
                     &mut sink,
@@ -332,7 +343,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let morphs = match &blend {
                 Some(b) => target_morphs(&b.targets, g.scale),
                 None => {
-                    let names: Vec<String> = rig.controls.iter().map(|c| c.fdp.to_string()).collect();
+                    let names: Vec<String> =
+                        rig.controls.iter().map(|c| c.fdp.to_string()).collect();
                     basis_morphs(prepared.retargeter.basis(), &names)
                 }
             };
@@ -348,7 +360,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )
             .with_context(|| g.path.display().to_string())?;
             w.flush().with_context(|| g.path.display().to_string())?;
-            gltf = Some((g.path, written, g.take.skipped(), started.elapsed().as_secs_f64()));
+            gltf = Some((
+                g.path,
+                written,
+                g.take.skipped(),
+                started.elapsed().as_secs_f64(),
+            ));
         }
         Sink::None | Sink::Obj { .. } => {}
     }
