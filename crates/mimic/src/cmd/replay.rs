@@ -2,11 +2,14 @@
 //! one GLB (docs/gltf.md).
 
 use crate::cmd::setup::{
-    BlendshapeArgs, Mode, PipelineArgs, RigArgs, prepare_with, write_obj_frame,
+    BlendshapeArgs, Mode, PipelineArgs, RigArgs, obj_frame_path, prepare_with,
 };
 use anyhow::{Context, bail};
 use glam::Vec3;
-use mimic_assets::{FramesWriter, load_morph_targets};
+use indicatif::{ProgressBar, ProgressStyle};
+use mimic_assets::{
+    FramesWriter, ObjExtras, load_morph_targets, load_rig_materials, write_mtl, write_obj_with,
+};
 use mimic_capture::{FileSource, Pace, RecordingReader, Replay, ReplayOptions};
 use mimic_gltf::{
     Interpolation, Take, basis_morphs, basis_weights, head_translation, target_morphs,
@@ -16,7 +19,7 @@ use mimic_retarget::{
     BlendshapeFitter, FrameOutput, FrameStatus, StageSamples, WeightStats, WeightSummary,
     elapsed_ns,
 };
-use mimic_types::{MorphTarget, Region, Rig};
+use mimic_types::{Mesh, MorphTarget, Region, Rig};
 use serde_json::json;
 use std::fs::File;
 use std::io::{BufWriter, IsTerminal, Write};
@@ -26,7 +29,8 @@ use std::time::Instant;
 /// Output file format.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
 pub enum OutFormat {
-    /// One OBJ per frame (frame_000000.obj ...), for Blender and friends.
+    /// One OBJ per frame (frame_000000.obj ...) with normals, UVs and the rig's materials (one
+    /// `.mtl` beside them), for Blender and friends.
     Obj,
     /// One `frames.bin` (see docs/frames-format.md).
     Bin,
@@ -87,6 +91,8 @@ enum Sink {
     Obj {
         dir: PathBuf,
         written: usize,
+        bytes: u64,
+        materials: ObjMaterials,
     },
     Bin {
         writer: FramesWriter<BufWriter<File>>,
@@ -94,6 +100,14 @@ enum Sink {
         written: usize,
     },
     Glb(Box<GlbSink>),
+}
+
+/// The materials that OBJ frames name: the `.mtl` written beside them, `usemtl` per triangle.
+#[derive(Default)]
+struct ObjMaterials {
+    mtllib: Option<String>,
+    names: Vec<String>,
+    triangle_material: Vec<Option<usize>>,
 }
 
 /// The keys of a GLB being collected.
@@ -130,9 +144,9 @@ fn status_code(s: FrameStatus) -> u32 {
 /// Runs `mimic replay`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut reader = RecordingReader::open(&args.recording, None)?;
-    // Normals are only written by the binary format; OBJ readers recompute their own.
+    // Normals are written by the binary and OBJ formats (a GLB's targets carry none).
     let settings = mimic_retarget::RetargetSettings {
-        normals: args.format == OutFormat::Bin && args.out.is_some(),
+        normals: matches!(args.format, OutFormat::Bin | OutFormat::Obj) && args.out.is_some(),
         // Blendshape mode blends the mesh itself: skip `B d`.
         positions: args.blend.mode == Mode::Freeform,
         ..args.pipeline.settings()
@@ -195,6 +209,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 OutFormat::Obj => Sink::Obj {
                     dir: dir.clone(),
                     written: 0,
+                    bytes: 0,
+                    materials: obj_materials(&args.rig.rig_path(), rig, dir)?,
                 },
                 OutFormat::Glb => unreachable!("matched above"),
                 OutFormat::Bin => {
@@ -245,7 +261,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut samples = StageSamples::default();
     let mut non_finite_frames = 0usize;
     let mut frame_index = 0usize;
-    let progress = std::io::stderr().is_terminal() && !args.json;
+    // A progress bar on a terminal only (hidden when stderr is not one, or with --json).
+    let bar = if std::io::stderr().is_terminal() && !args.json {
+        let bar = ProgressBar::new_spinner();
+        bar.set_style(
+            ProgressStyle::with_template("{spinner} replay: {pos} frames ({per_sec}) {msg}")
+                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
+        );
+        bar
+    } else {
+        ProgressBar::hidden()
+    };
     let wall = Instant::now();
     runtime.block_on(async {
         while let Some(item) = replay.next().await {
@@ -313,30 +339,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     &mut sink,
                     frame_index,
                     &out,
-                    &prepared.rig.mesh.triangles,
+                    &prepared.rig.mesh,
                     &prepared.rig.name,
                 )?;
             }
             frame_index += 1;
-            if progress && frame_index.is_multiple_of(50) {
-                let fps = frame_index as f64 / wall.elapsed().as_secs_f64();
-                eprint!("\rreplay: {frame_index} frames ({fps:.0} frames/s)");
-            }
+            bar.set_position(frame_index as u64);
             if args.max_frames.is_some_and(|m| frame_index >= m) {
                 break;
             }
         }
         anyhow::Ok(())
     })?;
-    if progress {
-        eprintln!();
-    }
+    bar.set_message(match &sink {
+        Sink::Glb(g) => format!("writing {}", g.path.display()),
+        _ => String::new(),
+    });
     let wall_s = wall.elapsed().as_secs_f64();
     let files = sink.written();
+    let mut out_bytes: u64 = 0;
     let mut gltf = None;
     match sink {
-        Sink::Bin { writer, .. } => {
+        Sink::Bin { writer, path, .. } => {
             writer.finish()?;
+            out_bytes = std::fs::metadata(&path).map_or(0, |m| m.len());
         }
         Sink::Glb(g) => {
             let started = Instant::now();
@@ -360,6 +386,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )
             .with_context(|| g.path.display().to_string())?;
             w.flush().with_context(|| g.path.display().to_string())?;
+            out_bytes = written.bytes as u64;
             gltf = Some((
                 g.path,
                 written,
@@ -367,8 +394,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 started.elapsed().as_secs_f64(),
             ));
         }
-        Sink::None | Sink::Obj { .. } => {}
+        Sink::Obj { bytes, .. } => out_bytes = bytes,
+        Sink::None => {}
     }
+    bar.finish_and_clear();
     for w in [metrics, controls_csv].into_iter().flatten() {
         w.into_inner().map_err(|e| e.into_error())?;
     }
@@ -404,6 +433,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "processing_frames_per_second": step.per_second(),
         "wall_s": wall_s,
         "frames_written": files,
+        "bytes_written": out_bytes,
         "out": args.out.as_ref().map(|p| p.display().to_string()),
         "blendshapes": blendshapes,
         "gltf": gltf.as_ref().map(|(path, w, skipped, secs)| json!({
@@ -451,7 +481,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 }
             );
         } else if let Some(dir) = &args.out {
-            println!("  wrote {files} frames to {}", dir.display());
+            println!(
+                "  wrote {files} frames ({:.1} MB) to {}",
+                out_bytes as f64 / 1e6,
+                dir.display()
+            );
         }
     }
     Ok(())
@@ -461,17 +495,36 @@ fn write_frame(
     sink: &mut Sink,
     index: usize,
     out: &FrameOutput,
-    triangles: &[[u32; 3]],
+    mesh: &Mesh,
     rig: &str,
 ) -> anyhow::Result<()> {
     match sink {
         Sink::None | Sink::Glb(_) => {}
-        Sink::Obj { dir, written } => {
+        Sink::Obj {
+            dir,
+            written,
+            bytes,
+            materials,
+        } => {
             let header = format!(
                 "mimic replay onto rig {rig}: frame {index}, t = {} us",
                 out.timestamp_us
             );
-            write_obj_frame(dir, index, &header, &out.positions, triangles)?;
+            let extras = ObjExtras {
+                normals: &out.normals,
+                uvs: &mesh.uvs,
+                uv_triangles: &mesh.uv_triangles,
+                mtllib: materials.mtllib.as_deref(),
+                materials: &materials.names,
+                triangle_material: &materials.triangle_material,
+            };
+            let path = obj_frame_path(dir, index);
+            let file = File::create(&path).with_context(|| path.display().to_string())?;
+            let mut w = BufWriter::new(file);
+            write_obj_with(&mut w, &header, &out.positions, &mesh.triangles, &extras)
+                .and_then(|()| w.flush())
+                .with_context(|| path.display().to_string())?;
+            *bytes += std::fs::metadata(&path).map_or(0, |m| m.len());
             *written += 1;
         }
         Sink::Bin {
@@ -492,6 +545,30 @@ fn write_frame(
         }
     }
     Ok(())
+}
+
+/// Writes the rig's materials as `<rig>.mtl` in `dir` for the OBJ frames to name (none when its
+/// mesh has no materials).
+fn obj_materials(rig_path: &Path, rig: &Rig, dir: &Path) -> anyhow::Result<ObjMaterials> {
+    let mats = load_rig_materials(rig_path)?;
+    if mats.materials.is_empty() || mats.triangle_material.len() != rig.mesh.triangles.len() {
+        return Ok(ObjMaterials::default());
+    }
+    let name = format!("{}.mtl", rig.name);
+    let path = dir.join(&name);
+    let mut w = BufWriter::new(File::create(&path).with_context(|| path.display().to_string())?);
+    write_mtl(
+        &mut w,
+        &format!("materials of rig {}", rig.name),
+        &mats.materials,
+    )
+    .and_then(|()| w.flush())
+    .with_context(|| path.display().to_string())?;
+    Ok(ObjMaterials {
+        mtllib: Some(name),
+        names: mats.materials.iter().map(|m| m.name.clone()).collect(),
+        triangle_material: mats.triangle_material,
+    })
 }
 
 /// The blendshape stage of a replay: fitter, weights CSV and running statistics.

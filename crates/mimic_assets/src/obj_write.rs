@@ -1,0 +1,153 @@
+//! OBJ frames with normals, texture coordinates and materials (`vn`, `vt`, `mtllib`/`usemtl`),
+//! and the MTL file they name.
+
+use crate::Material;
+use glam::{Vec2, Vec3};
+use std::io::Write;
+
+/// What an OBJ frame carries besides positions and triangles; each part may be empty.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct ObjExtras<'a> {
+    /// One normal per vertex (`vn`, indexed like the vertices), or empty.
+    pub normals: &'a [Vec3],
+    /// Texture coordinates (`vt`, OBJ convention), or empty.
+    pub uvs: &'a [Vec2],
+    /// Per triangle, its corners' indices into `uvs`; empty, or parallel to the triangles.
+    pub uv_triangles: &'a [[u32; 3]],
+    /// File name for `mtllib` (relative to the OBJ), or `None`.
+    pub mtllib: Option<&'a str>,
+    /// Material names (`usemtl`).
+    pub materials: &'a [String],
+    /// Material of each triangle (index into `materials`); empty, or parallel to the triangles.
+    pub triangle_material: &'a [Option<usize>],
+}
+
+/// Writes an OBJ: `header` as comments, `mtllib`, `v`, `vt`, `vn`, then the faces (`f v/vt/vn`,
+/// with `usemtl` wherever the material changes).
+pub fn write_obj_with<W: Write>(
+    w: &mut W,
+    header: &str,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+    extras: &ObjExtras<'_>,
+) -> std::io::Result<()> {
+    for line in header.lines() {
+        writeln!(w, "# {line}")?;
+    }
+    if let Some(lib) = extras.mtllib {
+        writeln!(w, "mtllib {lib}")?;
+    }
+    for p in positions {
+        writeln!(w, "v {} {} {}", p.x, p.y, p.z)?;
+    }
+    let uvs = !extras.uvs.is_empty() && extras.uv_triangles.len() == triangles.len();
+    if uvs {
+        for t in extras.uvs {
+            writeln!(w, "vt {} {}", t.x, t.y)?;
+        }
+    }
+    let normals = extras.normals.len() == positions.len() && !positions.is_empty();
+    if normals {
+        for n in extras.normals {
+            writeln!(w, "vn {} {} {}", n.x, n.y, n.z)?;
+        }
+    }
+    let materials = extras.triangle_material.len() == triangles.len();
+    let mut current: Option<Option<usize>> = None;
+    for (k, t) in triangles.iter().enumerate() {
+        if materials {
+            let m = extras.triangle_material[k];
+            if current != Some(m) {
+                let name = m.and_then(|m| extras.materials.get(m));
+                writeln!(w, "usemtl {}", name.map_or("default", String::as_str))?;
+                current = Some(m);
+            }
+        }
+        write!(w, "f")?;
+        for (c, v) in t.iter().enumerate() {
+            let v = v + 1;
+            match (uvs, normals) {
+                (true, true) => write!(w, " {v}/{}/{v}", extras.uv_triangles[k][c] + 1)?,
+                (true, false) => write!(w, " {v}/{}", extras.uv_triangles[k][c] + 1)?,
+                (false, true) => write!(w, " {v}//{v}")?,
+                (false, false) => write!(w, " {v}")?,
+            }
+        }
+        writeln!(w)?;
+    }
+    Ok(())
+}
+
+/// Writes `materials` as an MTL file: `newmtl`, `Kd`, and `d 0.3` for see-through ones.
+pub fn write_mtl<W: Write>(w: &mut W, header: &str, materials: &[Material]) -> std::io::Result<()> {
+    for line in header.lines() {
+        writeln!(w, "# {line}")?;
+    }
+    for m in materials {
+        let [r, g, b] = m.diffuse;
+        writeln!(w, "newmtl {}\nKd {r} {g} {b}", m.name)?;
+        if m.transparent {
+            writeln!(w, "d 0.3")?;
+        }
+        writeln!(w)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use std::path::Path;
+
+    #[test]
+    fn a_written_frame_reads_back_with_its_uvs_and_materials() {
+        let dir = tempfile::tempdir().unwrap();
+        let positions = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::ONE];
+        let triangles = [[0, 1, 2], [2, 1, 3]];
+        let uvs = [Vec2::ZERO, Vec2::X, Vec2::Y, Vec2::ONE, Vec2::splat(0.5)];
+        let uv_triangles = [[0, 1, 2], [4, 1, 3]];
+        let normals = [Vec3::Z; 4];
+        let mats = vec![
+            Material {
+                name: "A".into(),
+                diffuse: [1.0, 0.0, 0.0],
+                transparent: false,
+            },
+            Material {
+                name: "B".into(),
+                diffuse: [0.0, 0.0, 1.0],
+                transparent: true,
+            },
+        ];
+        let names: Vec<String> = mats.iter().map(|m| m.name.clone()).collect();
+        let mut mtl = Vec::new();
+        write_mtl(&mut mtl, "test", &mats).unwrap();
+        std::fs::write(dir.path().join("m.mtl"), &mtl).unwrap();
+        let extras = ObjExtras {
+            normals: &normals,
+            uvs: &uvs,
+            uv_triangles: &uv_triangles,
+            mtllib: Some("m.mtl"),
+            materials: &names,
+            triangle_material: &[Some(1), Some(0)],
+        };
+        let mut obj = Vec::new();
+        write_obj_with(&mut obj, "frame 0", &positions, &triangles, &extras).unwrap();
+        let text = String::from_utf8(obj).unwrap();
+        assert!(text.contains("f 3/5/3 2/2/2 4/4/4"), "{text}");
+        let path = dir.path().join("f.obj");
+        let mesh = crate::parse_obj(&path, &text).unwrap();
+        assert_eq!(mesh.positions, positions);
+        assert_eq!(mesh.triangles, triangles);
+        // The reader may renumber the UVs: each corner's UV is what was written.
+        for (got, want) in mesh.uv_triangles.iter().zip(&uv_triangles) {
+            for c in 0..3 {
+                assert_eq!(mesh.uvs[got[c] as usize], uvs[want[c] as usize]);
+            }
+        }
+        let m = crate::parse_obj_materials(&path, &text).unwrap();
+        assert_eq!(m.triangle_material, vec![Some(1), Some(0)]);
+        assert_eq!(m.materials, mats);
+        assert!(Path::new(&dir.path().join("m.mtl")).exists());
+    }
+}
