@@ -28,5 +28,5 @@ pub use morph::{
     morph_target, read_morph_file, round_trip_tolerance, save_morph_file, write_morph_file,
 };
 pub use obj::{load_obj, parse_obj, write_obj};
-pub use obj_write::{ObjExtras, write_mtl, write_obj_with};
+pub use obj_write::{ObjExtras, ObjFrames, write_mtl, write_obj_with};
 pub use rig::{RigFile, load_rig, parse_rig};

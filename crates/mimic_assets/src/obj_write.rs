@@ -1,9 +1,11 @@
 //! OBJ frames with normals, texture coordinates and materials (`vn`, `vt`, `mtllib`/`usemtl`),
 //! and the MTL file they name.
 
-use crate::Material;
+use crate::{AssetError, Material};
 use glam::{Vec2, Vec3};
+use mimic_types::Mesh;
 use std::io::Write;
+use std::path::Path;
 
 /// What an OBJ frame carries besides positions and triangles; each part may be empty.
 #[derive(Clone, Copy, Debug, Default)]
@@ -94,6 +96,118 @@ pub fn write_mtl<W: Write>(w: &mut W, header: &str, materials: &[Material]) -> s
     Ok(())
 }
 
+/// A rig's deformed frames as OBJ files in one folder: the rig's materials as one `.mtl` beside
+/// them, and per frame `v`, `vt`, `vn` and `usemtl`/`f` ([`write_obj_with`]).
+#[derive(Clone, Debug)]
+pub struct ObjFrames {
+    mtllib: Option<String>,
+    names: Vec<String>,
+    triangle_material: Vec<Option<usize>>,
+    written: usize,
+    bytes: u64,
+}
+
+impl ObjFrames {
+    /// Prepares `dir` for frames of the rig at `rig_path` called `rig_name`, whose mesh has
+    /// `triangle_count` triangles: writes `<rig_name>.mtl` there when the mesh names materials.
+    pub fn new(
+        dir: &Path,
+        rig_path: &Path,
+        rig_name: &str,
+        triangle_count: usize,
+    ) -> Result<Self, AssetError> {
+        let mats = crate::load_rig_materials(rig_path)?;
+        let mut out = Self {
+            mtllib: None,
+            names: Vec::new(),
+            triangle_material: Vec::new(),
+            written: 0,
+            bytes: 0,
+        };
+        if mats.materials.is_empty() || mats.triangle_material.len() != triangle_count {
+            return Ok(out);
+        }
+        let name = format!("{rig_name}.mtl");
+        let path = dir.join(&name);
+        let mut text = Vec::new();
+        write_mtl(
+            &mut text,
+            &format!("materials of rig {rig_name}"),
+            &mats.materials,
+        )
+        .and_then(|()| std::fs::write(&path, &text))
+        .map_err(|cause| AssetError::Io { path, cause })?;
+        out.bytes = text.len() as u64;
+        out.mtllib = Some(name);
+        out.names = mats.materials.iter().map(|m| m.name.clone()).collect();
+        out.triangle_material = mats.triangle_material;
+        Ok(out)
+    }
+
+    /// Writes one frame to `path`: `positions` and `normals` (one per vertex, or empty) of
+    /// `mesh`'s vertices, with its triangles and UVs.
+    pub fn write(
+        &mut self,
+        path: &Path,
+        header: &str,
+        positions: &[Vec3],
+        normals: &[Vec3],
+        mesh: &Mesh,
+    ) -> Result<(), AssetError> {
+        let extras = ObjExtras {
+            normals,
+            uvs: &mesh.uvs,
+            uv_triangles: &mesh.uv_triangles,
+            mtllib: self.mtllib.as_deref(),
+            materials: &self.names,
+            triangle_material: &self.triangle_material,
+        };
+        let io = |cause| AssetError::Io {
+            path: path.to_path_buf(),
+            cause,
+        };
+        let file = std::fs::File::create(path).map_err(io)?;
+        let mut w = CountingWriter {
+            inner: std::io::BufWriter::new(file),
+            bytes: 0,
+        };
+        write_obj_with(&mut w, header, positions, &mesh.triangles, &extras)
+            .and_then(|()| w.flush())
+            .map_err(io)?;
+        self.bytes += w.bytes;
+        self.written += 1;
+        Ok(())
+    }
+
+    /// Frames written.
+    pub fn written(&self) -> usize {
+        self.written
+    }
+
+    /// Bytes written, the `.mtl` included.
+    pub fn bytes(&self) -> u64 {
+        self.bytes
+    }
+}
+
+/// A writer that counts the bytes through it.
+struct CountingWriter<W> {
+    inner: W,
+    bytes: u64,
+}
+
+impl<W: Write> Write for CountingWriter<W> {
+    fn write(&mut self, buf: &[u8]) -> std::io::Result<usize> {
+        let n = self.inner.write(buf)?;
+        self.bytes += n as u64;
+        Ok(n)
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.inner.flush()
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -149,5 +263,45 @@ mod tests {
         assert_eq!(m.triangle_material, vec![Some(1), Some(0)]);
         assert_eq!(m.materials, mats);
         assert!(Path::new(&dir.path().join("m.mtl")).exists());
+    }
+
+    #[test]
+    fn ict_frames_name_the_rigs_materials_and_candide3_frames_none() {
+        let rigs = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/rigs");
+        let dir = tempfile::tempdir().unwrap();
+        let ict = rigs.join("ict-face.toml");
+        let mesh = crate::load_obj(&crate::rig_mesh_path(&ict).unwrap()).unwrap();
+        let mut frames = ObjFrames::new(dir.path(), &ict, "ict", mesh.triangles.len()).unwrap();
+        let frame = dir.path().join("f.obj");
+        frames
+            .write(&frame, "rest", &mesh.positions, &[], &mesh)
+            .unwrap();
+        assert_eq!(frames.written(), 1);
+        let mtl = std::fs::metadata(dir.path().join("ict.mtl")).unwrap().len();
+        let obj = std::fs::metadata(&frame).unwrap().len();
+        assert_eq!(frames.bytes(), mtl + obj);
+        // The frame reads back as the rig's mesh with the rig's materials per triangle.
+        let text = std::fs::read_to_string(&frame).unwrap();
+        let back = crate::parse_obj(&frame, &text).unwrap();
+        assert_eq!(back.positions, mesh.positions);
+        assert_eq!(back.triangles, mesh.triangles);
+        let want = crate::load_rig_materials(&ict).unwrap();
+        let got = crate::parse_obj_materials(&frame, &text).unwrap();
+        assert_eq!(got.triangle_material, want.triangle_material);
+        assert_eq!(got.materials.len(), want.materials.len());
+        for (g, w) in got.materials.iter().zip(&want.materials) {
+            assert_eq!(
+                (&g.name, g.diffuse, g.transparent),
+                (&w.name, w.diffuse, w.transparent)
+            );
+        }
+        let candide = rigs.join("candide3.toml");
+        let mesh = crate::load_obj(&crate::rig_mesh_path(&candide).unwrap()).unwrap();
+        let mut frames = ObjFrames::new(dir.path(), &candide, "c3", mesh.triangles.len()).unwrap();
+        frames
+            .write(&frame, "rest", &mesh.positions, &[], &mesh)
+            .unwrap();
+        assert!(!std::fs::read_to_string(&frame).unwrap().contains("mtllib"));
+        assert!(!dir.path().join("c3.mtl").exists());
     }
 }

@@ -15,7 +15,7 @@ const SEE_THROUGH_ALPHA: f32 = 0.3;
 #[derive(Clone, Debug, PartialEq)]
 pub struct RigLookParts {
     /// Materials: white base colour times the vertex colours; alpha 0 (blended) for the parts the
-    /// look hides, [`SEE_THROUGH_ALPHA`] for other see-through ones.
+    /// look hides, 0.3 for other see-through ones.
     pub materials: Vec<GltfMaterial>,
     /// Material of each triangle.
     pub triangle_material: Vec<Option<usize>>,

@@ -7,9 +7,7 @@ use crate::cmd::setup::{
 use anyhow::{Context, bail};
 use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
-use mimic_assets::{
-    FramesWriter, ObjExtras, load_morph_targets, load_rig_materials, write_mtl, write_obj_with,
-};
+use mimic_assets::{FramesWriter, ObjFrames, load_morph_targets};
 use mimic_capture::{FileSource, Pace, RecordingReader, Replay, ReplayOptions};
 use mimic_gltf::{
     Interpolation, Take, basis_morphs, basis_weights, head_translation, target_morphs,
@@ -90,9 +88,7 @@ enum Sink {
     None,
     Obj {
         dir: PathBuf,
-        written: usize,
-        bytes: u64,
-        materials: ObjMaterials,
+        frames: ObjFrames,
     },
     Bin {
         writer: FramesWriter<BufWriter<File>>,
@@ -100,14 +96,6 @@ enum Sink {
         written: usize,
     },
     Glb(Box<GlbSink>),
-}
-
-/// The materials that OBJ frames name: the `.mtl` written beside them, `usemtl` per triangle.
-#[derive(Default)]
-struct ObjMaterials {
-    mtllib: Option<String>,
-    names: Vec<String>,
-    triangle_material: Vec<Option<usize>>,
 }
 
 /// The keys of a GLB being collected.
@@ -126,7 +114,8 @@ impl Sink {
     fn written(&self) -> usize {
         match self {
             Sink::None => 0,
-            Sink::Obj { written, .. } | Sink::Bin { written, .. } => *written,
+            Sink::Obj { frames, .. } => frames.written(),
+            Sink::Bin { written, .. } => *written,
             Sink::Glb(g) => g.take.len(),
         }
     }
@@ -143,6 +132,9 @@ fn status_code(s: FrameStatus) -> u32 {
 
 /// Runs `mimic replay`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if (args.no_pose || args.step_keys) && args.format != OutFormat::Glb {
+        bail!("--no-pose and --step-keys are options of --format glb");
+    }
     let mut reader = RecordingReader::open(&args.recording, None)?;
     // Normals are written by the binary and OBJ formats (a GLB's targets carry none).
     let settings = mimic_retarget::RetargetSettings {
@@ -208,9 +200,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             match format {
                 OutFormat::Obj => Sink::Obj {
                     dir: dir.clone(),
-                    written: 0,
-                    bytes: 0,
-                    materials: obj_materials(&args.rig.rig_path(), rig, dir)?,
+                    frames: ObjFrames::new(
+                        dir,
+                        &args.rig.rig_path(),
+                        &rig.name,
+                        rig.mesh.triangles.len(),
+                    )?,
                 },
                 OutFormat::Glb => unreachable!("matched above"),
                 OutFormat::Bin => {
@@ -394,7 +389,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 started.elapsed().as_secs_f64(),
             ));
         }
-        Sink::Obj { bytes, .. } => out_bytes = bytes,
+        Sink::Obj { frames, .. } => out_bytes = frames.bytes(),
         Sink::None => {}
     }
     bar.finish_and_clear();
@@ -500,32 +495,13 @@ fn write_frame(
 ) -> anyhow::Result<()> {
     match sink {
         Sink::None | Sink::Glb(_) => {}
-        Sink::Obj {
-            dir,
-            written,
-            bytes,
-            materials,
-        } => {
+        Sink::Obj { dir, frames } => {
             let header = format!(
                 "mimic replay onto rig {rig}: frame {index}, t = {} us",
                 out.timestamp_us
             );
-            let extras = ObjExtras {
-                normals: &out.normals,
-                uvs: &mesh.uvs,
-                uv_triangles: &mesh.uv_triangles,
-                mtllib: materials.mtllib.as_deref(),
-                materials: &materials.names,
-                triangle_material: &materials.triangle_material,
-            };
             let path = obj_frame_path(dir, index);
-            let file = File::create(&path).with_context(|| path.display().to_string())?;
-            let mut w = BufWriter::new(file);
-            write_obj_with(&mut w, &header, &out.positions, &mesh.triangles, &extras)
-                .and_then(|()| w.flush())
-                .with_context(|| path.display().to_string())?;
-            *bytes += std::fs::metadata(&path).map_or(0, |m| m.len());
-            *written += 1;
+            frames.write(&path, &header, &out.positions, &out.normals, mesh)?;
         }
         Sink::Bin {
             writer,
@@ -545,30 +521,6 @@ fn write_frame(
         }
     }
     Ok(())
-}
-
-/// Writes the rig's materials as `<rig>.mtl` in `dir` for the OBJ frames to name (none when its
-/// mesh has no materials).
-fn obj_materials(rig_path: &Path, rig: &Rig, dir: &Path) -> anyhow::Result<ObjMaterials> {
-    let mats = load_rig_materials(rig_path)?;
-    if mats.materials.is_empty() || mats.triangle_material.len() != rig.mesh.triangles.len() {
-        return Ok(ObjMaterials::default());
-    }
-    let name = format!("{}.mtl", rig.name);
-    let path = dir.join(&name);
-    let mut w = BufWriter::new(File::create(&path).with_context(|| path.display().to_string())?);
-    write_mtl(
-        &mut w,
-        &format!("materials of rig {}", rig.name),
-        &mats.materials,
-    )
-    .and_then(|()| w.flush())
-    .with_context(|| path.display().to_string())?;
-    Ok(ObjMaterials {
-        mtllib: Some(name),
-        names: mats.materials.iter().map(|m| m.name.clone()).collect(),
-        triangle_material: mats.triangle_material,
-    })
 }
 
 /// The blendshape stage of a replay: fitter, weights CSV and running statistics.
