@@ -173,3 +173,49 @@ fn rig_export_writes_a_valid_glb_of_the_rig_alone() {
         check(&glb, None);
     }
 }
+
+/// The JSON chunk of a GLB file.
+fn glb_json(path: &Path) -> serde_json::Value {
+    let bytes = std::fs::read(path).unwrap();
+    assert_eq!(&bytes[0..4], b"glTF");
+    let len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    serde_json::from_slice(&bytes[20..20 + len]).unwrap()
+}
+
+#[test]
+fn no_pose_and_step_keys_leave_one_step_weights_channel() {
+    let dir = tempfile::tempdir().unwrap();
+    let rec = "recordings/a_doubt_question.kinect121.jsonl";
+    let posed = dir.path().join("posed.glb");
+    let flat = dir.path().join("flat.glb");
+    for (out, extra) in [
+        (&posed, &[][..]),
+        (&flat, &["--no-pose", "--step-keys"][..]),
+    ] {
+        let mut args = vec!["replay", rec, "--rig", "candide3", "--format", "glb"];
+        args.extend_from_slice(extra);
+        let o = mimic(&[&args[..], &["--out", out.to_str().unwrap()]].concat());
+        assert!(o.status.success(), "{:?}", text(&o));
+    }
+    let paths = |v: &serde_json::Value| -> Vec<String> {
+        v["animations"][0]["channels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c["target"]["path"].as_str().unwrap().to_string())
+            .collect()
+    };
+    let (p, f) = (glb_json(&posed), glb_json(&flat));
+    assert_eq!(paths(&p), ["weights", "rotation", "translation"]);
+    assert_eq!(paths(&f), ["weights"]);
+    assert_eq!(p["animations"][0]["samplers"][0]["interpolation"], "LINEAR");
+    assert_eq!(f["animations"][0]["samplers"][0]["interpolation"], "STEP");
+    // Same keys and targets either way.
+    assert_eq!(p["meshes"][0]["extras"], f["meshes"][0]["extras"]);
+    if node_ready() {
+        check(&flat, None);
+    }
+    let o = mimic(&["replay", rec, "--rig", "candide3", "--no-pose"]);
+    assert!(!o.status.success());
+    assert!(text(&o).1.contains("--format glb"), "{:?}", text(&o));
+}

@@ -260,7 +260,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let bar = if std::io::stderr().is_terminal() && !args.json {
         let bar = ProgressBar::new_spinner();
         bar.set_style(
-            ProgressStyle::with_template("{spinner} replay: {pos} frames ({per_sec}) {msg}")
+            ProgressStyle::with_template("{spinner} replay: {pos} frames in {elapsed} {msg}")
                 .unwrap_or_else(|_| ProgressStyle::default_spinner()),
         );
         bar
