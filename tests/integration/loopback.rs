@@ -77,6 +77,11 @@ impl Serve {
         rest
     }
 
+    /// The server's process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     /// The server's counters (a stats request).
     pub fn stats(&self) -> Value {
         let mut s = connect(&self.tcp);
@@ -113,6 +118,20 @@ impl Drop for Serve {
 /// A TCP connection with a read timeout.
 pub fn connect(addr: &str) -> TcpStream {
     let s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(READ_TIMEOUT)).unwrap();
+    s
+}
+
+/// A TCP connection from source address `from` (any of 127.0.0.0/8 on Linux) with a read
+/// timeout.
+pub fn connect_from(from: &str, addr: &str) -> TcpStream {
+    use socket2::{Domain, Socket, Type};
+    let to: std::net::SocketAddr = addr.parse().unwrap();
+    let src: std::net::SocketAddr = format!("{from}:0").parse().unwrap();
+    let s = Socket::new(Domain::IPV4, Type::STREAM, None).unwrap();
+    s.bind(&src.into()).unwrap();
+    s.connect(&to.into()).unwrap();
+    let s: TcpStream = s.into();
     s.set_read_timeout(Some(READ_TIMEOUT)).unwrap();
     s
 }

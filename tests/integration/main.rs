@@ -5,6 +5,7 @@
     reason = "a test: a failed unwrap is the failure report"
 )]
 
+mod churn;
 mod clock;
 mod config_limits;
 mod faults;
@@ -19,6 +20,7 @@ mod render;
 mod replay;
 mod serve;
 mod serve_weights;
+mod slots;
 mod view;
 
 use std::path::PathBuf;

@@ -14,6 +14,18 @@ pub struct ServerSettings {
     pub max_sessions: usize,
     /// Viewers at once; more are refused with `too_many_viewers`.
     pub max_viewers: usize,
+    /// Connections at once from one IP address (trackers, viewers, stats and connections that
+    /// have not said hello yet); more are answered `too_many_connections` and closed.
+    pub max_connections_per_peer: usize,
+    /// Connection slots kept for stats requests when every other slot is taken; a connection in
+    /// one of them must send its stats hello within 2 s.
+    pub stats_slots: usize,
+    /// A viewer whose session has had no tracker (and which has had no message) this long is
+    /// closed with `idle_timeout`.
+    pub viewer_idle_timeout: Duration,
+    /// TCP keepalive on every connection: probes start after this much silence (a vanished peer
+    /// is dropped about 30 s later).
+    pub tcp_keepalive: Duration,
     /// Longest message (tracker line, hello) in bytes; longer lines are answered `too_long`.
     pub max_message_bytes: usize,
     /// A tracker (or a connection that has not said hello) silent this long is closed.
@@ -49,6 +61,10 @@ impl Default for ServerSettings {
         Self {
             max_sessions: 128,
             max_viewers: 256,
+            max_connections_per_peer: 64,
+            stats_slots: 4,
+            viewer_idle_timeout: Duration::from_secs(60),
+            tcp_keepalive: Duration::from_secs(30),
             max_message_bytes: 1 << 20,
             idle_timeout: Duration::from_secs(30),
             viewer_queue_frames: 8,

@@ -35,6 +35,22 @@ pub struct Args {
     /// Maximum viewers at once.
     #[arg(long, default_value_t = ServerSettings::default().max_viewers)]
     pub max_viewers: usize,
+    /// Maximum connections at once from one IP address (any kind, also before their hello);
+    /// past it a connection is answered `too_many_connections` and closed.
+    #[arg(long, default_value_t = ServerSettings::default().max_connections_per_peer)]
+    pub max_connections_per_peer: usize,
+    /// Connection slots kept for stats requests when all others are taken (a stats hello
+    /// within 2 s).
+    #[arg(long, default_value_t = ServerSettings::default().stats_slots)]
+    pub stats_slots: usize,
+    /// Seconds a viewer may wait without a message while its session has no tracker; then it
+    /// is closed with `idle_timeout`.
+    #[arg(long, default_value_t = ServerSettings::default().viewer_idle_timeout.as_secs_f64(), value_parser = parse_seconds)]
+    pub viewer_idle_timeout: f64,
+    /// Seconds of silence on a connection before TCP keepalive probes start (a vanished peer is
+    /// dropped about 30 s later).
+    #[arg(long, default_value_t = ServerSettings::default().tcp_keepalive.as_secs_f64(), value_parser = parse_seconds)]
+    pub tcp_keepalive: f64,
     /// Maximum message (line) size in bytes.
     #[arg(long, default_value_t = ServerSettings::default().max_message_bytes)]
     pub max_message_bytes: usize,
@@ -103,6 +119,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_sessions: args.max_sessions,
         max_viewers: args.max_viewers,
         max_message_bytes: args.max_message_bytes,
+        max_connections_per_peer: args.max_connections_per_peer.max(1),
+        stats_slots: args.stats_slots,
+        viewer_idle_timeout: seconds(args.viewer_idle_timeout, "--viewer-idle-timeout")?,
+        tcp_keepalive: seconds(args.tcp_keepalive, "--tcp-keepalive")?,
         idle_timeout: seconds(args.idle_timeout, "--idle-timeout")?,
         viewer_queue_frames: args.viewer_queue,
         max_errors_in_a_row: args.max_errors.max(1),
