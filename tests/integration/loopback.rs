@@ -24,6 +24,8 @@ pub struct Serve {
     pub tcp: String,
     /// UDP address.
     pub udp: String,
+    /// The `--token` it was started with (its stats requests present it).
+    pub token: Option<String>,
 }
 
 impl Serve {
@@ -34,10 +36,15 @@ impl Serve {
             .args(args)
             .current_dir(repo())
             .env_remove("RUST_LOG")
+            .env_remove("MIMIC_TOKEN")
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
             .expect("spawn mimic serve");
+        let token = args
+            .iter()
+            .position(|a| *a == "--token")
+            .map(|k| args[k + 1].to_string());
         let mut stdout = BufReader::new(child.stdout.take().unwrap());
         let mut first = String::new();
         stdout.read_line(&mut first).unwrap();
@@ -52,6 +59,7 @@ impl Serve {
             stdout,
             tcp: words[3].to_string(),
             udp: words[5].to_string(),
+            token,
         }
     }
 
@@ -85,7 +93,11 @@ impl Serve {
     /// The server's counters (a stats request).
     pub fn stats(&self) -> Value {
         let mut s = connect(&self.tcp);
-        s.write_all(b"{\"type\":\"stats\"}\n").unwrap();
+        let mut hello = serde_json::json!({"type": "stats"});
+        if let Some(t) = &self.token {
+            hello["token"] = Value::from(t.as_str());
+        }
+        s.write_all(format!("{hello}\n").as_bytes()).unwrap();
         let mut line = String::new();
         BufReader::new(s).read_line(&mut line).unwrap();
         serde_json::from_str(&line).unwrap()

@@ -15,6 +15,7 @@ mod info;
 mod loopback;
 mod lost;
 mod morph;
+mod protected;
 mod regression;
 mod render;
 mod replay;

@@ -1,6 +1,7 @@
 //! Limits and knobs of a server.
 
 use mimic_retarget::RetargetSettings;
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -47,6 +48,9 @@ pub struct ServerSettings {
     /// A frame may run ahead of the last accepted one by the wall-clock time between their
     /// arrivals plus this much; further ahead it is refused as `future_timestamp`.
     pub max_time_jump: Duration,
+    /// When set, every hello (tracker, viewer, stats) must present this token; without one,
+    /// only loopback addresses may be listened on ([`check_bind`]).
+    pub token: Option<String>,
     /// Record every landmark session's accepted frames as a v1 recording in this folder.
     pub record_dir: Option<PathBuf>,
     /// Accepted frames queued per session for its recording before the session waits for the disk.
@@ -75,9 +79,65 @@ impl Default for ServerSettings {
             ended_sessions_kept: 256,
             log_every: Duration::from_secs(10),
             max_time_jump: Duration::from_secs(10),
+            token: None,
             record_dir: None,
             record_queue_frames: 128,
             retarget: RetargetSettings::default(),
         }
+    }
+}
+
+/// Why a listener may not bind its address (protected mode).
+#[derive(Debug, thiserror::Error)]
+pub enum BindError {
+    /// A non-loopback address without a token.
+    #[error(
+        "refusing to listen for {what} on {addr} without a token: anyone who can reach it could open sessions and watch them. Pass --token (or set MIMIC_TOKEN), or listen on a loopback address (127.0.0.1, ::1)"
+    )]
+    NeedsToken {
+        /// The listener (`TCP`, `UDP`, ...).
+        what: String,
+        /// The address asked for.
+        addr: SocketAddr,
+    },
+    /// An empty token.
+    #[error("--token / MIMIC_TOKEN is empty")]
+    EmptyToken,
+}
+
+/// Protected mode: a listener (`what`: `TCP`, `UDP`, any other) may bind `addr` only if it is
+/// a loopback address or the server has a (non-empty) `token`. Every listener's address goes
+/// through here before it is bound.
+pub fn check_bind(what: &str, addr: SocketAddr, token: Option<&str>) -> Result<(), BindError> {
+    match token {
+        Some("") => Err(BindError::EmptyToken),
+        Some(_) => Ok(()),
+        None if addr.ip().is_loopback() => Ok(()),
+        None => Err(BindError::NeedsToken {
+            what: what.to_string(),
+            addr,
+        }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_loopback_binds_without_a_token() {
+        let a = |s: &str| s.parse::<SocketAddr>().unwrap();
+        assert!(check_bind("TCP", a("127.0.0.1:7878"), None).is_ok());
+        assert!(check_bind("TCP", a("[::1]:0"), None).is_ok());
+        assert!(check_bind("UDP", a("127.3.4.5:9"), None).is_ok());
+        for addr in ["0.0.0.0:0", "[::]:0", "192.168.1.2:7878"] {
+            let e = check_bind("UDP", a(addr), None).unwrap_err().to_string();
+            assert!(e.contains("--token") && e.contains(addr), "{e}");
+            assert!(check_bind("UDP", a(addr), Some("t")).is_ok());
+        }
+        assert!(matches!(
+            check_bind("TCP", a("127.0.0.1:1"), Some("")),
+            Err(BindError::EmptyToken)
+        ));
     }
 }

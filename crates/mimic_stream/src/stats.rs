@@ -207,6 +207,11 @@ pub struct ServerStats {
     pub viewers_active: u64,
     /// UDP packets that were not valid frame packets for a live session.
     pub udp_bad_packets: u64,
+    /// Of those, frame packets for a live session with the wrong key (dropped).
+    pub udp_wrong_key: u64,
+    /// Of those, frame packets with the right key from another address than the tracker's
+    /// (its TCP hello's address, then the source of its first accepted packet; dropped).
+    pub udp_wrong_source: u64,
     /// Latency over every session listed.
     pub latency: LatencySummary,
     /// Frames dropped from viewer queues, over every session listed.

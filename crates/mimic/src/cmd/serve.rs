@@ -3,7 +3,7 @@
 use crate::cmd::setup::{PipelineArgs, RigArgs, parse_seconds};
 use anyhow::Context;
 use mimic_assets::load_rig;
-use mimic_stream::{Catalog, DEFAULT_LISTEN, RigEntry, Server, ServerSettings};
+use mimic_stream::{Catalog, DEFAULT_LISTEN, RigEntry, Server, ServerSettings, check_bind};
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -81,6 +81,11 @@ pub struct Args {
     /// Seconds viewers get after Ctrl-C to receive what was accepted.
     #[arg(long, default_value_t = ServerSettings::default().shutdown_grace.as_secs_f64(), value_parser = parse_seconds)]
     pub shutdown_grace: f64,
+    /// Shared secret every hello (tracker, viewer, stats) must present (default: the
+    /// MIMIC_TOKEN environment variable). Without one, only loopback addresses may be listened
+    /// on (protected mode).
+    #[arg(long)]
+    pub token: Option<String>,
     /// Print the final counters as JSON on exit.
     #[arg(long)]
     pub json: bool,
@@ -90,8 +95,20 @@ fn seconds(s: f64, what: &str) -> anyhow::Result<Duration> {
     Duration::try_from_secs_f64(s).with_context(|| format!("{what}: {s} is not a duration"))
 }
 
+/// `--token`, else the MIMIC_TOKEN environment variable (shared by serve, send and view).
+pub fn token_or_env(flag: Option<&str>) -> Option<String> {
+    flag.map(str::to_string)
+        .or_else(|| std::env::var("MIMIC_TOKEN").ok())
+}
+
 /// Runs `mimic serve` until Ctrl-C.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // Protected mode first: no rig is loaded for a server that may not start.
+    let token = token_or_env(args.token.as_deref());
+    check_bind("TCP", args.listen, token.as_deref())?;
+    if !args.no_udp {
+        check_bind("UDP", args.udp.unwrap_or(args.listen), token.as_deref())?;
+    }
     let dirs = args.rig.config_dirs();
     let mut entries = Vec::new();
     for name in std::iter::once(&args.rig.rig).chain(&args.also_rig) {
@@ -130,12 +147,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         viewer_write_timeout: seconds(args.viewer_write_timeout, "--viewer-write-timeout")?,
         max_time_jump: seconds(args.max_time_jump, "--max-time-jump")?,
         record_dir: record_dir(args.record.as_deref())?,
+        token,
         record_queue_frames: args.record_queue.max(1),
         retarget: args.pipeline.settings(),
         ..ServerSettings::default()
     };
     if !args.listen.ip().is_loopback() {
-        tracing::warn!(addr = %args.listen, "listening beyond loopback, as asked: anyone who can reach it can open sessions");
+        tracing::warn!(addr = %args.listen, "listening beyond loopback with a token: every hello must present it");
     }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()

@@ -187,8 +187,13 @@ impl Landmark {
     }
 }
 
-/// The key a session's UDP packets must carry.
+/// The secret a session's UDP packets must carry: from the OS RNG (a hash of the id, the time
+/// and the server's random hasher keys only if the OS RNG fails).
 fn udp_key(shared: &Shared, id: u32) -> u32 {
+    if let Ok(k) = getrandom::u32() {
+        return k;
+    }
+    tracing::warn!("OS RNG unavailable: the UDP key comes from a keyed hash");
     let mut h = shared.keys.build_hasher();
     h.write_u32(id);
     h.write_u128(shared.started.elapsed().as_nanos());
@@ -263,6 +268,8 @@ impl Protocol for Landmark {
             s.id,
             Route {
                 key,
+                peer_ip: a.peer.map(|p| p.ip()),
+                source: None,
                 tx: udp_tx,
                 record: s.record.clone(),
             },

@@ -210,6 +210,8 @@ pub(crate) struct Shared {
     pub(crate) connections: Counter,
     pub(crate) refused: Counter,
     pub(crate) udp_bad: Counter,
+    pub(crate) udp_wrong_key: Counter,
+    pub(crate) udp_wrong_source: Counter,
     pub(crate) recordings_open: Arc<AtomicUsize>,
     pub(crate) keys: std::collections::hash_map::RandomState,
 }
@@ -232,6 +234,8 @@ impl Shared {
             connections: Counter::default(),
             refused: Counter::default(),
             udp_bad: Counter::default(),
+            udp_wrong_key: Counter::default(),
+            udp_wrong_source: Counter::default(),
             recordings_open: Arc::new(AtomicUsize::new(0)),
             keys: std::collections::hash_map::RandomState::new(),
         }
@@ -252,6 +256,8 @@ impl Shared {
             sessions_active: self.sessions_active.load(Ordering::Relaxed) as u64,
             viewers_active: self.viewers_active.load(Ordering::Relaxed) as u64,
             udp_bad_packets: self.udp_bad.get(),
+            udp_wrong_key: self.udp_wrong_key.get(),
+            udp_wrong_source: self.udp_wrong_source.get(),
             latency: all.summary(),
             viewer_frames_dropped: sessions.iter().map(|s| s.viewer_frames_dropped).sum(),
             sessions,
