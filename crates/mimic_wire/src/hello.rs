@@ -284,7 +284,7 @@ mod tests {
         .unwrap();
         assert!(matches!(h, Hello::Viewer { .. }));
         assert_eq!(t.as_deref(), Some("s3cret"));
-        let header = br#"{"format":"mimic-recording","version":1,"layout":"ibug68","units":"m","rate_hz":30.0,"point_count":68,"token":"k"}"#;
+        let header = br#"{"format":"mimic-recording","version":1,"layout":"ibug68","units":"m","source":"x","rate_hz":30.0,"point_count":68,"token":"k"}"#;
         let (h, t) = parse_hello_with_token(header).unwrap();
         assert_eq!(t.as_deref(), Some("k"));
         let Hello::Tracker { header, .. } = h else {
