@@ -90,7 +90,11 @@ fn twenty_thousand_viewer_churns_leave_memory_and_stats_bounded() {
         "RSS grew from {before} KiB to {after} KiB over {} churns",
         threads * per_thread
     );
-    assert!(line.len() < 64 * 1024, "stats reply is {} bytes", line.len());
+    assert!(
+        line.len() < 64 * 1024,
+        "stats reply is {} bytes",
+        line.len()
+    );
     eprintln!(
         "churn: RSS {before} -> {after} KiB over {} churns; stats reply {} bytes",
         threads * per_thread,

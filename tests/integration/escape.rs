@@ -43,19 +43,29 @@ fn info_shows_a_recordings_header_text_escaped() {
     let out = mimic(&["info", path.to_str().unwrap()]);
     let (stdout, stderr) = text(&out);
     assert!(out.status.success(), "{stderr}");
-    assert_eq!(raw_controls(&out.stdout), 0, "raw control bytes in {stdout:?}");
+    assert_eq!(
+        raw_controls(&out.stdout),
+        0,
+        "raw control bytes in {stdout:?}"
+    );
     assert!(
         stdout.contains(
             "source: \\u{1b}[2J\\u{1b}]0;owned\\u{7}red\\u{1b}[31m \\u{9b}1m \\u{202e}txt.exe\\r\n"
         ),
         "{stdout}"
     );
-    assert!(stdout.contains("description: line one\\nline two\\u{7f}\n"), "{stdout}");
+    assert!(
+        stdout.contains("description: line one\\nline two\\u{7f}\n"),
+        "{stdout}"
+    );
     assert!(stdout.contains("\\u{1b}[5mblink"), "{stdout}");
     // The shipped recordings, with no such characters, print as before.
     let plain = mimic(&["info", "recordings/openface_test.jsonl"]);
     let (plain_out, _) = text(&plain);
-    assert!(plain_out.contains("source: OpenFace 2.x FeatureExtraction 3D landmarks (OpenFace_Test.csv)\n"));
+    assert!(
+        plain_out
+            .contains("source: OpenFace 2.x FeatureExtraction 3D landmarks (OpenFace_Test.csv)\n")
+    );
 }
 
 #[test]
@@ -71,7 +81,11 @@ fn info_errors_show_file_text_escaped() {
     let out = mimic(&["info", path.to_str().unwrap()]);
     let (_, stderr) = text(&out);
     assert!(!out.status.success());
-    assert_eq!(raw_controls(&out.stderr), 0, "raw control bytes in {stderr:?}");
+    assert_eq!(
+        raw_controls(&out.stderr),
+        0,
+        "raw control bytes in {stderr:?}"
+    );
     assert!(stderr.contains("bad.jsonl"), "{stderr}");
     assert!(stderr.contains("\\u{1b}[31mfeet"), "{stderr}");
 }

@@ -8,6 +8,7 @@
 mod churn;
 mod clock;
 mod config_limits;
+mod crash;
 mod escape;
 mod faults;
 mod fit;

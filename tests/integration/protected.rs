@@ -50,7 +50,8 @@ fn with_a_token_every_hello_must_present_it() {
     let rec = "recordings/openface_test.jsonl";
     // A tracker without the token: one error line, then closed; no session.
     let mut t = connect(&server.tcp);
-    t.write_all(header_with_session(rec, "a").as_bytes()).unwrap();
+    t.write_all(header_with_session(rec, "a").as_bytes())
+        .unwrap();
     let reply = read_json_line(&mut BufReader::new(t));
     assert_eq!(reply["code"], "bad_token", "{reply}");
     assert!(reply["message"].as_str().unwrap().contains("--token"));
@@ -74,7 +75,15 @@ fn with_a_token_every_hello_must_present_it() {
     assert_eq!(s["sessions"].as_array().unwrap().len(), 0, "{s}");
     // `mimic send --token` and MIMIC_TOKEN open sessions.
     let out = mimic_no_env_token(&[
-        "send", rec, "--to", &server.tcp, "--session", "b", "--fast", "--token", token,
+        "send",
+        rec,
+        "--to",
+        &server.tcp,
+        "--session",
+        "b",
+        "--fast",
+        "--token",
+        token,
     ]);
     assert!(out.status.success(), "{}", text(&out).1);
     let out = Command::new(env!("CARGO_BIN_EXE_mimic"))
@@ -93,7 +102,15 @@ fn with_a_token_every_hello_must_present_it() {
     // Without a token on the server, a hello's token is ignored (old clients and new agree).
     let open = Serve::start(&["--rig", "candide3"]);
     let out = mimic(&[
-        "send", rec, "--to", &open.tcp, "--session", "e", "--fast", "--token", "any",
+        "send",
+        rec,
+        "--to",
+        &open.tcp,
+        "--session",
+        "e",
+        "--fast",
+        "--token",
+        "any",
     ]);
     assert!(out.status.success(), "{}", text(&out).1);
     open.wait_for_session("e", "all frames", |s| s["frames"] == 100);

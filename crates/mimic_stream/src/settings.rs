@@ -53,6 +53,10 @@ pub struct ServerSettings {
     pub token: Option<String>,
     /// Record every landmark session's accepted frames as a v1 recording in this folder.
     pub record_dir: Option<PathBuf>,
+    /// With a record folder: a frame is broadcast to viewers (and counted in `frames`) only
+    /// after it is written, flushed and synced to the disk (`fdatasync`), so a crash loses no
+    /// frame anyone saw.
+    pub record_sync: bool,
     /// Accepted frames queued per session for its recording before the session waits for the disk.
     pub record_queue_frames: usize,
     /// Pipeline settings of every session (`positions` and `normals` are forced off: the
@@ -81,6 +85,7 @@ impl Default for ServerSettings {
             max_time_jump: Duration::from_secs(10),
             token: None,
             record_dir: None,
+            record_sync: false,
             record_queue_frames: 128,
             retarget: RetargetSettings::default(),
         }

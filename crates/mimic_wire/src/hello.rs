@@ -278,10 +278,8 @@ mod tests {
 
     #[test]
     fn tokens_are_taken_out_of_every_hello() {
-        let (h, t) = parse_hello_with_token(
-            br#"{"type":"viewer","session":"a","token":"s3cret"}"#,
-        )
-        .unwrap();
+        let (h, t) =
+            parse_hello_with_token(br#"{"type":"viewer","session":"a","token":"s3cret"}"#).unwrap();
         assert!(matches!(h, Hello::Viewer { .. }));
         assert_eq!(t.as_deref(), Some("s3cret"));
         let header = br#"{"format":"mimic-recording","version":1,"layout":"ibug68","units":"m","source":"x","rate_hz":30.0,"point_count":68,"token":"k"}"#;
@@ -309,7 +307,10 @@ mod tests {
             parse_hello_with_token(br#"{"type":"stats","token":7}"#),
             Err(HelloError::BadToken)
         );
-        let long = format!(r#"{{"type":"stats","token":"{}"}}"#, "x".repeat(MAX_TOKEN_BYTES + 1));
+        let long = format!(
+            r#"{{"type":"stats","token":"{}"}}"#,
+            "x".repeat(MAX_TOKEN_BYTES + 1)
+        );
         assert_eq!(
             parse_hello_with_token(long.as_bytes()),
             Err(HelloError::BadToken)

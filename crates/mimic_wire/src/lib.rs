@@ -18,8 +18,8 @@ mod viewer;
 pub use bytes::DecodeError;
 pub use code::{ErrorCode, error_line, warning_line};
 pub use hello::{
-    Hello, HelloError, MAX_TOKEN_BYTES, SessionRequest, WeightFrame, WeightFrameError, WeightsHello,
-    parse_hello, parse_hello_with_token, parse_weight_frame, valid_session_name,
+    Hello, HelloError, MAX_TOKEN_BYTES, SessionRequest, WeightFrame, WeightFrameError,
+    WeightsHello, parse_hello, parse_hello_with_token, parse_weight_frame, valid_session_name,
 };
 pub use text::escape_untrusted;
 pub use udp::{UDP_HEADER_BYTES, UDP_MAGIC, UdpFrame, decode_udp_frame, encode_udp_frame};

@@ -74,6 +74,11 @@ pub struct Args {
     /// v1 recording per session (`<session>-<id>-<peer>-<UTC time>.jsonl`), flushed per frame.
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,
+    /// With --record: a frame reaches viewers (and the `frames` count) only after it is
+    /// written, flushed and synced to disk, so a crash (kill -9, power loss) loses no frame a
+    /// viewer saw; costs one fdatasync per frame (docs/reliability.md).
+    #[arg(long, requires = "record")]
+    pub record_sync: bool,
     /// Accepted frames queued per session for its recording; when full the session waits for
     /// the disk (no frame is dropped).
     #[arg(long, default_value_t = ServerSettings::default().record_queue_frames)]
@@ -149,6 +154,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         record_dir: record_dir(args.record.as_deref())?,
         token,
         record_queue_frames: args.record_queue.max(1),
+        record_sync: args.record_sync,
         retarget: args.pipeline.settings(),
         ..ServerSettings::default()
     };

@@ -92,7 +92,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 &args.session,
                 crate::cmd::serve::token_or_env(args.token.as_deref()).as_deref(),
             )
-                .with_context(|| format!("connecting to {addr}"))?;
+            .with_context(|| format!("connecting to {addr}"))?;
             // Colour a live rig with the local configs' materials when they have that rig.
             let (rig_args, hide, materials) =
                 (args.rig.clone(), args.hide.clone(), !args.no_materials);

@@ -4,10 +4,10 @@
 use super::admission::{Refusal, write_and_close};
 use super::state::{Shared, lock};
 use mimic_wire::{Hello, KIND_ERROR, encode_json, error_line, parse_hello};
-use tokio::io::AsyncReadExt;
 use std::net::IpAddr;
 use std::sync::Arc;
 use std::time::Duration;
+use tokio::io::AsyncReadExt;
 use tokio::net::TcpStream;
 use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 
@@ -134,7 +134,11 @@ impl Slots {
             .await;
             let hello = first[..n].split(|b| *b == b'\n').next().unwrap_or_default();
             let viewer = matches!(parse_hello(hello), Ok(Hello::Viewer { .. }));
-            let answer = if viewer { &message[..] } else { line.as_bytes() };
+            let answer = if viewer {
+                &message[..]
+            } else {
+                line.as_bytes()
+            };
             // The hello was read, so closing sends FIN (not RST) and the peer reads the answer.
             write_and_close(&mut w, answer).await;
             drop(r);
@@ -146,7 +150,9 @@ impl Slots {
 /// Connection slots of the shared pool: every session and viewer, plus 16 for connections
 /// that have not said hello yet and stats requests.
 pub(crate) fn general_slots(s: &crate::ServerSettings) -> usize {
-    s.max_sessions.saturating_add(s.max_viewers).saturating_add(16)
+    s.max_sessions
+        .saturating_add(s.max_viewers)
+        .saturating_add(16)
 }
 
 /// Turns TCP keepalive on (probes after `idle`, then every 10 s, 3 of them), so a viewer whose
