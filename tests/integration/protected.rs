@@ -176,3 +176,67 @@ fn udp_frames_with_the_wrong_key_or_from_another_address_are_counted_and_dropped
     t.shutdown(Shutdown::Write).unwrap();
     server.stop();
 }
+
+/// `mimic view --connect` on a server with a token: refused without it, follows the session
+/// with it (here from MIMIC_TOKEN). Needs the renderer, like tests/integration/view.rs.
+#[test]
+fn view_presents_the_token() {
+    if std::env::var_os("MIMIC_SKIP_GPU_TESTS").is_some() {
+        eprintln!("MIMIC_SKIP_GPU_TESTS is set: skipping a GPU test");
+        return;
+    }
+    let token = "view-token";
+    let server = Serve::start(&["--rig", "candide3", "--token", token]);
+    let view = |env_token: Option<&str>| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_mimic"));
+        c.args([
+            "view",
+            "--connect",
+            &server.tcp,
+            "--session",
+            "live",
+            "--size",
+            "64x64",
+            "--headless-frames",
+            "5",
+            "--headless-timeout",
+            "60",
+        ])
+        .current_dir(repo())
+        .env_remove("RUST_LOG")
+        .env_remove("MIMIC_TOKEN")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped());
+        if let Some(t) = env_token {
+            c.env("MIMIC_TOKEN", t);
+        }
+        c.spawn().unwrap()
+    };
+    let refused = view(None).wait_with_output().unwrap();
+    let (out, err) = text(&refused);
+    assert!(
+        !refused.status.success() || !out.contains("5 new frames"),
+        "{out}{err}"
+    );
+    assert!(format!("{out}{err}").contains("bad_token"), "{out}{err}");
+    let follows = view(Some(token));
+    server.wait_for("the viewer", |s| s["viewers_active"] == 1);
+    let sent = mimic_no_env_token(&[
+        "send",
+        "recordings/openface_test.jsonl",
+        "--to",
+        &server.tcp,
+        "--session",
+        "live",
+        "--speed",
+        "1",
+        "--token",
+        token,
+    ]);
+    assert!(sent.status.success(), "{}", text(&sent).1);
+    let o = follows.wait_with_output().unwrap();
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert!(stdout.contains("5 new frames"), "{stdout}");
+    server.stop();
+}

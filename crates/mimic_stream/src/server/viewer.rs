@@ -84,8 +84,12 @@ pub(crate) async fn viewer(
             v.queue.abandon();
         })
     };
+    // At least 10 ms, so that a 0 never spins this loop while a silent tracker is live.
+    let idle = settings
+        .viewer_idle_timeout
+        .max(std::time::Duration::from_millis(10));
     loop {
-        let m = match timeout(settings.viewer_idle_timeout, v.queue.pop()).await {
+        let m = match timeout(idle, v.queue.pop()).await {
             Ok(Some(m)) => m,
             Ok(None) => break,
             Err(_) => {
