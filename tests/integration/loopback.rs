@@ -24,6 +24,8 @@ pub struct Serve {
     pub tcp: String,
     /// UDP address.
     pub udp: String,
+    /// The `--token` it was started with (its stats requests present it).
+    pub token: Option<String>,
 }
 
 impl Serve {
@@ -34,10 +36,15 @@ impl Serve {
             .args(args)
             .current_dir(repo())
             .env_remove("RUST_LOG")
+            .env_remove("MIMIC_TOKEN")
             .stdout(Stdio::piped())
             .stderr(Stdio::null())
             .spawn()
             .expect("spawn mimic serve");
+        let token = args
+            .iter()
+            .position(|a| *a == "--token")
+            .map(|k| args[k + 1].to_string());
         let mut stdout = BufReader::new(child.stdout.take().unwrap());
         let mut first = String::new();
         stdout.read_line(&mut first).unwrap();
@@ -52,6 +59,7 @@ impl Serve {
             stdout,
             tcp: words[3].to_string(),
             udp: words[5].to_string(),
+            token,
         }
     }
 
@@ -77,10 +85,19 @@ impl Serve {
         rest
     }
 
+    /// The server's process id.
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
     /// The server's counters (a stats request).
     pub fn stats(&self) -> Value {
         let mut s = connect(&self.tcp);
-        s.write_all(b"{\"type\":\"stats\"}\n").unwrap();
+        let mut hello = serde_json::json!({"type": "stats"});
+        if let Some(t) = &self.token {
+            hello["token"] = Value::from(t.as_str());
+        }
+        s.write_all(format!("{hello}\n").as_bytes()).unwrap();
         let mut line = String::new();
         BufReader::new(s).read_line(&mut line).unwrap();
         serde_json::from_str(&line).unwrap()
@@ -113,6 +130,20 @@ impl Drop for Serve {
 /// A TCP connection with a read timeout.
 pub fn connect(addr: &str) -> TcpStream {
     let s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(READ_TIMEOUT)).unwrap();
+    s
+}
+
+/// A TCP connection from source address `from` (any of 127.0.0.0/8 on Linux) with a read
+/// timeout.
+pub fn connect_from(from: &str, addr: &str) -> TcpStream {
+    use socket2::{Domain, Socket, Type};
+    let to: std::net::SocketAddr = addr.parse().unwrap();
+    let src: std::net::SocketAddr = format!("{from}:0").parse().unwrap();
+    let s = Socket::new(Domain::IPV4, Type::STREAM, None).unwrap();
+    s.bind(&src.into()).unwrap();
+    s.connect(&to.into()).unwrap();
+    let s: TcpStream = s.into();
     s.set_read_timeout(Some(READ_TIMEOUT)).unwrap();
     s
 }

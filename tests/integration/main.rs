@@ -5,8 +5,11 @@
     reason = "a test: a failed unwrap is the failure report"
 )]
 
+mod churn;
 mod clock;
 mod config_limits;
+mod crash;
+mod escape;
 mod faults;
 mod fit;
 mod gltf;
@@ -15,11 +18,13 @@ mod info;
 mod loopback;
 mod lost;
 mod morph;
+mod protected;
 mod regression;
 mod render;
 mod replay;
 mod serve;
 mod serve_weights;
+mod slots;
 mod view;
 
 use std::path::PathBuf;

@@ -14,6 +14,7 @@ use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 use std::time::{SystemTime, UNIX_EPOCH};
 use tokio::sync::mpsc::{self, error::TrySendError};
+use tokio::sync::oneshot;
 use tokio::task::JoinHandle;
 
 /// Counters of one session's recording.
@@ -74,10 +75,13 @@ impl Drop for OpenGuard {
     }
 }
 
+/// A frame for the writer, and where to say when it is on disk (`--record-sync`).
+type Item = (RecordedFrame, Option<oneshot::Sender<bool>>);
+
 /// The session's end of its recording.
 #[derive(Debug)]
 pub struct Recorder {
-    tx: mpsc::Sender<RecordedFrame>,
+    tx: mpsc::Sender<Item>,
     task: JoinHandle<()>,
     counters: Arc<RecordCounters>,
     path: PathBuf,
@@ -123,7 +127,7 @@ impl Recorder {
         let (path, writer) = tokio::task::spawn_blocking(move || create(&dir, &stem, &h))
             .await
             .map_err(|e| RecordError::Task(e.to_string()))??;
-        let (tx, mut rx) = mpsc::channel::<RecordedFrame>(queue_frames.max(1));
+        let (tx, mut rx) = mpsc::channel::<Item>(queue_frames.max(1));
         open.fetch_add(1, Ordering::AcqRel);
         let guard = OpenGuard(open);
         let c = counters.clone();
@@ -131,15 +135,36 @@ impl Recorder {
         let task = tokio::task::spawn_blocking(move || {
             let _guard = guard;
             let mut writer = Some(writer);
-            while let Some(f) = rx.blocking_recv() {
-                match writer.as_mut().map(|w| w.write(&f)) {
-                    Some(Ok(())) => c.recorded.bump(),
+            while let Some((f, durable)) = rx.blocking_recv() {
+                let written = writer.as_mut().map(|w| {
+                    w.write(&f)?;
+                    if durable.is_some() {
+                        // Written and flushed to the OS per frame; now to the disk too.
+                        w.get_ref()
+                            .get_ref()
+                            .sync_data()
+                            .map_err(WriteError::from)?;
+                    }
+                    Ok::<(), WriteError>(())
+                });
+                let ok = match written {
+                    Some(Ok(())) => {
+                        c.recorded.bump();
+                        true
+                    }
                     Some(Err(e)) => {
                         tracing::error!(path = %shown.display(), "recording failed; the session's further frames are counted as record_lost: {e}");
                         c.lost.bump();
                         writer = None;
+                        false
                     }
-                    None => c.lost.bump(),
+                    None => {
+                        c.lost.bump();
+                        false
+                    }
+                };
+                if let Some(done) = durable {
+                    let _ = done.send(ok);
                 }
             }
             if let Some(w) = writer {
@@ -170,7 +195,7 @@ impl Recorder {
 
     /// Queues an accepted frame, waiting for room when the disk is behind (counted in `waits`).
     pub async fn record(&self, f: RecordedFrame) {
-        let f = match self.tx.try_send(f) {
+        let f = match self.tx.try_send((f, None)) {
             Ok(()) => return,
             Err(TrySendError::Full(f)) => {
                 self.counters.waits.bump();
@@ -184,6 +209,18 @@ impl Recorder {
         if self.tx.send(f).await.is_err() {
             self.counters.lost.bump();
         }
+    }
+
+    /// Writes an accepted frame, flushes it and syncs the file to the disk (`fdatasync`),
+    /// returning once that is done: true when the frame is on disk, false when it could not be
+    /// written (counted in `lost`).
+    pub async fn record_durable(&self, f: RecordedFrame) -> bool {
+        let (done, on_disk) = oneshot::channel();
+        if self.tx.send((f, Some(done))).await.is_err() {
+            self.counters.lost.bump();
+            return false;
+        }
+        on_disk.await.unwrap_or(false)
     }
 
     /// Closes the recording and waits until every queued frame is written, flushed and synced.

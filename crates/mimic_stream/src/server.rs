@@ -13,6 +13,7 @@ mod accept;
 mod admission;
 mod landmark;
 mod session;
+mod slots;
 mod state;
 mod udp;
 mod viewer;

@@ -1,6 +1,7 @@
 //! Limits and knobs of a server.
 
 use mimic_retarget::RetargetSettings;
+use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::time::Duration;
 
@@ -14,6 +15,18 @@ pub struct ServerSettings {
     pub max_sessions: usize,
     /// Viewers at once; more are refused with `too_many_viewers`.
     pub max_viewers: usize,
+    /// Connections at once from one IP address (trackers, viewers, stats and connections that
+    /// have not said hello yet); more are answered `too_many_connections` and closed.
+    pub max_connections_per_peer: usize,
+    /// Connection slots kept for stats requests when every other slot is taken; a connection in
+    /// one of them must send its stats hello within 2 s.
+    pub stats_slots: usize,
+    /// A viewer whose session has had no tracker (and which has had no message) this long is
+    /// closed with `idle_timeout`.
+    pub viewer_idle_timeout: Duration,
+    /// TCP keepalive on every connection: probes start after this much silence (a vanished peer
+    /// is dropped about 30 s later).
+    pub tcp_keepalive: Duration,
     /// Longest message (tracker line, hello) in bytes; longer lines are answered `too_long`.
     pub max_message_bytes: usize,
     /// A tracker (or a connection that has not said hello) silent this long is closed.
@@ -35,8 +48,15 @@ pub struct ServerSettings {
     /// A frame may run ahead of the last accepted one by the wall-clock time between their
     /// arrivals plus this much; further ahead it is refused as `future_timestamp`.
     pub max_time_jump: Duration,
+    /// When set, every hello (tracker, viewer, stats) must present this token; without one,
+    /// only loopback addresses may be listened on ([`check_bind`]).
+    pub token: Option<String>,
     /// Record every landmark session's accepted frames as a v1 recording in this folder.
     pub record_dir: Option<PathBuf>,
+    /// With a record folder: a frame is broadcast to viewers (and counted in `frames`) only
+    /// after it is written, flushed and synced to the disk (`fdatasync`), so a crash loses no
+    /// frame anyone saw.
+    pub record_sync: bool,
     /// Accepted frames queued per session for its recording before the session waits for the disk.
     pub record_queue_frames: usize,
     /// Pipeline settings of every session (`positions` and `normals` are forced off: the
@@ -49,6 +69,10 @@ impl Default for ServerSettings {
         Self {
             max_sessions: 128,
             max_viewers: 256,
+            max_connections_per_peer: 64,
+            stats_slots: 4,
+            viewer_idle_timeout: Duration::from_secs(60),
+            tcp_keepalive: Duration::from_secs(30),
             max_message_bytes: 1 << 20,
             idle_timeout: Duration::from_secs(30),
             viewer_queue_frames: 8,
@@ -59,9 +83,66 @@ impl Default for ServerSettings {
             ended_sessions_kept: 256,
             log_every: Duration::from_secs(10),
             max_time_jump: Duration::from_secs(10),
+            token: None,
             record_dir: None,
+            record_sync: false,
             record_queue_frames: 128,
             retarget: RetargetSettings::default(),
         }
+    }
+}
+
+/// Why a listener may not bind its address (protected mode).
+#[derive(Debug, thiserror::Error)]
+pub enum BindError {
+    /// A non-loopback address without a token.
+    #[error(
+        "refusing to listen for {what} on {addr} without a token: anyone who can reach it could open sessions and watch them. Pass --token (or set MIMIC_TOKEN), or listen on a loopback address (127.0.0.1, ::1)"
+    )]
+    NeedsToken {
+        /// The listener (`TCP`, `UDP`, ...).
+        what: String,
+        /// The address asked for.
+        addr: SocketAddr,
+    },
+    /// An empty token.
+    #[error("--token / MIMIC_TOKEN is empty")]
+    EmptyToken,
+}
+
+/// Protected mode: a listener (`what`: `TCP`, `UDP`, any other) may bind `addr` only if it is
+/// a loopback address or the server has a (non-empty) `token`. Every listener's address goes
+/// through here before it is bound.
+pub fn check_bind(what: &str, addr: SocketAddr, token: Option<&str>) -> Result<(), BindError> {
+    match token {
+        Some("") => Err(BindError::EmptyToken),
+        Some(_) => Ok(()),
+        None if addr.ip().is_loopback() => Ok(()),
+        None => Err(BindError::NeedsToken {
+            what: what.to_string(),
+            addr,
+        }),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn only_loopback_binds_without_a_token() {
+        let a = |s: &str| s.parse::<SocketAddr>().unwrap();
+        assert!(check_bind("TCP", a("127.0.0.1:7878"), None).is_ok());
+        assert!(check_bind("TCP", a("[::1]:0"), None).is_ok());
+        assert!(check_bind("UDP", a("127.3.4.5:9"), None).is_ok());
+        for addr in ["0.0.0.0:0", "[::]:0", "192.168.1.2:7878"] {
+            let e = check_bind("UDP", a(addr), None).unwrap_err().to_string();
+            assert!(e.contains("--token") && e.contains(addr), "{e}");
+            assert!(check_bind("UDP", a(addr), Some("t")).is_ok());
+        }
+        assert!(matches!(
+            check_bind("TCP", a("127.0.0.1:1"), Some("")),
+            Err(BindError::EmptyToken)
+        ));
     }
 }

@@ -181,8 +181,15 @@ pub struct SessionSnapshot {
     pub record_waits: u64,
     /// Arrival (line or packet read) to broadcast (pushed to every viewer queue).
     pub latency: LatencySummary,
-    /// Viewers that watched this session.
+    /// Viewers that watch this session now and the last 16 that left (older ones are only
+    /// counted in the totals below), by id.
     pub viewers: Vec<ViewerSnapshot>,
+    /// Viewers that ever watched this session.
+    pub viewers_total: u64,
+    /// Frames written to its viewers, over every viewer that ever watched.
+    pub viewer_frames_sent: u64,
+    /// Frames dropped from its viewers' queues, over every viewer that ever watched.
+    pub viewer_frames_dropped: u64,
 }
 
 /// Counters of the whole server, as served by the stats request.
@@ -200,6 +207,11 @@ pub struct ServerStats {
     pub viewers_active: u64,
     /// UDP packets that were not valid frame packets for a live session.
     pub udp_bad_packets: u64,
+    /// Of those, frame packets for a live session with the wrong key (dropped).
+    pub udp_wrong_key: u64,
+    /// Of those, frame packets with the right key from another address than the tracker's
+    /// (its TCP hello's address, then the source of its first accepted packet; dropped).
+    pub udp_wrong_source: u64,
     /// Latency over every session listed.
     pub latency: LatencySummary,
     /// Frames dropped from viewer queues, over every session listed.

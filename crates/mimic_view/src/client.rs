@@ -54,11 +54,15 @@ pub struct Live {
     pub frames: Arc<Latest<Arrived>>,
 }
 
-/// Connects to `addr` as a viewer of `session` and starts the reader thread.
-pub fn connect(addr: &str, session: &str) -> std::io::Result<Live> {
+/// Connects to `addr` as a viewer of `session` (presenting `token` when the server has one)
+/// and starts the reader thread.
+pub fn connect(addr: &str, session: &str, token: Option<&str>) -> std::io::Result<Live> {
     let mut stream = TcpStream::connect(addr)?;
     stream.set_nodelay(true)?;
-    let hello = serde_json::json!({"type": "viewer", "session": session, "positions": false});
+    let mut hello = serde_json::json!({"type": "viewer", "session": session, "positions": false});
+    if let Some(t) = token {
+        hello["token"] = serde_json::Value::from(t);
+    }
     stream.write_all(format!("{hello}\n").as_bytes())?;
     // Session events are few (SESSION, RIG, END, ERROR, the close): a small bound, which makes
     // the socket thread wait for the window rather than queue without limit.

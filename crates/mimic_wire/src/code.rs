@@ -45,6 +45,11 @@ pub enum ErrorCode {
     /// A frame's timestamp runs ahead of the last accepted one by more than the wall-clock time
     /// between them plus the allowed jump; the frame is dropped, the session goes on.
     FutureTimestamp,
+    /// Past the connection limit (all slots, or this peer's share of them); the connection is
+    /// answered and closed at once.
+    TooManyConnections,
+    /// The server has a token and the hello did not present it (or presented another).
+    BadToken,
 }
 
 impl ErrorCode {
@@ -70,6 +75,8 @@ impl ErrorCode {
             ErrorCode::NoMorphTargets => "no_morph_targets",
             ErrorCode::UnknownWeight => "unknown_weight",
             ErrorCode::FutureTimestamp => "future_timestamp",
+            ErrorCode::TooManyConnections => "too_many_connections",
+            ErrorCode::BadToken => "bad_token",
         }
     }
 

@@ -82,6 +82,9 @@ pub enum HelloError {
     /// A session name that is empty, too long or has odd characters.
     #[error("bad session name `{0}`: 1 to 64 characters of A-Z a-z 0-9 _ . -")]
     BadSessionName(String),
+    /// A `token` that is not a string, or longer than [`MAX_TOKEN_BYTES`].
+    #[error("`token` must be a string of at most {MAX_TOKEN_BYTES} bytes")]
+    BadToken,
     /// An object that is none of the known hellos.
     #[error("unknown hello: expected `format: mimic-recording`, `type: viewer` or `type: stats`")]
     Unknown,
@@ -94,16 +97,59 @@ pub fn valid_session_name(s: &str) -> bool {
             .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'_' | b'.' | b'-'))
 }
 
-/// Parses the first line of a connection (without its newline).
+/// Parses the first line of a connection (without its newline); a `token` it carries is
+/// ignored (see [`parse_hello_with_token`]).
 pub fn parse_hello(line: &[u8]) -> Result<Hello, HelloError> {
+    parse_hello_with_token(line).map(|(h, _)| h)
+}
+
+/// Parses the first line of a connection (without its newline) and the token it presents:
+/// the `token` field of any JSON hello (removed from a tracker's header, so it never reaches a
+/// recording), or `token=` in the query of `GET /stats?token=...` (removed from the path).
+/// Longest token kept: [`MAX_TOKEN_BYTES`]; a longer one is refused.
+pub fn parse_hello_with_token(line: &[u8]) -> Result<(Hello, Option<String>), HelloError> {
     let line = trim_end(line);
     if let Some(rest) = line.strip_prefix(b"GET ") {
-        let path = rest.split(|b| *b == b' ').next().unwrap_or_default();
-        return Ok(Hello::HttpGet {
-            path: String::from_utf8_lossy(path).into_owned(),
-        });
+        let target = rest.split(|b| *b == b' ').next().unwrap_or_default();
+        let target = String::from_utf8_lossy(target).into_owned();
+        let (path, query) = match target.split_once('?') {
+            Some((p, q)) => (p.to_string(), Some(q)),
+            None => (target.clone(), None),
+        };
+        let token = query
+            .into_iter()
+            .flat_map(|q| q.split('&'))
+            .find_map(|kv| kv.strip_prefix("token="))
+            .map(str::to_string);
+        check_token_len(token.as_deref())?;
+        return Ok((Hello::HttpGet { path }, token));
     }
-    let v: Value = serde_json::from_slice(line).map_err(|e| HelloError::NotJson(e.to_string()))?;
+    let mut v: Value =
+        serde_json::from_slice(line).map_err(|e| HelloError::NotJson(e.to_string()))?;
+    let Value::Object(obj) = &mut v else {
+        return Err(HelloError::NotJson("not an object".into()));
+    };
+    let token = match obj.remove("token") {
+        None => None,
+        Some(Value::String(t)) => Some(t),
+        Some(_) => return Err(HelloError::BadToken),
+    };
+    check_token_len(token.as_deref())?;
+    parse_hello_value(v).map(|h| (h, token))
+}
+
+/// Longest token a hello may present (bytes).
+pub const MAX_TOKEN_BYTES: usize = 256;
+
+fn check_token_len(token: Option<&str>) -> Result<(), HelloError> {
+    match token {
+        Some(t) if t.len() > MAX_TOKEN_BYTES => Err(HelloError::BadToken),
+        _ => Ok(()),
+    }
+}
+
+/// A JSON hello (its token already taken out).
+fn parse_hello_value(v: Value) -> Result<Hello, HelloError> {
     let Value::Object(obj) = &v else {
         return Err(HelloError::NotJson("not an object".into()));
     };
@@ -229,6 +275,47 @@ fn trim_end(b: &[u8]) -> &[u8] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn tokens_are_taken_out_of_every_hello() {
+        let (h, t) =
+            parse_hello_with_token(br#"{"type":"viewer","session":"a","token":"s3cret"}"#).unwrap();
+        assert!(matches!(h, Hello::Viewer { .. }));
+        assert_eq!(t.as_deref(), Some("s3cret"));
+        let header = br#"{"format":"mimic-recording","version":1,"layout":"ibug68","units":"m","source":"x","rate_hz":30.0,"point_count":68,"token":"k"}"#;
+        let (h, t) = parse_hello_with_token(header).unwrap();
+        assert_eq!(t.as_deref(), Some("k"));
+        let Hello::Tracker { header, .. } = h else {
+            panic!("{h:?}")
+        };
+        // The token never reaches the header (nor a recording written from it).
+        assert!(!header.extra.contains_key("token"));
+        let (h, t) = parse_hello_with_token(br#"{"mode":"weights","token":"w"}"#).unwrap();
+        assert!(matches!(h, Hello::Weights(_)));
+        assert_eq!(t.as_deref(), Some("w"));
+        let (h, t) = parse_hello_with_token(b"GET /stats?x=1&token=q HTTP/1.0\r").unwrap();
+        assert_eq!(
+            h,
+            Hello::HttpGet {
+                path: "/stats".into()
+            }
+        );
+        assert_eq!(t.as_deref(), Some("q"));
+        let (_, t) = parse_hello_with_token(br#"{"type":"stats"}"#).unwrap();
+        assert_eq!(t, None);
+        assert_eq!(
+            parse_hello_with_token(br#"{"type":"stats","token":7}"#),
+            Err(HelloError::BadToken)
+        );
+        let long = format!(
+            r#"{{"type":"stats","token":"{}"}}"#,
+            "x".repeat(MAX_TOKEN_BYTES + 1)
+        );
+        assert_eq!(
+            parse_hello_with_token(long.as_bytes()),
+            Err(HelloError::BadToken)
+        );
+    }
 
     #[test]
     fn hello_kinds() {

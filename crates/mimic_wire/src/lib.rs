@@ -11,15 +11,17 @@
 mod bytes;
 mod code;
 mod hello;
+mod text;
 mod udp;
 mod viewer;
 
 pub use bytes::DecodeError;
 pub use code::{ErrorCode, error_line, warning_line};
 pub use hello::{
-    Hello, HelloError, SessionRequest, WeightFrame, WeightFrameError, WeightsHello, parse_hello,
-    parse_weight_frame, valid_session_name,
+    Hello, HelloError, MAX_TOKEN_BYTES, SessionRequest, WeightFrame, WeightFrameError,
+    WeightsHello, parse_hello, parse_hello_with_token, parse_weight_frame, valid_session_name,
 };
+pub use text::escape_untrusted;
 pub use udp::{UDP_HEADER_BYTES, UDP_MAGIC, UdpFrame, decode_udp_frame, encode_udp_frame};
 pub use viewer::{
     FRAME_FIXED_BYTES, FrameMessage, KIND_END, KIND_ERROR, KIND_FRAME, KIND_RIG, KIND_SESSION,

@@ -2,6 +2,7 @@
 
 use anyhow::Context;
 use mimic_assets::{ConfigDirs, load_layout, load_rig};
+use mimic_stream::wire::escape_untrusted;
 use mimic_types::{Layout, Region, Rig};
 use serde_json::{Value, json};
 use std::path::{Path, PathBuf};
@@ -42,8 +43,13 @@ fn kind_of(path: &Path) -> anyhow::Result<Kind> {
     }
 }
 
-/// Runs `mimic info`.
+/// Runs `mimic info`. Text from the file (a recording's header strings, names) is printed with
+/// control characters and escape codes escaped, also in errors.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    summarise(args).map_err(|e| anyhow::anyhow!("{}", escape_untrusted(&format!("{e:#}"))))
+}
+
+fn summarise(args: Args) -> anyhow::Result<()> {
     let summary = match kind_of(&args.file)? {
         Kind::Layout => layout_summary(&load_layout(&args.file)?),
         Kind::Rig => rig_summary(&load_rig(&args.file)?),
@@ -72,12 +78,19 @@ fn plain(v: &Value, indent: usize, out: &mut String) {
         for (k, val) in map {
             let _ = match val {
                 Value::Object(_) => {
-                    let _ = writeln!(out, "{pad}{k}:");
+                    let _ = writeln!(out, "{pad}{}:", escape_untrusted(k));
                     plain(val, indent + 1, out);
                     Ok(())
                 }
-                Value::String(s) => writeln!(out, "{pad}{k}: {s}"),
-                other => writeln!(out, "{pad}{k}: {other}"),
+                Value::String(s) => {
+                    writeln!(out, "{pad}{}: {}", escape_untrusted(k), escape_untrusted(s))
+                }
+                other => writeln!(
+                    out,
+                    "{pad}{}: {}",
+                    escape_untrusted(k),
+                    escape_untrusted(&other.to_string())
+                ),
             };
         }
     }

@@ -32,6 +32,9 @@ pub struct Args {
     /// Session name to open (default: the server makes one up).
     #[arg(long)]
     pub session: Option<String>,
+    /// Token of a server started with one (default: the MIMIC_TOKEN environment variable).
+    #[arg(long)]
+    pub token: Option<String>,
     /// Rig the session drives (default: the server's).
     #[arg(long)]
     pub rig: Option<String>,
@@ -101,6 +104,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(r) = &args.rig {
         header.extra.insert("rig".into(), Value::from(r.as_str()));
+    }
+    if let Some(t) = crate::cmd::serve::token_or_env(args.token.as_deref()) {
+        header.extra.insert("token".into(), Value::from(t));
     }
     let (stream, reader) = connect(&args.to)?;
     let mut writer = RecordingWriter::new(&stream, &header)?.flush_each_frame(true);
@@ -243,6 +249,9 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
     }
     if let Some(r) = &args.rig {
         hello["rig"] = Value::from(r.as_str());
+    }
+    if let Some(t) = crate::cmd::serve::token_or_env(args.token.as_deref()) {
+        hello["token"] = Value::from(t);
     }
     let (mut stream, reader) = connect(&args.to)?;
     stream.write_all(format!("{hello}\n").as_bytes())?;

@@ -3,7 +3,7 @@
 use crate::cmd::setup::{PipelineArgs, RigArgs, parse_seconds};
 use anyhow::Context;
 use mimic_assets::load_rig;
-use mimic_stream::{Catalog, DEFAULT_LISTEN, RigEntry, Server, ServerSettings};
+use mimic_stream::{Catalog, DEFAULT_LISTEN, RigEntry, Server, ServerSettings, check_bind};
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -35,6 +35,22 @@ pub struct Args {
     /// Maximum viewers at once.
     #[arg(long, default_value_t = ServerSettings::default().max_viewers)]
     pub max_viewers: usize,
+    /// Maximum connections at once from one IP address (any kind, also before their hello);
+    /// past it a connection is answered `too_many_connections` and closed.
+    #[arg(long, default_value_t = ServerSettings::default().max_connections_per_peer)]
+    pub max_connections_per_peer: usize,
+    /// Connection slots kept for stats requests when all others are taken (a stats hello
+    /// within 2 s).
+    #[arg(long, default_value_t = ServerSettings::default().stats_slots)]
+    pub stats_slots: usize,
+    /// Seconds a viewer may wait without a message while its session has no tracker; then it
+    /// is closed with `idle_timeout`.
+    #[arg(long, default_value_t = ServerSettings::default().viewer_idle_timeout.as_secs_f64(), value_parser = parse_seconds)]
+    pub viewer_idle_timeout: f64,
+    /// Seconds of silence on a connection before TCP keepalive probes start (a vanished peer is
+    /// dropped about 30 s later).
+    #[arg(long, default_value_t = ServerSettings::default().tcp_keepalive.as_secs_f64(), value_parser = parse_seconds)]
+    pub tcp_keepalive: f64,
     /// Maximum message (line) size in bytes.
     #[arg(long, default_value_t = ServerSettings::default().max_message_bytes)]
     pub max_message_bytes: usize,
@@ -58,6 +74,11 @@ pub struct Args {
     /// v1 recording per session (`<session>-<id>-<peer>-<UTC time>.jsonl`), flushed per frame.
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,
+    /// With --record: a frame reaches viewers (and the `frames` count) only after it is
+    /// written, flushed and synced to disk, so a crash (kill -9, power loss) loses no frame a
+    /// viewer saw; costs one fdatasync per frame (docs/reliability.md).
+    #[arg(long, requires = "record")]
+    pub record_sync: bool,
     /// Accepted frames queued per session for its recording; when full the session waits for
     /// the disk (no frame is dropped).
     #[arg(long, default_value_t = ServerSettings::default().record_queue_frames)]
@@ -65,6 +86,11 @@ pub struct Args {
     /// Seconds viewers get after Ctrl-C to receive what was accepted.
     #[arg(long, default_value_t = ServerSettings::default().shutdown_grace.as_secs_f64(), value_parser = parse_seconds)]
     pub shutdown_grace: f64,
+    /// Shared secret every hello (tracker, viewer, stats) must present (default: the
+    /// MIMIC_TOKEN environment variable). Without one, only loopback addresses may be listened
+    /// on (protected mode).
+    #[arg(long)]
+    pub token: Option<String>,
     /// Print the final counters as JSON on exit.
     #[arg(long)]
     pub json: bool,
@@ -74,8 +100,20 @@ fn seconds(s: f64, what: &str) -> anyhow::Result<Duration> {
     Duration::try_from_secs_f64(s).with_context(|| format!("{what}: {s} is not a duration"))
 }
 
+/// `--token`, else the MIMIC_TOKEN environment variable (shared by serve, send and view).
+pub fn token_or_env(flag: Option<&str>) -> Option<String> {
+    flag.map(str::to_string)
+        .or_else(|| std::env::var("MIMIC_TOKEN").ok())
+}
+
 /// Runs `mimic serve` until Ctrl-C.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    // Protected mode first: no rig is loaded for a server that may not start.
+    let token = token_or_env(args.token.as_deref());
+    check_bind("TCP", args.listen, token.as_deref())?;
+    if !args.no_udp {
+        check_bind("UDP", args.udp.unwrap_or(args.listen), token.as_deref())?;
+    }
     let dirs = args.rig.config_dirs();
     let mut entries = Vec::new();
     for name in std::iter::once(&args.rig.rig).chain(&args.also_rig) {
@@ -103,6 +141,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_sessions: args.max_sessions,
         max_viewers: args.max_viewers,
         max_message_bytes: args.max_message_bytes,
+        max_connections_per_peer: args.max_connections_per_peer.max(1),
+        stats_slots: args.stats_slots,
+        viewer_idle_timeout: seconds(args.viewer_idle_timeout, "--viewer-idle-timeout")?,
+        tcp_keepalive: seconds(args.tcp_keepalive, "--tcp-keepalive")?,
         idle_timeout: seconds(args.idle_timeout, "--idle-timeout")?,
         viewer_queue_frames: args.viewer_queue,
         max_errors_in_a_row: args.max_errors.max(1),
@@ -110,12 +152,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         viewer_write_timeout: seconds(args.viewer_write_timeout, "--viewer-write-timeout")?,
         max_time_jump: seconds(args.max_time_jump, "--max-time-jump")?,
         record_dir: record_dir(args.record.as_deref())?,
+        token,
         record_queue_frames: args.record_queue.max(1),
+        record_sync: args.record_sync,
         retarget: args.pipeline.settings(),
         ..ServerSettings::default()
     };
     if !args.listen.ip().is_loopback() {
-        tracing::warn!(addr = %args.listen, "listening beyond loopback, as asked: anyone who can reach it can open sessions");
+        tracing::warn!(addr = %args.listen, "listening beyond loopback with a token: every hello must present it");
     }
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()

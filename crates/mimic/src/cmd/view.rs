@@ -21,6 +21,9 @@ pub struct Args {
     /// Follow a live `mimic serve` session as a viewer instead, e.g. 127.0.0.1:7878.
     #[arg(long)]
     pub connect: Option<String>,
+    /// Token of a server started with one (default: the MIMIC_TOKEN environment variable).
+    #[arg(long, requires = "connect")]
+    pub token: Option<String>,
     /// Session to follow with --connect.
     #[arg(long, default_value = "a")]
     pub session: String,
@@ -84,8 +87,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut viewer = match &args.connect {
         Some(addr) => {
-            let live = mimic_view::client::connect(addr, &args.session)
-                .with_context(|| format!("connecting to {addr}"))?;
+            let live = mimic_view::client::connect(
+                addr,
+                &args.session,
+                crate::cmd::serve::token_or_env(args.token.as_deref()).as_deref(),
+            )
+            .with_context(|| format!("connecting to {addr}"))?;
             // Colour a live rig with the local configs' materials when they have that rig.
             let (rig_args, hide, materials) =
                 (args.rig.clone(), args.hide.clone(), !args.no_materials);

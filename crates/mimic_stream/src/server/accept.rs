@@ -4,6 +4,7 @@
 use super::admission::{Refusal, refuse, write_and_close};
 use super::landmark::{Landmark, LandmarkHello};
 use super::session;
+use super::slots::{Slot, Slots, general_slots, keepalive};
 use super::state::{Shared, lock};
 use super::udp::udp_loop;
 use super::viewer::viewer;
@@ -11,13 +12,13 @@ use super::weights::Weights;
 use super::{HELLO_MAX_BYTES, Server};
 use crate::lines::{Line, LineReader};
 use crate::stats::ServerStats;
-use mimic_wire::Hello;
+use mimic_wire::{Hello, KIND_ERROR};
 use std::future::Future;
 use std::sync::Arc;
 use std::sync::atomic::Ordering;
 use tokio::io::BufReader;
 use tokio::net::{TcpListener, TcpStream, UdpSocket};
-use tokio::sync::{Semaphore, mpsc, watch};
+use tokio::sync::{mpsc, watch};
 use tokio::time::sleep;
 
 impl Server {
@@ -34,9 +35,7 @@ impl Server {
         let settings = &shared.settings;
         let (stop_tx, stop_rx) = watch::channel(false);
         let (done_tx, mut done_rx) = mpsc::channel::<()>(1);
-        let permits = Arc::new(Semaphore::new(
-            settings.max_sessions + settings.max_viewers + 16,
-        ));
+        let slots = Slots::new(general_slots(settings), settings.stats_slots);
         if let Some(udp) = udp {
             tokio::spawn(udp_loop(
                 shared.clone(),
@@ -47,11 +46,6 @@ impl Server {
         }
         tokio::pin!(shutdown);
         loop {
-            let permit = tokio::select! {
-                _ = &mut shutdown => break,
-                p = permits.clone().acquire_owned() => p,
-            };
-            let Ok(permit) = permit else { break };
             let accepted = tokio::select! {
                 _ = &mut shutdown => break,
                 a = listener.accept() => a,
@@ -60,10 +54,21 @@ impl Server {
                 Ok((socket, peer)) => {
                     shared.connections.bump();
                     tracing::debug!(%peer, "connection");
+                    keepalive(&socket, settings.tcp_keepalive);
+                    let (guard, slot) = match slots.admit(shared, peer.ip()) {
+                        Ok(s) => s,
+                        Err(refusal) => {
+                            tracing::debug!(%peer, "refused: {refusal}");
+                            slots.refuse(shared, socket, &refusal);
+                            continue;
+                        }
+                    };
+                    let stats_only = matches!(slot, Slot::Stats(_));
                     let (shared, stop, done) = (shared.clone(), stop_rx.clone(), done_tx.clone());
                     tokio::spawn(async move {
-                        connection(shared, socket, stop).await;
-                        drop(permit);
+                        connection(shared, socket, stop, stats_only).await;
+                        drop(slot);
+                        drop(guard);
                         drop(done);
                     });
                 }
@@ -112,14 +117,26 @@ impl Server {
     }
 }
 
-/// One TCP connection: read the hello, then serve it as a tracker, viewer or stats request.
-async fn connection(shared: Arc<Shared>, socket: TcpStream, mut stop: watch::Receiver<bool>) {
+/// How long a connection in a stats slot has for its hello.
+const STATS_SLOT_HELLO: std::time::Duration = std::time::Duration::from_secs(2);
+
+/// One TCP connection: read the hello, then serve it as a tracker, viewer or stats request
+/// (only a stats request when it holds one of the slots kept for them).
+async fn connection(
+    shared: Arc<Shared>,
+    socket: TcpStream,
+    mut stop: watch::Receiver<bool>,
+    stats_only: bool,
+) {
     let _ = socket.set_nodelay(true);
     let peer = socket.peer_addr().ok();
     let (r, mut w) = socket.into_split();
     let hello_limit = shared.settings.max_message_bytes.min(HELLO_MAX_BYTES);
     let mut lines = LineReader::new(BufReader::new(r), hello_limit);
-    let idle = shared.settings.idle_timeout;
+    let mut idle = shared.settings.idle_timeout;
+    if stats_only {
+        idle = idle.min(STATS_SLOT_HELLO);
+    }
     let read = tokio::select! {
         _ = stop.changed() => return,
         _ = sleep(idle) => {
@@ -129,7 +146,7 @@ async fn connection(shared: Arc<Shared>, socket: TcpStream, mut stop: watch::Rec
         l = lines.next_line() => l,
     };
     let hello = match read {
-        Ok(Line::Complete | Line::Partial) => mimic_wire::parse_hello(lines.line()),
+        Ok(Line::Complete | Line::Partial) => mimic_wire::parse_hello_with_token(lines.line()),
         Ok(Line::TooLong) => {
             let limit = hello_limit;
             refuse(&shared, &mut w, Refusal::HelloTooLong { limit }).await;
@@ -139,6 +156,28 @@ async fn connection(shared: Arc<Shared>, socket: TcpStream, mut stop: watch::Rec
     };
     // Trackers' frame lines may be as long as the message limit.
     lines.set_limit(shared.settings.max_message_bytes);
+    let hello = match hello {
+        Ok((hello, token)) => {
+            if !token_ok(shared.settings.token.as_deref(), token.as_deref()) {
+                tracing::info!(?peer, "hello without the server's token refused");
+                if matches!(hello, Hello::Viewer { .. }) {
+                    shared.refused.bump();
+                    let m = mimic_wire::encode_json(KIND_ERROR, &Refusal::BadToken.json());
+                    write_and_close(&mut w, &m).await;
+                } else {
+                    refuse(&shared, &mut w, Refusal::BadToken).await;
+                }
+                return;
+            }
+            Ok(hello)
+        }
+        Err(e) => Err(e),
+    };
+    if stats_only && !matches!(hello, Ok(Hello::Stats | Hello::HttpGet { .. })) {
+        let why = "no connection slot left but those kept for stats requests";
+        refuse(&shared, &mut w, Refusal::TooManyConnections(why.into())).await;
+        return;
+    }
     match hello {
         Err(e) => refuse(&shared, &mut w, Refusal::BadHello(e)).await,
         Ok(Hello::Stats) => {
@@ -173,4 +212,17 @@ async fn connection(shared: Arc<Shared>, socket: TcpStream, mut stop: watch::Rec
             session::run::<Weights>(shared, lines, w, hello, stop).await;
         }
     }
+}
+
+/// Whether a hello's token is the server's (always, when the server has none); compared
+/// without an early exit.
+fn token_ok(server: Option<&str>, presented: Option<&str>) -> bool {
+    let Some(want) = server else { return true };
+    let got = presented.unwrap_or_default().as_bytes();
+    let want = want.as_bytes();
+    let mut diff = u8::from(got.len() != want.len());
+    for (k, w) in want.iter().enumerate() {
+        diff |= w ^ got.get(k).copied().unwrap_or(!w);
+    }
+    std::hint::black_box(diff) == 0
 }

@@ -73,6 +73,12 @@ pub(crate) enum Refusal {
         /// The limit.
         max: usize,
     },
+    /// Past the connection limit (the text says which).
+    #[error("{0}")]
+    TooManyConnections(String),
+    /// The server has a token and the hello did not present it.
+    #[error("this server needs a token: start the client with --token (or MIMIC_TOKEN)")]
+    BadToken,
     /// The session already has a tracker.
     #[error("session `{session}` already has a tracker")]
     SessionBusy {
@@ -96,6 +102,8 @@ impl Refusal {
             Refusal::TooManySessions { .. } => ErrorCode::TooManySessions,
             Refusal::TooManyViewers { .. } => ErrorCode::TooManyViewers,
             Refusal::SessionBusy { .. } => ErrorCode::SessionBusy,
+            Refusal::TooManyConnections(_) => ErrorCode::TooManyConnections,
+            Refusal::BadToken => ErrorCode::BadToken,
         }
     }
 

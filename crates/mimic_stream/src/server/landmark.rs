@@ -99,6 +99,19 @@ impl Recording {
         }
     }
 
+    /// `--record-sync`: writes an accepted frame and syncs it to the disk before returning;
+    /// false when it could not be (then it is counted `record_lost` and must not be broadcast).
+    async fn frame_durable(&self, f: RecordedFrame) -> bool {
+        match self {
+            Recording::Off => true,
+            Recording::On(r) => r.record_durable(f).await,
+            Recording::Failed(c) => {
+                c.lost.bump();
+                false
+            }
+        }
+    }
+
     /// Hands an accepted frame to the recording, if the server records.
     async fn frame(&self, outcome: Outcome, f: RecordedFrame) {
         if outcome != Outcome::Accepted {
@@ -124,12 +137,15 @@ pub(crate) struct Landmark {
     point_count: usize,
     multi_thread: bool,
     recording: Recording,
+    /// `--record-sync` with a recording: a frame is broadcast (and counted) only once it is on
+    /// disk.
+    durable: bool,
     udp: mpsc::Receiver<(Instant, LandmarkFrame)>,
 }
 
 impl Landmark {
-    /// Retargets one frame and broadcasts it; late frames and frames from the future are
-    /// dropped and counted.
+    /// Retargets one frame and broadcasts it (under `--record-sync`, [`Self::keep`] broadcasts
+    /// it once it is on disk); late frames and frames from the future are dropped and counted.
     fn accept(
         &mut self,
         s: &Session,
@@ -161,6 +177,14 @@ impl Landmark {
                 return Outcome::Malformed;
             }
         }
+        if !self.durable {
+            self.publish(s, arrival, udp);
+        }
+        Outcome::Accepted
+    }
+
+    /// Counts the retargeted frame and broadcasts it to the viewers.
+    fn publish(&mut self, s: &Session, arrival: Instant, udp: bool) {
         let seq = s.next_seq(udp);
         let (rig, scratch) = (&s.rig, &mut self.scratch);
         s.broadcast(
@@ -170,7 +194,25 @@ impl Landmark {
             |d, positions| rig.deform(d, scratch, positions),
             arrival,
         );
-        Outcome::Accepted
+    }
+
+    /// Records a frame [`Self::accept`] judged; under `--record-sync` an accepted frame is
+    /// broadcast only after it is on disk (one that cannot be written is never broadcast).
+    async fn keep(
+        &mut self,
+        s: &Session,
+        outcome: Outcome,
+        f: RecordedFrame,
+        arrival: Instant,
+        udp: bool,
+    ) {
+        if self.durable && outcome == Outcome::Accepted {
+            if self.recording.frame_durable(f).await {
+                self.publish(s, arrival, udp);
+            }
+        } else {
+            self.recording.frame(outcome, f).await;
+        }
     }
 
     /// A UDP frame: checked against the layout (no reply over UDP), accepted and recorded.
@@ -183,12 +225,17 @@ impl Landmark {
             self.accept(s, &frame, arrival, true)
         };
         let f = RecordedFrame::unlabelled(frame);
-        self.recording.frame(outcome, f).await;
+        self.keep(s, outcome, f, arrival, true).await;
     }
 }
 
-/// The key a session's UDP packets must carry.
+/// The secret a session's UDP packets must carry: from the OS RNG (a hash of the id, the time
+/// and the server's random hasher keys only if the OS RNG fails).
 fn udp_key(shared: &Shared, id: u32) -> u32 {
+    if let Ok(k) = getrandom::u32() {
+        return k;
+    }
+    tracing::warn!("OS RNG unavailable: the UDP key comes from a keyed hash");
     let mut h = shared.keys.build_hasher();
     h.write_u32(id);
     h.write_u128(shared.started.elapsed().as_nanos());
@@ -263,6 +310,8 @@ impl Protocol for Landmark {
             s.id,
             Route {
                 key,
+                peer_ip: a.peer.map(|p| p.ip()),
+                source: None,
                 tx: udp_tx,
                 record: s.record.clone(),
             },
@@ -283,6 +332,7 @@ impl Protocol for Landmark {
             point_count: a.point_count,
             multi_thread: tokio::runtime::Handle::current().runtime_flavor()
                 == tokio::runtime::RuntimeFlavor::MultiThread,
+            durable: settings.record_sync && !matches!(recording, Recording::Off),
             recording,
             udp,
         };
@@ -321,7 +371,7 @@ impl Protocol for Landmark {
                         allowed_us,
                     ));
                 }
-                self.recording.frame(outcome, rf).await;
+                self.keep(s, outcome, rf, line.arrival, false).await;
                 LineOutcome::Frame
             }
             Err(problem) => LineOutcome::Malformed(

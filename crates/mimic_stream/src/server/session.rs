@@ -288,8 +288,9 @@ fn log_counters(record: &SessionRecord) {
     let s = record.snapshot();
     tracing::info!(session = %s.name, frames = s.frames, tracked = s.tracked,
         lost = s.lost, late = s.late, malformed = s.malformed,
-        udp_queue_dropped = s.udp_queue_dropped, viewers = s.viewers.len(),
-        viewer_drops = s.viewers.iter().map(|v| v.frames_dropped).sum::<u64>(),
+        udp_queue_dropped = s.udp_queue_dropped,
+        viewers = s.viewers.iter().filter(|v| v.connected).count(),
+        viewers_total = s.viewers_total, viewer_drops = s.viewer_frames_dropped,
         p50_us = s.latency.p50_us, p99_us = s.latency.p99_us, "session counters");
 }
 

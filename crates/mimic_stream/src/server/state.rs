@@ -7,8 +7,8 @@ use crate::catalog::Catalog;
 use crate::queue::Message;
 use crate::record::RecordCounters;
 use crate::settings::ServerSettings;
-use crate::stats::{Counter, LatencyHistogram, ServerStats, SessionSnapshot};
-use std::collections::HashMap;
+use crate::stats::{Counter, LatencyHistogram, ServerStats, SessionSnapshot, ViewerSnapshot};
+use std::collections::{HashMap, VecDeque};
 use std::sync::atomic::{AtomicBool, AtomicU32, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex, MutexGuard, PoisonError};
 use std::time::Instant;
@@ -43,7 +43,72 @@ pub(crate) struct SessionRecord {
     pub(crate) record: Arc<RecordCounters>,
     pub(crate) recording: Mutex<Option<String>>,
     pub(crate) latency: Mutex<LatencyHistogram>,
-    pub(crate) viewers: Mutex<Vec<Arc<Viewer>>>,
+    pub(crate) viewers: Mutex<ViewerLog>,
+}
+
+/// Departed viewers whose counters a session keeps one by one; older ones are only summed.
+pub(crate) const DEPARTED_VIEWERS_KEPT: usize = 16;
+
+/// The viewers of one session, bounded: those attached now (connected, or departed since the
+/// last compaction), the last [`DEPARTED_VIEWERS_KEPT`] departed ones, and totals over all.
+#[derive(Debug, Default)]
+pub(crate) struct ViewerLog {
+    attached: Vec<Arc<Viewer>>,
+    departed: VecDeque<ViewerSnapshot>,
+    departed_count: u64,
+    departed_sent: u64,
+    departed_dropped: u64,
+}
+
+impl ViewerLog {
+    /// Moves viewers that have disconnected from the attached list into the summary.
+    fn compact(&mut self) {
+        let mut k = 0;
+        while k < self.attached.len() {
+            if self.attached[k].connected.load(Ordering::Acquire) {
+                k += 1;
+                continue;
+            }
+            let v = self.attached.remove(k);
+            let snap = v.snapshot();
+            self.departed_count += 1;
+            self.departed_sent += snap.frames_sent;
+            self.departed_dropped += snap.frames_dropped;
+            if self.departed.len() >= DEPARTED_VIEWERS_KEPT {
+                self.departed.pop_front();
+            }
+            self.departed.push_back(snap);
+        }
+    }
+
+    /// Attaches a viewer (compacting first, so churn never grows the list).
+    pub(crate) fn attach(&mut self, v: Arc<Viewer>) {
+        self.compact();
+        self.attached.push(v);
+    }
+
+    /// Replaces the attached viewers (a session going live on a hub that has viewers waiting).
+    pub(crate) fn attach_all(&mut self, vs: &[Arc<Viewer>]) {
+        self.compact();
+        self.attached.extend(vs.iter().cloned());
+    }
+
+    /// Compacts, then the listed viewers (kept departed ones, then attached, by id) and the
+    /// totals over every viewer that ever watched: (list, viewers, frames sent, frames dropped).
+    fn summary(&mut self) -> (Vec<ViewerSnapshot>, u64, u64, u64) {
+        self.compact();
+        let mut list: Vec<ViewerSnapshot> = self.departed.iter().cloned().collect();
+        let (mut sent, mut dropped) = (self.departed_sent, self.departed_dropped);
+        for v in &self.attached {
+            let s = v.snapshot();
+            sent += s.frames_sent;
+            dropped += s.frames_dropped;
+            list.push(s);
+        }
+        list.sort_by_key(|v| v.id);
+        let total = self.departed_count + self.attached.len() as u64;
+        (list, total, sent, dropped)
+    }
 }
 
 impl SessionRecord {
@@ -72,12 +137,14 @@ impl SessionRecord {
             record: Arc::default(),
             recording: Mutex::new(None),
             latency: Mutex::new(LatencyHistogram::default()),
-            viewers: Mutex::new(Vec::new()),
+            viewers: Mutex::new(ViewerLog::default()),
         }
     }
 
     /// The counters as the stats report them.
     pub(crate) fn snapshot(&self) -> SessionSnapshot {
+        let (viewers, viewers_total, viewer_frames_sent, viewer_frames_dropped) =
+            lock(&self.viewers).summary();
         SessionSnapshot {
             id: self.id,
             name: self.name.clone(),
@@ -103,7 +170,10 @@ impl SessionRecord {
             record_lost: self.record.lost.get(),
             record_waits: self.record.waits.get(),
             latency: lock(&self.latency).summary(),
-            viewers: lock(&self.viewers).iter().map(|v| v.snapshot()).collect(),
+            viewers,
+            viewers_total,
+            viewer_frames_sent,
+            viewer_frames_dropped,
         }
     }
 }
@@ -135,10 +205,13 @@ pub(crate) struct Shared {
     pub(crate) next_session: AtomicU32,
     pub(crate) next_viewer: AtomicU64,
     pub(crate) sessions_active: AtomicUsize,
+    pub(crate) peers: Mutex<HashMap<std::net::IpAddr, usize>>,
     pub(crate) viewers_active: AtomicUsize,
     pub(crate) connections: Counter,
     pub(crate) refused: Counter,
     pub(crate) udp_bad: Counter,
+    pub(crate) udp_wrong_key: Counter,
+    pub(crate) udp_wrong_source: Counter,
     pub(crate) recordings_open: Arc<AtomicUsize>,
     pub(crate) keys: std::collections::hash_map::RandomState,
 }
@@ -156,10 +229,13 @@ impl Shared {
             next_session: AtomicU32::new(1),
             next_viewer: AtomicU64::new(1),
             sessions_active: AtomicUsize::new(0),
+            peers: Mutex::new(HashMap::new()),
             viewers_active: AtomicUsize::new(0),
             connections: Counter::default(),
             refused: Counter::default(),
             udp_bad: Counter::default(),
+            udp_wrong_key: Counter::default(),
+            udp_wrong_source: Counter::default(),
             recordings_open: Arc::new(AtomicUsize::new(0)),
             keys: std::collections::hash_map::RandomState::new(),
         }
@@ -180,12 +256,10 @@ impl Shared {
             sessions_active: self.sessions_active.load(Ordering::Relaxed) as u64,
             viewers_active: self.viewers_active.load(Ordering::Relaxed) as u64,
             udp_bad_packets: self.udp_bad.get(),
+            udp_wrong_key: self.udp_wrong_key.get(),
+            udp_wrong_source: self.udp_wrong_source.get(),
             latency: all.summary(),
-            viewer_frames_dropped: sessions
-                .iter()
-                .flat_map(|s| &s.viewers)
-                .map(|v| v.frames_dropped)
-                .sum(),
+            viewer_frames_dropped: sessions.iter().map(|s| s.viewer_frames_dropped).sum(),
             sessions,
         }
     }
@@ -216,7 +290,7 @@ impl Shared {
                 v.queue.push_control(session_message.clone(), true);
                 v.queue.push_control(rig_message.clone(), false);
             }
-            *lock(&record.viewers) = hub.viewers.clone();
+            lock(&record.viewers).attach_all(&hub.viewers);
             hub.live = Some(Live {
                 session_message,
                 rig_message: rig_message.clone(),

@@ -2,6 +2,7 @@
 
 use super::state::{SessionRecord, Shared, lock};
 use mimic_types::LandmarkFrame;
+use std::net::{IpAddr, SocketAddr};
 use std::sync::Arc;
 use std::time::Instant;
 use tokio::net::UdpSocket;
@@ -12,6 +13,11 @@ use tokio::sync::{mpsc, watch};
 pub(crate) struct Route {
     /// The key the session's welcome line gave its tracker.
     pub(crate) key: u32,
+    /// The address the tracker's TCP hello came from: packets must come from it.
+    pub(crate) peer_ip: Option<IpAddr>,
+    /// The source (address and port) of the session's first accepted packet: later packets
+    /// must come from it.
+    pub(crate) source: Option<SocketAddr>,
     /// The session's bounded packet queue.
     pub(crate) tx: mpsc::Sender<(Instant, LandmarkFrame)>,
     /// The session's counters (a full queue is counted there).
@@ -31,7 +37,7 @@ pub(crate) async fn udp_loop(
             _ = stop.changed() => break,
             r = udp.recv_from(&mut buf) => r,
         };
-        let Ok((len, _peer)) = got else { continue };
+        let Ok((len, from)) = got else { continue };
         let arrival = Instant::now();
         let Some(packet) = buf.get(..len) else {
             continue;
@@ -40,15 +46,37 @@ pub(crate) async fn udp_loop(
             shared.udp_bad.bump();
             continue;
         };
-        let routes = lock(&shared.routes);
-        match routes.get(&u.session_id) {
-            Some(route) if route.key == u.key => {
-                if route.tx.try_send((arrival, u.frame)).is_err() {
-                    route.record.udp_queue_dropped.bump();
-                }
-            }
-            _ => shared.udp_bad.bump(),
+        let mut routes = lock(&shared.routes);
+        let Some(route) = routes.get_mut(&u.session_id) else {
+            shared.udp_bad.bump();
+            continue;
+        };
+        if !key_matches(route.key, u.key) {
+            shared.udp_bad.bump();
+            shared.udp_wrong_key.bump();
+            continue;
+        }
+        let source_ok = route.peer_ip.is_none_or(|ip| same_ip(ip, from.ip()))
+            && route.source.is_none_or(|s| s == from);
+        if !source_ok {
+            shared.udp_bad.bump();
+            shared.udp_wrong_source.bump();
+            continue;
+        }
+        route.source = Some(from);
+        if route.tx.try_send((arrival, u.frame)).is_err() {
+            route.record.udp_queue_dropped.bump();
         }
     }
     drop(done);
+}
+
+/// Compares two keys without an early exit.
+fn key_matches(a: u32, b: u32) -> bool {
+    std::hint::black_box(a ^ b) == 0
+}
+
+/// The same address, an IPv4 one also when seen as IPv4-mapped IPv6.
+fn same_ip(a: IpAddr, b: IpAddr) -> bool {
+    a.to_canonical() == b.to_canonical()
 }

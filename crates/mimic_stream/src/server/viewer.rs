@@ -5,7 +5,8 @@ use super::state::{Shared, lock};
 use crate::lines::LineReader;
 use crate::queue::ViewerQueue;
 use crate::stats::ViewerSnapshot;
-use mimic_wire::{KIND_ERROR, encode_json};
+use mimic_wire::{ErrorCode, KIND_ERROR, encode_json};
+use serde_json::json;
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
 use tokio::io::{AsyncWriteExt, BufReader};
@@ -68,7 +69,7 @@ pub(crate) async fn viewer(
         if let Some(live) = &hub.live {
             v.queue.push_control(live.session_message.clone(), true);
             v.queue.push_control(live.rig_message.clone(), false);
-            lock(&live.record.viewers).push(v.clone());
+            lock(&live.record.viewers).attach(v.clone());
         }
         hub.viewers.push(v.clone());
     }
@@ -83,7 +84,33 @@ pub(crate) async fn viewer(
             v.queue.abandon();
         })
     };
-    while let Some(m) = v.queue.pop().await {
+    // At least 10 ms, so that a 0 never spins this loop while a silent tracker is live.
+    let idle = settings
+        .viewer_idle_timeout
+        .max(std::time::Duration::from_millis(10));
+    loop {
+        let m = match timeout(idle, v.queue.pop()).await {
+            Ok(Some(m)) => m,
+            Ok(None) => break,
+            Err(_) => {
+                let live = lock(&shared.hubs)
+                    .get(&session)
+                    .is_some_and(|h| h.live.is_some());
+                if live {
+                    continue;
+                }
+                let secs = settings.viewer_idle_timeout.as_secs_f64();
+                let why = format!("session `{session}` has had no tracker for {secs} s");
+                let error = json!({"code": ErrorCode::IdleTimeout.name(), "message": why});
+                let _ = timeout(
+                    settings.viewer_write_timeout,
+                    w.write_all(&encode_json(KIND_ERROR, &error)),
+                )
+                .await;
+                v.queue.abandon();
+                break;
+            }
+        };
         match timeout(settings.viewer_write_timeout, w.write_all(&m)).await {
             Ok(Ok(())) => {}
             _ => {
@@ -94,7 +121,7 @@ pub(crate) async fn viewer(
     }
     let _ = timeout(std::time::Duration::from_secs(1), w.shutdown()).await;
     watcher.abort();
-    v.connected.store(false, Ordering::Relaxed);
+    v.connected.store(false, Ordering::Release);
     {
         let mut hubs = lock(&shared.hubs);
         if let Some(hub) = hubs.get_mut(&session) {
