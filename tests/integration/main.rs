@@ -7,6 +7,7 @@
 
 mod clock;
 mod config_limits;
+mod depth;
 mod faults;
 mod fit;
 mod import;
