@@ -54,7 +54,8 @@ fn frames(path: &Path) -> Vec<LandmarkFrame> {
 fn library_counts(path: &Path, floor: f32) -> (u64, u64, u64) {
     let root = repo();
     let rig = mimic_assets::load_rig(&root.join("configs/rigs/ict-face.toml")).unwrap();
-    let layout = mimic_assets::load_layout(&root.join("configs/layouts/kinect-gfe100.toml")).unwrap();
+    let layout =
+        mimic_assets::load_layout(&root.join("configs/layouts/kinect-gfe100.toml")).unwrap();
     let mut s = rig.solver;
     s.kind = SolverKind::Rbf;
     let basis = std::sync::Arc::new(mimic_solve::build_basis(&rig, &s).unwrap());
@@ -100,7 +101,10 @@ fn repaired_gfe_imports_have_no_holes_and_fewer_clamped_frames() {
             assert_eq!(tracked, count(&r, "tracked"), "{n}");
             assert_eq!(count(&j, "invalid_points"), 0, "{n}");
             // Every frame of the capture is tracked: nothing is bought by losing frames.
-            assert!(count(&j, "lost") + count(&j, "gated") <= count(&r, "gated"), "{n}");
+            assert!(
+                count(&j, "lost") + count(&j, "gated") <= count(&r, "gated"),
+                "{n}"
+            );
             assert!(count(&j, "jumps") * 100 <= tracked, "{n}: jumps");
             assert!(count(&j, "jumps") <= count(&r, "jumps"), "{n}: jumps");
             // Measured: 6 to 47 times fewer clamped frames (docs/gate.md); a third is the bound.
@@ -114,7 +118,10 @@ fn repaired_gfe_imports_have_no_holes_and_fewer_clamped_frames() {
         // With the trim floor, the figure: at most 1 % of tracked frames clamped or jumping.
         let (tracked, clamped, jumps) = library_counts(&rep, 0.2);
         println!("{n} floor 0.2: tracked {tracked}, clamped {clamped}, jumps {jumps}");
-        assert!(clamped * 100 <= tracked, "{n}: {clamped} clamped of {tracked}");
+        assert!(
+            clamped * 100 <= tracked,
+            "{n}: {clamped} clamped of {tracked}"
+        );
         assert!(jumps * 100 <= tracked, "{n}: {jumps} jumps of {tracked}");
     }
 }

@@ -18,6 +18,7 @@ mod morph;
 mod regression;
 mod render;
 mod replay;
+mod seams;
 mod serve;
 mod serve_weights;
 mod view;

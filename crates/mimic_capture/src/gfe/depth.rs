@@ -326,7 +326,11 @@ mod tests {
             for p in 0..100 {
                 assert!(f.frame.is_valid(p));
                 let z = -f64::from(f.frame.points[p].z) * 1e3;
-                assert!((z - truth[t][p]).abs() < 1e-3, "t {t} p {p}: {z} vs {}", truth[t][p]);
+                assert!(
+                    (z - truth[t][p]).abs() < 1e-3,
+                    "t {t} p {p}: {z} vs {}",
+                    truth[t][p]
+                );
             }
         }
     }
@@ -346,6 +350,10 @@ mod tests {
         repair_frames(&mut frames, &pixels);
         assert!(!frames[3].frame.is_valid(50));
         let z = -f64::from(frames[10].frame.points[60].z) * 1e3;
-        assert!((z - truth[10][60]).abs() < 0.05 * 10.0, "{z} vs {}", truth[10][60]);
+        assert!(
+            (z - truth[10][60]).abs() < 0.05 * 10.0,
+            "{z} vs {}",
+            truth[10][60]
+        );
     }
 }
