@@ -59,9 +59,11 @@ fn library_counts(path: &Path, floor: f32) -> (u64, u64, u64) {
     let mut s = rig.solver;
     s.kind = SolverKind::Rbf;
     let basis = std::sync::Arc::new(mimic_solve::build_basis(&rig, &s).unwrap());
-    let mut settings = RetargetSettings::default();
-    settings.positions = false;
-    settings.normals = false;
+    let mut settings = RetargetSettings {
+        positions: false,
+        normals: false,
+        ..RetargetSettings::default()
+    };
     settings.gate.pose_trim_floor = floor;
     let mut rt = Retargeter::new(&rig, &layout, basis, settings).unwrap();
     let mut out = rt.new_output();

@@ -9,8 +9,8 @@
 //! controls turn into centimetre jumps. Per frame the head is a plane in depth
 //! (`z = a + b·(u − ū) + c·(v − v̄)`: its distance, yaw and pitch), fitted by least squares to the
 //! measured depths minus the points' reliefs; a point's relief is its median depth off that plane
-//! over the take. A measured depth further than [`OUTLIER_IOD`] inter-ocular distances from plane
-//! + relief is off the face and takes no part in either. Each point's depth is then plane +
+//! over the take. A measured depth further than [`OUTLIER_IOD`] inter-ocular distances from
+//! plane plus relief is off the face and takes no part in either. Each point's depth is then plane +
 //! relief at its pixel: the measurement decides the plane (from some 90 points) and the relief
 //! (from the whole take), never one point's depth in one frame. Motion in the image plane (a
 //! jaw opening, a smile, brows) is the tracker's; what is lost is expression depth (lips pushed
