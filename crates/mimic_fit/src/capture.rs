@@ -177,8 +177,8 @@ impl CaptureFit {
     }
 }
 
-/// A frame's extra recording fields: `{"fit": {rotation, translation, scale, au, residual_px,
-/// points_used}}` (pose and residual only when tracked), rounded as written.
+/// A frame's extra recording fields: `{"fit": {rotation, translation, scale, au, au_odd,
+/// residual_px, points_used}}` (`au_odd` only from an asymmetric fit) (pose and residual only when tracked), rounded as written.
 pub fn frame_fields(r: &FitResult) -> Map<String, Value> {
     let mut fit = Map::new();
     if r.tracked {

@@ -94,10 +94,17 @@ pub struct FitSettings {
     pub units: Vec<usize>,
     /// Also fit each fitted AUV's left-right odd part (its displacements times the sign of the
     /// vertex's x; `docs/fitter.md`): the subject's left half then moves by `alpha + beta` of the
-    /// unit and the right half by `alpha - beta`, so a one-sided smile stays one-sided.
+    /// unit and the right half by `alpha - beta`, so a one-sided smile stays one-sided. Off by
+    /// default: on the shipped GFE captures the odd parts trade off against the head's yaw and
+    /// the fit fails more often (docs/fitter.md).
     pub asymmetric: bool,
     /// Bounds of every odd-part coefficient `beta` (symmetric: either side may lead).
     pub odd_bound: f64,
+    /// Ridge prior on each odd-part coefficient (pixels per unit): stiffer than the AUs', so
+    /// tracker noise that differs between the sides does not become expression.
+    pub odd_prior_px: f64,
+    /// Temporal prior on each odd-part coefficient.
+    pub odd_smooth_px: f64,
 }
 
 /// The AUVs fitted by default: the six the Kinect v1 face tracker reports (upper lip raiser, jaw drop,
@@ -122,8 +129,10 @@ impl Default for FitSettings {
             cold_iterations: 60,
             nominal_scale_m: 0.1,
             units: DEFAULT_UNITS.to_vec(),
-            asymmetric: true,
+            asymmetric: false,
             odd_bound: 1.0,
+            odd_prior_px: 3.0,
+            odd_smooth_px: 2.0,
         }
     }
 }
@@ -734,14 +743,14 @@ impl Fitter {
         };
         for (col, &k) in units.iter().enumerate() {
             let a = state.au[k];
-            prior(POSE_PARAMS + col, self.settings.au_prior_px, a, &mut cost);
+            let (ridge, smooth) = if k < AUV_COUNT {
+                (self.settings.au_prior_px, self.settings.au_smooth_px)
+            } else {
+                (self.settings.odd_prior_px, self.settings.odd_smooth_px)
+            };
+            prior(POSE_PARAMS + col, ridge, a, &mut cost);
             if let Some(p) = prev_au.and_then(|p| p.get(k)) {
-                prior(
-                    POSE_PARAMS + col,
-                    self.settings.au_smooth_px,
-                    a - p,
-                    &mut cost,
-                );
+                prior(POSE_PARAMS + col, smooth, a - p, &mut cost);
             }
         }
         if fit_shape {

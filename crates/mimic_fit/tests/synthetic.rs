@@ -226,7 +226,7 @@ fn frames_with_too_few_points_are_lost_not_invented() {
 
 /// A one-sided smile: a still, neutral face whose subject's-left mouth corner (GFE points 54 and
 /// 64, CANDIDE-3 vertex 31 and its inner lip) alone moves 6 px outwards and 3 px up. Fitted
-/// asymmetric (the default), the left corner of the model follows and the right (vertex 64)
+/// asymmetric (`FitSettings::asymmetric`), the left corner of the model follows and the right (vertex 64)
 /// stays; fitted symmetric, both corners move alike.
 #[test]
 fn a_one_sided_smile_stays_one_sided() {
@@ -287,6 +287,7 @@ fn a_one_sided_smile_stays_one_sided() {
         let moved = |v: usize| (camera.project(v1[v]) - camera.project(v0[v])).length();
         (moved(31), moved(64))
     };
+    assert!(!FitSettings::default().asymmetric);
     let (left, right) = corner_moves(true);
     let (sym_left, sym_right) = corner_moves(false);
     eprintln!(
