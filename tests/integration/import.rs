@@ -46,6 +46,7 @@ fn gfe_import_writes_a_readable_recording_and_a_summary_line() {
         tg.to_str().unwrap(),
         "-o",
         out.to_str().unwrap(),
+        "--raw-depth",
     ]);
     let (stdout, stderr) = text(&o);
     assert!(o.status.success(), "{stderr}");
@@ -72,6 +73,37 @@ fn gfe_import_writes_a_readable_recording_and_a_summary_line() {
         .to_string();
     assert!(
         second.starts_with(r#"{"t_us":100009000,"points":[null,[0.00188271,0,-1],"#),
+        "{second}"
+    );
+    // Without --raw-depth the hole is filled (docs/gate.md): every point at 1000 mm, the plane
+    // of the other 99, so point 0 gets (0, 0, -1) m at its pixel (320, 240).
+    let o = mimic(&[
+        "import",
+        "gfe",
+        dp.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert!(
+        stdout.starts_with(
+            "depth repaired: 1 holes filled, 0 off-face depths replaced, 0 frames kept as measured\n"
+        ),
+        "{stdout}"
+    );
+    assert!(
+        stdout.contains("3 frames (0 lost tracking), 0 invalid points"),
+        "{stdout}"
+    );
+    let second = std::fs::read_to_string(&out)
+        .unwrap()
+        .lines()
+        .nth(1)
+        .unwrap()
+        .to_string();
+    assert!(
+        second.starts_with(r#"{"t_us":100009000,"points":[[0,0,-1],[0.00188271,0,-1],"#),
         "{second}"
     );
 }

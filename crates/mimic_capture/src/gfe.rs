@@ -13,6 +13,9 @@ use glam::{DVec2, Vec3};
 use mimic_types::LandmarkFrame;
 use std::path::{Path, PathBuf};
 
+mod depth;
+pub use depth::{DepthRepair, repair_depth};
+
 /// Layout name of the GFE 100-point files.
 pub const LAYOUT: &str = "kinect-gfe100";
 /// Points per frame.

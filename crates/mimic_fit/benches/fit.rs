@@ -44,7 +44,7 @@ fn setup() -> (Fitter, Vec<Vec<PointObservation>>) {
             let au: Vec<f64> = (0..AUV_COUNT)
                 .map(|k| 0.3 * (t + k as f64).sin().max(0.0))
                 .collect();
-            fitter.vertices(&pose, &au, &mut verts);
+            fitter.vertices(&pose, &au, &[], &mut verts);
             let mut frame = vec![PointObservation::default(); layout.point_count];
             for c in &corr {
                 let x: DVec3 = c

@@ -104,7 +104,7 @@ pub fn fit_capture(
         };
         out.push(if r.tracked {
             residuals.push(r.residual_px);
-            fitter.vertices(&r.pose, &r.au, &mut verts);
+            fitter.vertices(&r.pose, &r.au, &r.au_odd, &mut verts);
             let mut points: Vec<Vec3> = verts.iter().map(|v| v.as_vec3()).collect();
             let mut valid = vec![true; points.len()];
             points.resize(KINECT121_POINTS, Vec3::NAN);
@@ -177,8 +177,8 @@ impl CaptureFit {
     }
 }
 
-/// A frame's extra recording fields: `{"fit": {rotation, translation, scale, au, residual_px,
-/// points_used}}` (pose and residual only when tracked), rounded as written.
+/// A frame's extra recording fields: `{"fit": {rotation, translation, scale, au, au_odd,
+/// residual_px, points_used}}` (`au_odd` only from an asymmetric fit) (pose and residual only when tracked), rounded as written.
 pub fn frame_fields(r: &FitResult) -> Map<String, Value> {
     let mut fit = Map::new();
     if r.tracked {
@@ -197,6 +197,12 @@ pub fn frame_fields(r: &FitResult) -> Map<String, Value> {
             "au".into(),
             json!(r.au.iter().map(|a| round(*a, 4)).collect::<Vec<_>>()),
         );
+        if !r.au_odd.is_empty() {
+            fit.insert(
+                "au_odd".into(),
+                json!(r.au_odd.iter().map(|a| round(*a, 4)).collect::<Vec<_>>()),
+            );
+        }
         fit.insert("residual_px".into(), json!(round(r.residual_px, 3)));
     }
     fit.insert("points_used".into(), json!(r.points_used));
@@ -256,6 +262,7 @@ mod tests {
                 scale: 1.0,
             },
             au: vec![],
+            au_odd: vec![],
             residual_px: f64::NAN,
             points_used: 3,
             iterations: 0,
@@ -267,11 +274,13 @@ mod tests {
         let tracked = FitResult {
             tracked: true,
             au: vec![0.123_456],
+            au_odd: vec![-0.054_321],
             residual_px: 1.234_56,
             ..lost
         };
         let f = Value::Object(frame_fields(&tracked));
         assert_eq!(f["fit"]["au"], json!([0.1235]));
+        assert_eq!(f["fit"]["au_odd"], json!([-0.0543]));
         assert_eq!(f["fit"]["residual_px"], json!(1.235));
         assert_eq!(f["fit"]["rotation"], json!([0.0, 0.0, 0.0, 1.0]));
     }

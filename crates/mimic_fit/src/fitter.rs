@@ -92,6 +92,19 @@ pub struct FitSettings {
     pub nominal_scale_m: f64,
     /// The AUVs fitted, as indices into [`Candide3::auvs`] (file order); the others stay 0.
     pub units: Vec<usize>,
+    /// Also fit each fitted AUV's left-right odd part (its displacements times the sign of the
+    /// vertex's x; `docs/fitter.md`): the subject's left half then moves by `alpha + beta` of the
+    /// unit and the right half by `alpha - beta`, so a one-sided smile stays one-sided. Off by
+    /// default: on the shipped GFE captures the odd parts trade off against the head's yaw and
+    /// the fit fails more often (docs/fitter.md).
+    pub asymmetric: bool,
+    /// Bounds of every odd-part coefficient `beta` (symmetric: either side may lead).
+    pub odd_bound: f64,
+    /// Ridge prior on each odd-part coefficient (pixels per unit): stiffer than the AUs', so
+    /// tracker noise that differs between the sides does not become expression.
+    pub odd_prior_px: f64,
+    /// Temporal prior on each odd-part coefficient.
+    pub odd_smooth_px: f64,
 }
 
 /// The AUVs fitted by default: the six the Kinect v1 face tracker reports (upper lip raiser, jaw drop,
@@ -116,6 +129,10 @@ impl Default for FitSettings {
             cold_iterations: 60,
             nominal_scale_m: 0.1,
             units: DEFAULT_UNITS.to_vec(),
+            asymmetric: false,
+            odd_bound: 1.0,
+            odd_prior_px: 3.0,
+            odd_smooth_px: 2.0,
         }
     }
 }
@@ -140,6 +157,9 @@ pub struct FitResult {
     pub pose: Pose,
     /// Fitted coefficients of the 11 AUVs, in model file order.
     pub au: Vec<f64>,
+    /// Fitted coefficients of their left-right odd parts (11, same order; empty when the fit is
+    /// symmetric, [`FitSettings::asymmetric`] off).
+    pub au_odd: Vec<f64>,
     /// RMS reprojection error of the observed correspondences (pixels).
     pub residual_px: f64,
     /// Correspondences observed in the frame.
@@ -175,6 +195,10 @@ pub struct Fitter {
     settings: FitSettings,
     point_count: usize,
     targets: Vec<Target>,
+    /// Per-vertex displacements of the odd parts, one field per AUV (empty when symmetric).
+    odd_dense: Vec<Vec<DVec3>>,
+    /// Length of the internal coefficient vector: the AUVs, then their odd parts.
+    au_len: usize,
     shape: Vec<f64>,
     state: Option<State>,
     // Scratch (reused across frames, no per-frame allocation in the LM loop).
@@ -207,7 +231,29 @@ impl Fitter {
         settings: FitSettings,
     ) -> Result<Fitter, FitError> {
         let nv = model.vertices.len();
-        let au_dense = dense(model.auvs(), nv);
+        let mut au_dense = dense(model.auvs(), nv);
+        let mut settings = settings;
+        let odd_dense: Vec<Vec<DVec3>> = if settings.asymmetric {
+            au_dense
+                .iter()
+                .map(|d| {
+                    d.iter()
+                        .zip(&model.vertices)
+                        .map(|(dv, v)| {
+                            if v.x.abs() < 1e-9 {
+                                DVec3::ZERO
+                            } else {
+                                *dv * v.x.signum()
+                            }
+                        })
+                        .collect()
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        au_dense.extend(odd_dense.iter().cloned());
+        let au_len = au_dense.len();
         let shape_dense = dense(&model.shape_units, nv);
         let mut targets = Vec::with_capacity(correspondences.len());
         for c in correspondences {
@@ -243,7 +289,18 @@ impl Fitter {
         if let Some(&k) = settings.units.iter().find(|&&k| k >= AUV_COUNT) {
             return Err(FitError::UnitOutOfRange(k));
         }
-        let n = POSE_PARAMS + AUV_COUNT + model.shape_units.len();
+        // The odd parts are fitted as units AUV_COUNT + k, for the fitted units that have one
+        // (a unit moving only the midline, x = 0, has none).
+        if settings.asymmetric {
+            let odd: Vec<usize> = settings
+                .units
+                .iter()
+                .filter(|&&k| odd_dense[k].iter().any(|d| *d != DVec3::ZERO))
+                .map(|&k| AUV_COUNT + k)
+                .collect();
+            settings.units.extend(odd);
+        }
+        let n = POSE_PARAMS + settings.units.len() + model.shape_units.len();
         let shape = vec![0.0; model.shape_units.len()];
         Ok(Fitter {
             model,
@@ -251,6 +308,8 @@ impl Fitter {
             settings,
             point_count,
             targets,
+            odd_dense,
+            au_len,
             shape,
             state: None,
             jtj: vec![0.0; n * n],
@@ -377,7 +436,8 @@ impl Fitter {
         let r = FitResult {
             tracked: true,
             pose: pose_of(&state),
-            au: state.au.clone(),
+            au: state.au[..AUV_COUNT].to_vec(),
+            au_odd: state.au[AUV_COUNT..].to_vec(),
             residual_px,
             points_used: used,
             iterations,
@@ -395,14 +455,16 @@ impl Fitter {
                 scale: 0.0,
             },
             au: vec![0.0; AUV_COUNT],
+            au_odd: vec![0.0; self.au_len - AUV_COUNT],
             residual_px: f64::NAN,
             points_used: used,
             iterations: 0,
         }
     }
 
-    /// All model vertices posed and animated as `result` says (camera space, metres).
-    pub fn vertices(&self, pose: &Pose, au: &[f64], out: &mut Vec<DVec3>) {
+    /// All model vertices posed and animated as `result` says (camera space, metres); `au_odd`
+    /// are the odd parts' coefficients ([`FitResult::au_odd`], may be empty).
+    pub fn vertices(&self, pose: &Pose, au: &[f64], au_odd: &[f64], out: &mut Vec<DVec3>) {
         out.clear();
         out.extend_from_slice(&self.model.vertices);
         for (unit, &c) in self.model.shape_units.iter().zip(&self.shape) {
@@ -413,6 +475,13 @@ impl Fitter {
         for (unit, &c) in self.model.auvs().iter().zip(au) {
             for &(v, d) in &unit.deltas {
                 out[v] += d * c;
+            }
+        }
+        for (field, &c) in self.odd_dense.iter().zip(au_odd) {
+            if c != 0.0 {
+                for (p, d) in out.iter_mut().zip(field) {
+                    *p += *d * c;
+                }
             }
         }
         for p in out.iter_mut() {
@@ -434,7 +503,7 @@ impl Fitter {
 
     /// Cold start: identity rotation, scale and translation from centroids and spreads.
     fn initial_state(&self, obs: &[PointObservation]) -> State {
-        let au = vec![0.0; AUV_COUNT];
+        let au = vec![0.0; self.au_len];
         let mut pos = Vec::new();
         let mut pix = Vec::new();
         for t in &self.targets {
@@ -546,8 +615,10 @@ impl Fitter {
         state.translation += DVec3::new(delta[3], delta[4], delta[5]);
         state.log_scale += delta[6];
         let (lo, hi) = self.settings.au_bounds;
+        let odd = self.settings.odd_bound;
         let nu = self.settings.units.len();
         for (col, &k) in self.settings.units.iter().enumerate() {
+            let (lo, hi) = if k < AUV_COUNT { (lo, hi) } else { (-odd, odd) };
             state.au[k] = (state.au[k] + delta[POSE_PARAMS + col]).clamp(lo, hi);
         }
         if fit_shape {
@@ -672,14 +743,14 @@ impl Fitter {
         };
         for (col, &k) in units.iter().enumerate() {
             let a = state.au[k];
-            prior(POSE_PARAMS + col, self.settings.au_prior_px, a, &mut cost);
+            let (ridge, smooth) = if k < AUV_COUNT {
+                (self.settings.au_prior_px, self.settings.au_smooth_px)
+            } else {
+                (self.settings.odd_prior_px, self.settings.odd_smooth_px)
+            };
+            prior(POSE_PARAMS + col, ridge, a, &mut cost);
             if let Some(p) = prev_au.and_then(|p| p.get(k)) {
-                prior(
-                    POSE_PARAMS + col,
-                    self.settings.au_smooth_px,
-                    a - p,
-                    &mut cost,
-                );
+                prior(POSE_PARAMS + col, smooth, a - p, &mut cost);
             }
         }
         if fit_shape {
@@ -821,7 +892,7 @@ mod tests {
         let mut au = vec![0.0; AUV_COUNT];
         au[1] = 0.5;
         let mut out = Vec::new();
-        f.vertices(&pose, &au, &mut out);
+        f.vertices(&pose, &au, &[], &mut out);
         assert_eq!(out.len(), 113);
         let m = DVec3::new(0.0, -0.526, 0.15) + 0.5 * DVec3::new(0.0, -0.26, -0.05);
         // Yaw by +90 deg maps (x, y, z) to (z, y, -x).

@@ -47,6 +47,12 @@ pub struct GateSettings {
     /// A frame counts as a jump in [`Stats::jumps`](crate::Stats) when some output control moves
     /// more than this between two frames, IOD (0.159 IOD is 1 cm on the ICT head).
     pub jump_report: f32,
+    /// A stable point is trimmed from the head-pose fit (as an outlier, beyond `stable_trim`
+    /// times the median residual) only if its residual is also above this, IOD: with clean
+    /// points the median is sensor noise, and trimming on noise swaps the point set, and the
+    /// pose, from frame to frame. 0 (the default) keeps the pipeline's trim as it was;
+    /// `docs/gate.md` has what 0.2 does on depth-repaired Kinect captures.
+    pub pose_trim_floor: f32,
 }
 
 impl Default for GateSettings {
@@ -66,6 +72,7 @@ impl Default for GateSettings {
             max_control_speed: 1.8,
             step_floor: 0.005,
             jump_report: 1.0 / 6.303,
+            pose_trim_floor: 0.0,
         }
     }
 }

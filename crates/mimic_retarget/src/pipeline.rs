@@ -745,7 +745,11 @@ impl Retargeter {
         self.stable_sorted.clear();
         self.stable_sorted.extend_from_slice(&self.stable_residual);
         self.stable_sorted.sort_unstable_by(f32::total_cmp);
-        let limit = self.settings.stable_trim * self.stable_sorted[k / 2];
+        let mut limit = self.settings.stable_trim * self.stable_sorted[k / 2];
+        let floor = self.pose_trim_floor();
+        if floor > 0.0 {
+            limit = limit.max(floor);
+        }
         let keep = self.stable_residual.iter().filter(|r| **r <= limit).count();
         if keep == k || keep < 3 {
             return Some(pose);
@@ -761,6 +765,18 @@ impl Retargeter {
         self.stable_src.truncate(w);
         self.stable_dst.truncate(w);
         fit_similarity(&self.stable_src, &self.stable_dst, false).or(Some(pose))
+    }
+
+    /// Residual (source units) below which a stable point is never trimmed from the head pose:
+    /// `gate.pose_trim_floor` IODs of the face, 0 with the gate off (`docs/gate.md`).
+    fn pose_trim_floor(&self) -> f32 {
+        let g = &self.settings.gate;
+        match self.to_target {
+            Some(t) if g.enabled && t.scale > 0.0 && self.face_size.is_finite() => {
+                g.pose_trim_floor * self.face_size / t.scale
+            }
+            _ => 0.0,
+        }
     }
 
     /// Derives the neutral controls and the source-to-target map; false if the neutral is unusable.

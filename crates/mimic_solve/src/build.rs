@@ -3,6 +3,9 @@
 use crate::{Basis, SolveError, geodesic, laplacian, rbf, regions};
 use mimic_types::{RbfDistance, Rig, SolverKind, SolverSettings};
 
+/// The Laplacian blends its regions over this many times the rig's `regions.band`.
+const LAPLACIAN_BAND_SCALE: f32 = 2.0;
+
 /// Builds the deformation basis of `rig` with `settings` (the rig's own `rig.solver` is not read).
 ///
 /// Without regions, one solve over all controls. With regions, `B = sum_r diag(alpha_r) B_r`
@@ -11,7 +14,8 @@ use mimic_types::{RbfDistance, Rig, SolverKind, SolverSettings};
 /// Laplacian, `B_r` is region r's columns of the one solve constrained by every control (one
 /// factorisation; measured better than per-region solves on real expressions, see
 /// docs/quality.md, but it no longer reproduces a uniform translation). A region without controls
-/// contributes nothing (its vertices stay still). Rows of frozen vertices are zero.
+/// contributes nothing (its vertices stay still); the Laplacian blends over
+/// twice the rig's band (`LAPLACIAN_BAND_SCALE`). Rows of frozen vertices are zero.
 /// RBF reproduces each control displacement exactly when regions are off (with regions, a control
 /// inside a blend band is only weighted by its own region's share). With
 /// [`SolverSettings::top_split`] (RBF only) the top region is two solves (controls above / below
@@ -60,7 +64,14 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
             (p, subset)
         })
         .collect();
-    let weights = regions::vertex_region_weights(&rig.regions, positions);
+    // The Laplacian's region r keeps region r's columns of one global solve, whose fields reach
+    // well past a band: cut over the rig's band they shear into a seam across the cheeks on a
+    // jaw opening; over twice the band they bend no more than the regions (docs/quality.md).
+    let mut bands = rig.regions;
+    if settings.kind == SolverKind::Laplacian {
+        bands.band *= LAPLACIAN_BAND_SCALE;
+    }
+    let weights = regions::vertex_region_weights(&bands, positions);
     let lap_rows = (settings.kind == SolverKind::Laplacian)
         .then(|| laplacian::laplacian_rows(positions, &rig.mesh.triangles, settings.weights));
     // Geodesic RBF: one Dijkstra per control, shared by every region.

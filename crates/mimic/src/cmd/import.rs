@@ -39,6 +39,10 @@ pub enum ImportCommand {
         /// Fit a face model and write its `kinect121` recording instead (docs/fitter.md).
         #[arg(long, value_enum)]
         fit: Option<FitModel>,
+        /// Keep the sensor's depths: holes stay invalid, off-face samples stay (default: repaired
+        /// from the head's depth plane and the neighbouring frames, docs/gate.md).
+        #[arg(long)]
+        raw_depth: bool,
     },
     /// OpenFace 2.x CSV (3D landmarks X_i, Y_i, Z_i) to an `ibug68` recording.
     Openface {
@@ -71,12 +75,21 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             output,
             source,
             fit,
+            raw_depth,
         } => {
-            let (imported, pixels) = mimic_capture::gfe::import_gfe_with_pixels(
+            let (mut imported, pixels) = mimic_capture::gfe::import_gfe_with_pixels(
                 &datapoints,
                 targets.as_deref(),
                 source.as_deref(),
             )?;
+            // A fit reads the pixels and weighs depths itself (docs/fitter.md): it gets them raw.
+            if fit.is_none() && !raw_depth {
+                let r = mimic_capture::gfe::repair_depth(&mut imported, &pixels);
+                println!(
+                    "depth repaired: {} holes filled, {} off-face depths replaced, {} frames kept as measured",
+                    r.holes_filled, r.outliers_replaced, r.frames_kept
+                );
+            }
             (imported, output, fit.map(|m| (m, Some(pixels))))
         }
         ImportCommand::Openface {
