@@ -13,6 +13,7 @@ mod import;
 mod info;
 mod loopback;
 mod lost;
+mod mediapipe;
 mod morph;
 mod regression;
 mod render;
