@@ -195,3 +195,93 @@ fn megamind_replayed_onto_both_rigs_opens_the_mouth_and_raises_the_brows_with_th
         );
     }
 }
+
+/// Left FDP and its right twin, for every paired control of the 38.
+const TWINS: [(&str, &str); 15] = [
+    ("4.1", "4.2"),
+    ("4.3", "4.4"),
+    ("4.5", "4.6"),
+    ("3.1", "3.2"),
+    ("3.3", "3.4"),
+    ("3.7", "3.12"),
+    ("3.11", "3.8"),
+    ("9.5", "9.4"),
+    ("5.1", "5.2"),
+    ("5.3", "5.4"),
+    ("8.3", "8.4"),
+    ("8.5", "8.6"),
+    ("8.7", "8.8"),
+    ("2.4", "2.5"),
+    ("2.11", "2.12"),
+];
+
+#[test]
+fn the_layouts_left_controls_mirror_their_twins_on_the_canonical_face_and_lie_at_image_right() {
+    let layout =
+        mimic_assets::load_layout(&repo().join("configs/layouts/mediapipe478.toml")).unwrap();
+    assert_eq!((layout.point_count, layout.controls.len()), (478, 38));
+    let obj =
+        std::fs::read_to_string(repo().join("configs/models/mediapipe/face_model_with_iris.obj"))
+            .unwrap();
+    let canonical: Vec<[f64; 3]> = obj
+        .lines()
+        .filter_map(|l| l.strip_prefix("v "))
+        .map(|l| {
+            let v: Vec<f64> = l.split_whitespace().map(|t| t.parse().unwrap()).collect();
+            [v[0], v[1], v[2]]
+        })
+        .collect();
+    assert_eq!(canonical.len(), 478);
+    let mean = |fdp: &str, pts: &dyn Fn(usize) -> [f64; 3]| {
+        let c = layout
+            .controls
+            .iter()
+            .find(|c| c.fdp.to_string() == fdp)
+            .unwrap();
+        let n = c.points.len() as f64;
+        let mut m = [0.0; 3];
+        for &p in &c.points {
+            let q = pts(p);
+            (0..3).for_each(|k| m[k] += q[k] / n);
+        }
+        m
+    };
+    let on_model = |i: usize| canonical[i];
+    let mut paired = std::collections::HashSet::new();
+    for (left, right) in TWINS {
+        let (l, r) = (mean(left, &on_model), mean(right, &on_model));
+        // The canonical model is symmetric to its 6 printed decimals.
+        assert!(l[0] > 0.5, "{left} at x {}", l[0]);
+        assert!(
+            (l[0] + r[0]).abs() < 1e-5 && (l[1] - r[1]).abs() < 1e-5 && (l[2] - r[2]).abs() < 1e-5,
+            "{left} {l:?} vs {right} {r:?}"
+        );
+        paired.extend([left, right]);
+    }
+    // The other eight (brow-less midline: nose tip and base middle, lip and chin middles) sit on x = 0.
+    for c in &layout.controls {
+        let name = c.fdp.to_string();
+        if !paired.contains(name.as_str()) {
+            let m = mean(&name, &on_model);
+            assert!(m[0].abs() < 1e-5, "{name} at x {}", m[0]);
+        }
+    }
+    // On the unmirrored Megamind dump, each left control is at image right of its twin on
+    // (nearly) every frame with a face.
+    let text = std::fs::read_to_string(repo().join(DUMP)).unwrap();
+    let (mut frames, mut wrong) = (0, 0);
+    for l in text.lines() {
+        let v: Value = serde_json::from_str(l).unwrap();
+        let lm = v["landmarks"].as_array().unwrap();
+        if lm.is_empty() {
+            continue;
+        }
+        frames += 1;
+        let px = |i: usize| [lm[i][0].as_f64().unwrap(), 0.0, 0.0];
+        for (left, right) in TWINS {
+            wrong += usize::from(mean(left, &px)[0] <= mean(right, &px)[0]);
+        }
+    }
+    assert_eq!(frames, 267);
+    assert_eq!(wrong, 0, "left controls at image left {wrong} times");
+}
