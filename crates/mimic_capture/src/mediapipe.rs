@@ -12,7 +12,8 @@
 //! field of view `fov` centred on the image (MediaPipe's own face-geometry pipeline assumes
 //! 63 degrees, [`DEFAULT_FOV_DEG`]):
 //! 1. Pixel coordinates with y up and z toward the camera: `S = (x w − w/2, −(y h − h/2), −z w)`.
-//!    `f = (h/2) / tan(fov/2)` is the focal length in pixels.
+//!    `f = (h/2) / tan(fov/2)` is the focal length in pixels. MediaPipe documents z only as "on
+//!    roughly the same scale as x"; it is taken here as exactly that, at the face's centre.
 //! 2. Unprojection with the face's centre at depth `f`: point i's depth is `d_i = f − (S_i.z −
 //!    S̄.z)` (S̄.z: the weighted mean over the 33 Procrustes landmarks of MediaPipe's
 //!    `geometry_pipeline_metadata_landmarks.pbtxt`, [`PROCRUSTES`]), and `M_i = (S_i.x d_i / f,
