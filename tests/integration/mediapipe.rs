@@ -9,8 +9,7 @@ use serde_json::Value;
 const DUMP: &str = "tests/data/mediapipe/megamind_facemesh.jsonl";
 const SHIPPED: &str = "recordings/megamind_mediapipe.jsonl";
 /// The `--source` of the shipped recording (recordings/SOURCE.md).
-const SOURCE: &str =
-    "MediaPipe Face Mesh 0.10.21 (refine_landmarks) on Megamind.avi from Debian opencv-doc 4.6.0+dfsg-12";
+const SOURCE: &str = "MediaPipe Face Mesh 0.10.21 (refine_landmarks) on Megamind.avi from Debian opencv-doc 4.6.0+dfsg-12";
 
 #[test]
 fn the_dump_imports_and_regenerates_the_shipped_recording() {
@@ -187,8 +186,14 @@ fn megamind_replayed_onto_both_rigs_opens_the_mouth_and_raises_the_brows_with_th
         // brows 0.81 / 0.82 on ict-face / candide3), below what the One Euro filter's lag and
         // the speed clamp leave. Brows and mouth move together in this clip (cross r about
         // 0.3), so each must also follow its own feature by a clear margin more than the other.
-        assert!(mouth >= 0.8, "{rig}: mouth opening follows the lip gap with r {mouth}");
-        assert!(brows_r >= 0.6, "{rig}: brow raise follows the brow-eye distance with r {brows_r}");
+        assert!(
+            mouth >= 0.8,
+            "{rig}: mouth opening follows the lip gap with r {mouth}"
+        );
+        assert!(
+            brows_r >= 0.6,
+            "{rig}: brow raise follows the brow-eye distance with r {brows_r}"
+        );
         assert!(
             mouth - cross >= 0.3 && brows_r - cross >= 0.3,
             "{rig}: mouth {mouth}, brows {brows_r}, cross {cross}"

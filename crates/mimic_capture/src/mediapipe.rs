@@ -293,12 +293,7 @@ pub fn import_mediapipe(
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
     let default_source = format!("MediaPipe Face Mesh 478 landmarks ({name})");
-    convert_dump(
-        &text,
-        path,
-        fov_deg,
-        source.unwrap_or(&default_source),
-    )
+    convert_dump(&text, path, fov_deg, source.unwrap_or(&default_source))
 }
 
 /// [`import_mediapipe`] on a dump already in memory (`path` only names it in errors).

@@ -22,7 +22,10 @@ fn procrustes_table_matches_the_shipped_canonical_model() {
     let mut total = 0.0;
     for &(i, w, p) in &PROCRUSTES {
         assert!(i < MESH_POINTS && w > 0.0);
-        assert!((c[i] - DVec3::from_array(p)).abs().max_element() < 1e-6, "{i}");
+        assert!(
+            (c[i] - DVec3::from_array(p)).abs().max_element() < 1e-6,
+            "{i}"
+        );
         total += w;
     }
     // As MediaPipe's pbtxt gives them (they sum to 1.055, not 1; only ratios matter).
@@ -102,7 +105,10 @@ fn a_canonical_face_through_a_pinhole_comes_back_in_metres() {
                 .map(|&(i, w, _)| w * truth[i].z)
                 .sum::<f64>()
                 / sw;
-            assert!((d * 100.0 - centre).abs() < 1e-9 * centre, "{d} m vs {centre} cm");
+            assert!(
+                (d * 100.0 - centre).abs() < 1e-9 * centre,
+                "{d} m vs {centre} cm"
+            );
         }
     }
 }
@@ -130,8 +136,14 @@ fn the_field_of_view_moves_the_face_but_keeps_its_size() {
     // through the perspective term (S.z - centre) / f: under the face's relief over its
     // distance (about 10 / 50 here) times the focal lengths' relative change (0.5), shared
     // with the other points by the spread fit: 2 % of the distance (1.2 % measured).
-    assert!((iod63 - canonical_iod).abs() < 1e-6 * canonical_iod, "{iod63}");
-    assert!((iod30 - iod63).abs() < 0.02 * canonical_iod, "{iod30} vs {iod63}");
+    assert!(
+        (iod63 - canonical_iod).abs() < 1e-6 * canonical_iod,
+        "{iod63}"
+    );
+    assert!(
+        (iod30 - iod63).abs() < 0.02 * canonical_iod,
+        "{iod30} vs {iod63}"
+    );
     let ratio = focal_px(480.0, 30.0) / focal_px(480.0, 63.0);
     // Up to the same 2 %: the spread fit's scale moves with the shape (1.7 % measured).
     assert!((d30 / d63 - ratio).abs() < 0.02 * ratio, "{d30} / {d63}");
@@ -222,7 +234,10 @@ fn bad_lines_are_named_by_file_and_line() {
         assert!(e.to_string().starts_with(want), "{e} (wanted {want})");
     }
     let e = convert_dump("\n\n", Path::new("d.jsonl"), 63.0, "t").unwrap_err();
-    assert_eq!(e.to_string(), "d.jsonl: no frames (an empty MediaPipe dump)");
+    assert_eq!(
+        e.to_string(),
+        "d.jsonl: no frames (an empty MediaPipe dump)"
+    );
     for fov in [0.0, 180.0, f64::NAN] {
         let e = convert_dump(&good, Path::new("d.jsonl"), fov, "t").unwrap_err();
         assert!(matches!(e, MediaPipeError::Fov(_)), "{e}");
