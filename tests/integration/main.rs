@@ -18,6 +18,7 @@ mod import;
 mod info;
 mod loopback;
 mod lost;
+mod mediapipe;
 mod morph;
 mod protected;
 mod regression;

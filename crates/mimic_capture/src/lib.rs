@@ -2,13 +2,14 @@
 //!
 //! Entry points: [`read_recording`] (a whole file: header, accepted frames, counts),
 //! [`RecordingReader`] / [`RecordingWriter`] / [`summarize`] (the JSON Lines
-//! format of `docs/recording-format.md`), [`gfe::import_gfe`] and [`openface::import_openface`]
-//! (importers), [`Replay`] (frames at their recorded pace on `tokio::time`).
+//! format of `docs/recording-format.md`), [`gfe::import_gfe`], [`openface::import_openface`] and
+//! [`mediapipe::import_mediapipe`] (importers), [`Replay`] (frames at their recorded pace on `tokio::time`).
 //! Depends on mimic_types, glam, serde and tokio's timer only (for [`Replay`], the default
 //! `replay` feature): no networking, no rendering.
 
 pub mod gfe;
 mod imported;
+pub mod mediapipe;
 pub mod named_csv;
 pub mod openface;
 pub mod recording;

@@ -64,6 +64,21 @@ pub enum ImportCommand {
         #[arg(long, value_enum)]
         fit: Option<FitModel>,
     },
+    /// MediaPipe Face Mesh dump (JSON lines of normalised landmarks, `tools/mediapipe_track.py`)
+    /// to a `mediapipe478` recording in camera-space metres.
+    Mediapipe {
+        /// The dump (.jsonl).
+        dump: PathBuf,
+        /// Output recording (.jsonl).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// The camera's vertical field of view in degrees (MediaPipe's own default: 63).
+        #[arg(long, default_value_t = mimic_capture::mediapipe::DEFAULT_FOV_DEG)]
+        fov_deg: f64,
+        /// Text for the header's `source` field (default: names the tracker and file).
+        #[arg(long)]
+        source: Option<String>,
+    },
 }
 
 /// Runs an import subcommand.
@@ -111,6 +126,16 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
                 fit.map(|m| (m, None)),
             )
         }
+        ImportCommand::Mediapipe {
+            dump,
+            output,
+            fov_deg,
+            source,
+        } => (
+            mimic_capture::mediapipe::import_mediapipe(&dump, fov_deg, source.as_deref())?,
+            output,
+            None,
+        ),
     };
     if let Some((FitModel::Candide3, pixels)) = fit {
         return write_fitted(&imported, pixels.as_deref(), &output);
