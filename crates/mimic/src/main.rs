@@ -38,6 +38,9 @@ enum Command {
     Send(cmd::send::Args),
     /// Render frames of a recording on a rig to PNG (headless wgpu), or a contact sheet.
     Render(cmd::render::Args),
+    /// Make a rig for a face mesh from its landmarks, or check a rig (docs/rigging.md).
+    #[command(subcommand)]
+    Rig(cmd::rig::RigCommand),
     /// Watch a recording replayed on a rig, or a live `mimic serve` session, in a window.
     View(cmd::view::Args),
 }
@@ -67,6 +70,7 @@ fn main() -> ExitCode {
         Command::Send(a) => cmd::send::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::View(a) => cmd::view::run(a),
+        Command::Rig(c) => cmd::rig::run(c),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,
