@@ -17,6 +17,7 @@ mod morph;
 mod regression;
 mod render;
 mod replay;
+mod rig_new;
 mod serve;
 mod serve_weights;
 mod view;
