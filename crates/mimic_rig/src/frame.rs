@@ -101,9 +101,9 @@ mod tests {
         assert!((f.iod - 6.3).abs() < 1e-5, "{}", f.iod);
         assert!(f.origin.abs_diff_eq(Vec3::new(0.0, 3.25, 9.2), 1e-6));
         assert!(f.axes[0].abs_diff_eq(Vec3::X, 1e-6));
-        // y leans back by the nasion's lead over the menton: atan(0.3 / 11.25).
+        // y leans forward by the nasion's lead over the menton: atan(0.3 / 11.25).
         let lean = (0.3f32 / 11.25).atan();
-        assert!(f.axes[1].abs_diff_eq(Vec3::new(0.0, lean.cos(), -lean.sin()), 1e-5));
+        assert!(f.axes[1].abs_diff_eq(Vec3::new(0.0, lean.cos(), lean.sin()), 1e-5));
         assert!((f.tilt_degrees() - lean.to_degrees()).abs() < 1e-3);
         assert!(f.axes[2].z > 0.9);
         let p = Vec3::new(1.0, -2.0, 11.0);
