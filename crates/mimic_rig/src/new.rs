@@ -38,7 +38,7 @@ impl Default for Defaults {
     fn default() -> Self {
         Self {
             band: 0.22,
-            radius: 0.32,
+            radius: 0.40,
             upper_radius: 0.32,
             lower_radius: 0.16,
             split_band: 0.16,
