@@ -268,3 +268,37 @@ fn rig_check_reports_each_kind_of_warning() {
     let (stdout, _) = text(&o);
     assert!(stdout.contains("warning: units: units = \"m\""), "{stdout}");
 }
+
+#[test]
+fn rig_check_draws_the_neutral_with_regions_and_labels() {
+    if std::env::var_os("MIMIC_SKIP_GPU_TESTS").is_some() {
+        eprintln!("MIMIC_SKIP_GPU_TESTS is set: skipping a GPU test");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("check.png");
+    let o = mimic(&[
+        "rig",
+        "check",
+        "ict-face",
+        "-o",
+        png.to_str().unwrap(),
+        "--size",
+        "320x320",
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    let image = mimic_render::Image::load_png(&png).unwrap();
+    assert_eq!((image.width, image.height), (320, 320));
+    let px = |x: u32, y: u32| {
+        let at = ((y * image.width + x) * 4) as usize;
+        [image.rgba[at], image.rgba[at + 1], image.rgba[at + 2]]
+    };
+    // The legend's first swatch (scale 1 at 320 px: x 4..10, y 4..9) is the top region's colour.
+    let top = mimic_rig::picture::srgb8(mimic_rig::picture::REGION_COLORS[0]);
+    assert_eq!(px(6, 6), [top[0], top[1], top[2]]);
+    // The face fills the middle of the picture: not the background there.
+    let background = px(1, image.height - 2);
+    let face = px(image.width / 2, image.height / 3);
+    assert_ne!(face, background);
+}

@@ -7,6 +7,7 @@ pub mod frame;
 pub mod landmarks;
 pub mod new;
 pub mod parts;
+pub mod picture;
 pub mod place;
 pub mod write;
 
