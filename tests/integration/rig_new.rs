@@ -161,8 +161,11 @@ fn ict_rig_with(dir: &Path, units: &str, controls: &[(&str, u32, &str)]) -> Path
     path
 }
 
-/// The shipped ICT rig's controls, as (fdp, vertex, region).
-fn ict_controls() -> Vec<(String, u32, String)> {
+/// A control as (fdp, vertex, region).
+type Control = (String, u32, String);
+
+/// The shipped ICT rig's controls.
+fn ict_controls() -> Vec<Control> {
     let rig = mimic_assets::load_rig(&repo().join("configs/rigs/ict-face.toml")).unwrap();
     rig.controls
         .iter()
@@ -198,7 +201,7 @@ fn rig_check_reports_each_kind_of_warning() {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let base = ict_controls();
-    let with = |edit: &dyn Fn(&mut Vec<(String, u32, String)>), units: &str| {
+    let with = |edit: &dyn Fn(&mut Vec<Control>), units: &str| {
         let mut c = base.clone();
         edit(&mut c);
         let c: Vec<(&str, u32, &str)> = c
