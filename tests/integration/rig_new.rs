@@ -305,3 +305,27 @@ fn rig_check_draws_the_neutral_with_regions_and_labels() {
     let face = px(image.width / 2, image.height / 3);
     assert_ne!(face, background);
 }
+
+#[test]
+fn a_glb_head_gives_the_same_rig_as_its_obj() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let obj = ict_dir().join("generic_neutral_mesh.obj");
+    let mesh = mimic_assets::load_obj(&obj).unwrap();
+    let glb = d.join("head.glb");
+    std::fs::write(
+        &glb,
+        mimic_rig::gltf_mesh::write_glb(&mesh.positions, &mesh.triangles, Vec3::ZERO),
+    )
+    .unwrap();
+    let (from_obj, from_glb) = (d.join("obj.toml"), d.join("glb.toml"));
+    rig_new(&obj, &from_obj, "cm");
+    rig_new(&glb, &from_glb, "cm");
+    // The GLB's rig names an OBJ copy written beside it.
+    assert!(d.join("glb.mesh.obj").is_file());
+    let a = mimic_assets::load_rig(&from_obj).unwrap();
+    let b = mimic_assets::load_rig(&from_glb).unwrap();
+    assert_eq!(a.controls, b.controls);
+    assert_eq!(a.frozen, b.frozen);
+    assert_eq!(a.mesh.triangles, b.mesh.triangles);
+}

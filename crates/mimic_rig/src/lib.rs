@@ -4,6 +4,7 @@
 
 pub mod check;
 pub mod frame;
+pub mod gltf_mesh;
 pub mod landmarks;
 pub mod new;
 pub mod parts;
@@ -17,7 +18,16 @@ pub use landmarks::{IBUG_POINTS, LandmarkBase, Landmarks, load_landmarks, parse_
 pub use new::{Defaults, GeneratedRig, guess_units, make_rig};
 pub use write::{relative_path, write_rig_toml};
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+
+/// Loads a face mesh: glTF / GLB by extension ([`gltf_mesh::load_gltf`]), else OBJ.
+pub fn load_mesh(path: &Path) -> Result<mimic_types::Mesh, RigNewError> {
+    if gltf_mesh::is_gltf(path) {
+        gltf_mesh::load_gltf(path)
+    } else {
+        Ok(mimic_assets::load_obj(path)?)
+    }
+}
 
 /// Why a rig could not be made.
 #[derive(Debug, thiserror::Error)]
@@ -43,6 +53,17 @@ pub enum RigNewError {
     /// The landmarks do not give a usable face frame or region borders.
     #[error("{0}")]
     Frame(String),
+    /// A mesh file that could not be read.
+    #[error("{}: {message}", path.display())]
+    Mesh {
+        /// The file.
+        path: PathBuf,
+        /// What was wrong.
+        message: String,
+    },
+    /// An OBJ or rig file error from `mimic_assets`.
+    #[error(transparent)]
+    Asset(#[from] mimic_assets::AssetError),
     /// A unit outside `mimic_types::rig::RIG_UNITS`.
     #[error("units `{0}` is not one of m, cm, mm, in, model")]
     Units(String),

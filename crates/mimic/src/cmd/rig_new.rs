@@ -7,7 +7,8 @@ use std::path::PathBuf;
 /// Arguments of `mimic rig new`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The face mesh (OBJ), y up, facing +z.
+    /// The face mesh (OBJ, or glTF / GLB: then an OBJ copy is written beside the rig as
+    /// `<rig>.mesh.obj`, which the rig names), y up, facing +z.
     pub mesh: PathBuf,
     /// Where to write the rig TOML.
     #[arg(short = 'o', long)]
@@ -42,7 +43,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "--landmarks is needed: finding the landmarks by registering a template head is not implemented yet (docs/rigging.md)"
         );
     };
-    let mesh = mimic_assets::load_obj(&args.mesh)?;
+    let mesh = mimic_rig::load_mesh(&args.mesh)?;
     let marks = load_landmarks(marks_path, args.landmark_base)?;
     let name = args.name.clone().unwrap_or_else(|| {
         args.output
@@ -64,7 +65,29 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .map_or_else(|| PathBuf::from("."), PathBuf::from);
-    let mesh_rel = relative_path(&out_dir, &args.mesh);
+    let mesh_file = if mimic_rig::gltf_mesh::is_gltf(&args.mesh) {
+        let stem = args
+            .output
+            .file_stem()
+            .map_or_else(|| "rig".into(), |s| s.to_string_lossy().into_owned());
+        let obj = out_dir.join(format!("{stem}.mesh.obj"));
+        let mut w = std::io::BufWriter::new(
+            std::fs::File::create(&obj).with_context(|| obj.display().to_string())?,
+        );
+        mimic_assets::write_obj(
+            &mut w,
+            &format!("from {} by mimic rig new", args.mesh.display()),
+            &mesh.positions,
+            None,
+            &mesh.triangles,
+        )
+        .with_context(|| obj.display().to_string())?;
+        std::io::Write::flush(&mut w).with_context(|| obj.display().to_string())?;
+        obj
+    } else {
+        args.mesh.clone()
+    };
+    let mesh_rel = relative_path(&out_dir, &mesh_file);
     let text = write_rig_toml(&rig, &mesh_rel, mesh.vertex_count());
     std::fs::write(&args.output, &text).with_context(|| args.output.display().to_string())?;
     // Read it back as every other command will.
