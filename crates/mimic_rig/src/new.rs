@@ -89,6 +89,16 @@ pub fn guess_units(iod: f32) -> &'static str {
 /// The face frame of a mesh from its landmarks (iBUG 36, 39, 42, 45 for the eyes, 8 and 27 for
 /// the profile line are needed).
 pub fn landmark_frame(mesh: &Mesh, marks: &Landmarks) -> Result<FaceFrame, RigNewError> {
+    let n = mesh.vertex_count();
+    for (k, v) in marks.vertex.iter().enumerate() {
+        if let Some(v) = v
+            && *v as usize >= n
+        {
+            return Err(RigNewError::Frame(format!(
+                "iBUG {k} is vertex {v}, but the mesh has {n} vertices"
+            )));
+        }
+    }
     let need = [8, 27, 36, 39, 42, 45];
     let missing: Vec<usize> = need
         .iter()
@@ -99,16 +109,6 @@ pub fn landmark_frame(mesh: &Mesh, marks: &Landmarks) -> Result<FaceFrame, RigNe
         return Err(RigNewError::Frame(format!(
             "the face frame needs the eye corners (iBUG 36, 39, 42, 45), the menton (8) and the nasion (27); missing {missing:?}"
         )));
-    }
-    let n = mesh.vertex_count();
-    for (k, v) in marks.vertex.iter().enumerate() {
-        if let Some(v) = v
-            && *v as usize >= n
-        {
-            return Err(RigNewError::Frame(format!(
-                "iBUG {k} is vertex {v}, but the mesh has {n} vertices"
-            )));
-        }
     }
     let at = |k: usize| {
         marks
@@ -137,12 +137,13 @@ pub fn make_rig(
     units: Option<&str>,
     defaults: Defaults,
 ) -> Result<GeneratedRig, RigNewError> {
+    if let Some(u) = units
+        && !mimic_types::rig::is_rig_unit(u)
+    {
+        return Err(RigNewError::Units(u.to_string()));
+    }
     let frame = landmark_frame(mesh, marks)?;
-    let units = match units {
-        Some(u) if mimic_types::rig::is_rig_unit(u) => u.to_string(),
-        Some(u) => return Err(RigNewError::Units(u.to_string())),
-        None => guess_units(frame.iod).to_string(),
-    };
+    let units = units.map_or_else(|| guess_units(frame.iod).to_string(), str::to_string);
     let mut warnings = Vec::new();
     if let Some(m) = mimic_types::rig::unit_in_metres(&units) {
         let ratio = f64::from(frame.iod) * m / TYPICAL_IOD_M;
@@ -310,4 +311,47 @@ fn region_settings(
         }
     });
     Ok((regions, split))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn units_are_guessed_from_the_eye_distance() {
+        assert_eq!(guess_units(6.3), "cm");
+        assert_eq!(guess_units(63.0), "mm");
+        assert_eq!(guess_units(0.063), "m");
+        assert_eq!(guess_units(2.5), "in");
+        // CANDIDE-3's 0.60 is 10 times too small for metres and far from the rest.
+        assert_eq!(guess_units(0.0063), "model");
+    }
+
+    #[test]
+    fn landmark_errors_say_what_is_wrong() {
+        let mesh = Mesh {
+            positions: vec![Vec3::ZERO; 4],
+            triangles: vec![[0, 1, 2]],
+            ..Mesh::default()
+        };
+        let mut marks = Landmarks {
+            vertex: [None; crate::IBUG_POINTS],
+        };
+        marks.vertex[1] = Some(99);
+        let e = landmark_frame(&mesh, &marks).unwrap_err().to_string();
+        assert_eq!(e, "iBUG 1 is vertex 99, but the mesh has 4 vertices");
+        marks.vertex[1] = Some(3);
+        let e = landmark_frame(&mesh, &marks).unwrap_err().to_string();
+        assert!(e.ends_with("missing [8, 27, 36, 39, 42, 45]"), "{e}");
+        for n in [8, 27, 36, 39, 42, 45] {
+            marks.vertex[n] = Some(0);
+        }
+        let e = landmark_frame(&mesh, &marks).unwrap_err().to_string();
+        assert!(e.contains("degenerate"), "{e}");
+        let e = make_rig(&mesh, &marks, "t", Some("furlongs"), Defaults::default()).unwrap_err();
+        assert_eq!(
+            e.to_string(),
+            "units `furlongs` is not one of m, cm, mm, in, model"
+        );
+    }
 }
