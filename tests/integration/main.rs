@@ -25,6 +25,7 @@ mod regression;
 mod render;
 mod replay;
 mod seams;
+mod rig_new;
 mod serve;
 mod serve_weights;
 mod slots;

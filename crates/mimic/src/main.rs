@@ -32,15 +32,16 @@ enum Command {
     /// Export a rig's morph targets as a morph data file, or check one against the rig.
     #[command(subcommand)]
     Morph(cmd::morph::MorphCommand),
-    /// Tools for target rigs: `mimic rig export R -o head.glb`.
-    #[command(subcommand)]
-    Rig(cmd::rig::RigCommand),
     /// Serve live sessions: trackers in over TCP/UDP, viewers out (docs/protocol.md).
     Serve(cmd::serve::Args),
     /// Replay a recording into `mimic serve` at its recorded pace, as a tracker would.
     Send(cmd::send::Args),
     /// Render frames of a recording on a rig to PNG (headless wgpu), or a contact sheet.
     Render(cmd::render::Args),
+    /// Make a rig for a face mesh from its landmarks, check a rig (docs/rigging.md), or export one
+    /// as a GLB (docs/gltf.md).
+    #[command(subcommand)]
+    Rig(cmd::rig::RigCommand),
     /// Watch a recording replayed on a rig, or a live `mimic serve` session, in a window.
     View(cmd::view::Args),
 }

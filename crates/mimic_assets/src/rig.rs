@@ -113,6 +113,18 @@ pub fn load_rig(path: &Path) -> Result<Rig, AssetError> {
 /// Parses and validates rig TOML text as if read from `path`; its mesh is loaded relative to `path`.
 pub fn parse_rig(path: &Path, text: &str) -> Result<Rig, AssetError> {
     let file: RigFile = toml::from_str(text).map_err(|e| toml_error(path, text, e))?;
+    if !mimic_types::rig::is_rig_unit(&file.units) {
+        let names: Vec<&str> = mimic_types::rig::RIG_UNITS.iter().map(|u| u.0).collect();
+        return Err(AssetError::Toml {
+            path: path.to_path_buf(),
+            line: units_line(text),
+            message: format!(
+                "units = {:?} is not a length unit mimic knows; use one of {} (`model`: no physical unit)",
+                file.units,
+                names.join(", ")
+            ),
+        });
+    }
     let mesh_path = path
         .parent()
         .unwrap_or(Path::new("."))
@@ -188,6 +200,17 @@ pub fn parse_rig(path: &Path, text: &str) -> Result<Rig, AssetError> {
         });
     }
     Ok(rig)
+}
+
+/// 1-based line of the top-level `units = ...` key (1 when it is not found as a plain line).
+fn units_line(text: &str) -> usize {
+    text.lines()
+        .position(|l| {
+            l.trim_start()
+                .strip_prefix("units")
+                .is_some_and(|rest| rest.trim_start().starts_with('='))
+        })
+        .map_or(1, |i| i + 1)
 }
 
 #[cfg(test)]
@@ -276,6 +299,26 @@ kind = "laplacian"
         let e = load_rig(&path).unwrap_err().to_string();
         assert!(
             e.ends_with("tri.toml:14: control 8.3 uses vertex 99, but the mesh has 4 vertices"),
+            "{e}"
+        );
+    }
+
+    #[test]
+    fn unknown_units_are_refused_at_their_line() {
+        let dir = tempfile::tempdir().unwrap();
+        let path = write_rig(
+            dir.path(),
+            "[[controls]]\nfdp = \"8.3\"\nvertex = 1\nregion = \"bottom\"\n",
+        );
+        let good = std::fs::read_to_string(&path).unwrap();
+        for unit in ["m", "cm", "mm", "in", "model"] {
+            let text = good.replace("units = \"cm\"", &format!("units = \"{unit}\""));
+            assert_eq!(parse_rig(&path, &text).unwrap().units, unit);
+        }
+        let text = good.replace("units = \"cm\"", "units = \"furlongs\"");
+        let e = parse_rig(&path, &text).unwrap_err().to_string();
+        assert!(
+            e.contains("tri.toml:2: units = \"furlongs\" is not a length unit mimic knows; use one of m, cm, mm, in, model"),
             "{e}"
         );
     }

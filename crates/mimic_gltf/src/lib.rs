@@ -80,7 +80,7 @@ pub enum GltfError {
     #[error(transparent)]
     Asset(#[from] mimic_assets::AssetError),
     /// The rig's `units` has no known length in metres.
-    #[error("rig units `{0}`: not one of m, cm, mm, in, candide (glTF needs metres)")]
+    #[error("rig units `{0}`: not one of m, cm, mm, in, model (glTF needs metres)")]
     Units(String),
     /// The binary chunk would pass glTF's 4 GiB limit.
     #[error("the binary chunk would be {0} bytes, over glTF's 4 GiB limit")]

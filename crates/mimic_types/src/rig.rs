@@ -155,6 +155,29 @@ impl Rig {
     }
 }
 
+/// Length units a rig may name in `units`, with their size in metres (`None`: `model`, a mesh
+/// with no physical unit, such as CANDIDE-3's).
+pub const RIG_UNITS: [(&str, Option<f64>); 5] = [
+    ("m", Some(1.0)),
+    ("cm", Some(0.01)),
+    ("mm", Some(0.001)),
+    ("in", Some(0.0254)),
+    ("model", None),
+];
+
+/// Whether `units` is one of [`RIG_UNITS`].
+pub fn is_rig_unit(units: &str) -> bool {
+    RIG_UNITS.iter().any(|(name, _)| *name == units)
+}
+
+/// One rig unit in metres; `None` for `model` and for names outside [`RIG_UNITS`].
+pub fn unit_in_metres(units: &str) -> Option<f64> {
+    RIG_UNITS
+        .iter()
+        .find(|(name, _)| *name == units)
+        .and_then(|(_, m)| *m)
+}
+
 /// Which deformation solver builds the basis.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "lowercase")]
@@ -475,6 +498,15 @@ mod tests {
             .key,
             "solver.top_split.lower_kernel"
         );
+    }
+
+    #[test]
+    fn rig_units_are_a_closed_list() {
+        assert_eq!(unit_in_metres("mm"), Some(0.001));
+        assert_eq!(unit_in_metres("in"), Some(0.0254));
+        assert_eq!(unit_in_metres("model"), None);
+        assert!(is_rig_unit("model") && is_rig_unit("cm"));
+        assert!(!is_rig_unit("furlongs") && !is_rig_unit("CM") && !is_rig_unit(""));
     }
 
     #[test]

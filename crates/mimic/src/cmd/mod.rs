@@ -9,6 +9,8 @@ pub mod render;
 pub mod replay;
 pub mod rig;
 pub mod rig_export;
+pub mod rig_check;
+pub mod rig_new;
 pub mod send;
 pub mod serve;
 pub mod setup;

@@ -1,0 +1,70 @@
+//! Rigs for any face mesh (docs/rigging.md): iBUG-68 landmark files, the face frame, the 38
+//! MPEG-4 controls placed by rules relative to the landmarks, frozen parts, regions and kernels
+//! in face units (`mimic rig new`), and the checks of `mimic rig check`.
+
+pub mod check;
+pub mod frame;
+pub mod gltf_mesh;
+pub mod landmarks;
+pub mod new;
+pub mod parts;
+pub mod picture;
+pub mod place;
+pub mod write;
+
+pub use check::{Warning, check_rig};
+pub use frame::{FaceFrame, FramePoints};
+pub use landmarks::{IBUG_POINTS, LandmarkBase, Landmarks, load_landmarks, parse_landmarks};
+pub use new::{Defaults, GeneratedRig, guess_units, make_rig};
+pub use write::{relative_path, write_rig_toml};
+
+use std::path::{Path, PathBuf};
+
+/// Loads a face mesh: glTF / GLB by extension ([`gltf_mesh::load_gltf`]), else OBJ.
+pub fn load_mesh(path: &Path) -> Result<mimic_types::Mesh, RigNewError> {
+    if gltf_mesh::is_gltf(path) {
+        gltf_mesh::load_gltf(path)
+    } else {
+        Ok(mimic_assets::load_obj(path)?)
+    }
+}
+
+/// Why a rig could not be made.
+#[derive(Debug, thiserror::Error)]
+pub enum RigNewError {
+    /// A landmark file could not be read.
+    #[error("{}: {cause}", path.display())]
+    Read {
+        /// The file.
+        path: PathBuf,
+        /// What went wrong.
+        cause: mimic_types::ReadError,
+    },
+    /// A landmark file with a bad line.
+    #[error("{}:{line}: {message}", path.display())]
+    Landmarks {
+        /// The file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// What was wrong.
+        message: String,
+    },
+    /// The landmarks do not give a usable face frame or region borders.
+    #[error("{0}")]
+    Frame(String),
+    /// A mesh file that could not be read.
+    #[error("{}: {message}", path.display())]
+    Mesh {
+        /// The file.
+        path: PathBuf,
+        /// What was wrong.
+        message: String,
+    },
+    /// An OBJ or rig file error from `mimic_assets`.
+    #[error(transparent)]
+    Asset(#[from] mimic_assets::AssetError),
+    /// A unit outside `mimic_types::rig::RIG_UNITS`.
+    #[error("units `{0}` is not one of m, cm, mm, in, model")]
+    Units(String),
+}

@@ -1,0 +1,331 @@
+//! `mimic rig new` on the ICT head from its own landmark list: as good as the hand rig on the
+//! expressions, and the same per-shape ratios on the head scaled to mm, turned and moved.
+//! `mimic rig check`: each warning on a rig made to show it.
+
+use crate::{mimic, repo, text};
+use glam::{Quat, Vec3};
+use std::path::{Path, PathBuf};
+
+const SHAPES: [&str; 8] = [
+    "jawOpen",
+    "mouthSmile_L",
+    "mouthSmile_R",
+    "browInnerUp_L",
+    "browInnerUp_R",
+    "eyeBlink_L",
+    "eyeBlink_R",
+    "mouthFunnel",
+];
+
+fn ict_dir() -> PathBuf {
+    repo().join("configs/meshes/ict-facekit")
+}
+
+/// Copies an OBJ with every `v` (and `vn`) line moved by `f` (`g` for normals).
+fn transform_obj(from: &Path, to: &Path, f: &dyn Fn(Vec3) -> Vec3, g: &dyn Fn(Vec3) -> Vec3) {
+    let text = std::fs::read_to_string(from).unwrap();
+    let mut out = String::with_capacity(text.len() + text.len() / 4);
+    for line in text.lines() {
+        let mut it = line.split_whitespace();
+        let tag = it.next();
+        if matches!(tag, Some("v") | Some("vn")) {
+            let c: Vec<f32> = it.take(3).map(|s| s.parse().unwrap()).collect();
+            let p = Vec3::new(c[0], c[1], c[2]);
+            let q = if tag == Some("v") { f(p) } else { g(p) };
+            out.push_str(&format!(
+                "{} {:.7} {:.7} {:.7}\n",
+                tag.unwrap(),
+                q.x,
+                q.y,
+                q.z
+            ));
+        } else {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    std::fs::write(to, out).unwrap();
+}
+
+fn rig_new(mesh: &Path, out: &Path, units: &str) {
+    let marks = repo().join("configs/rigs/ict-face.landmarks.json");
+    let o = mimic(&[
+        "rig",
+        "new",
+        mesh.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--landmarks",
+        marks.to_str().unwrap(),
+        "--units",
+        units,
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    assert!(stdout.contains("38 controls"), "{stdout}");
+}
+
+/// Per-shape ratios and the median from `mimic eval --json`.
+fn eval(rig: &Path, shapes: &[PathBuf]) -> (Vec<f64>, f64) {
+    let mut args = vec![
+        "eval".to_string(),
+        "--rig".into(),
+        rig.display().to_string(),
+        "--json".into(),
+        "--shapes".into(),
+    ];
+    args.extend(shapes.iter().map(|s| s.display().to_string()));
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = mimic(&args);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    let ratios = v["shapes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["all"]["ratio"].as_f64().unwrap())
+        .collect();
+    (ratios, v["median_ratio"].as_f64().unwrap())
+}
+
+#[test]
+fn generated_ict_rig_matches_the_hand_rig_and_ignores_a_similarity() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let ict = ict_dir();
+    let shapes: Vec<PathBuf> = SHAPES
+        .iter()
+        .map(|s| ict.join(format!("{s}.obj")))
+        .collect();
+
+    // The ICT head as shipped (cm), from its own landmark list.
+    let plain = d.join("plain.toml");
+    rig_new(&ict.join("generic_neutral_mesh.obj"), &plain, "cm");
+    let (ratios, median) = eval(&plain, &shapes);
+    let (_, hand) = eval(&repo().join("configs/rigs/ict-face.toml"), &shapes);
+    assert!(
+        median <= hand * 1.05,
+        "generated rig median {median} vs the hand rig's {hand} (allowed 5% more)"
+    );
+
+    // Scaled to mm, turned 20 degrees about the vertical axis and moved.
+    let rot = Quat::from_rotation_y(20f32.to_radians());
+    let f = |p: Vec3| rot * (p * 10.0) + Vec3::new(123.0, -456.0, 78.0);
+    let g = |n: Vec3| rot * n;
+    let moved_dir = d.join("moved");
+    std::fs::create_dir_all(&moved_dir).unwrap();
+    transform_obj(
+        &ict.join("generic_neutral_mesh.obj"),
+        &moved_dir.join("neutral.obj"),
+        &f,
+        &g,
+    );
+    let moved_shapes: Vec<PathBuf> = SHAPES
+        .iter()
+        .map(|s| {
+            let to = moved_dir.join(format!("{s}.obj"));
+            transform_obj(&ict.join(format!("{s}.obj")), &to, &f, &g);
+            to
+        })
+        .collect();
+    let moved = d.join("moved.toml");
+    rig_new(&moved_dir.join("neutral.obj"), &moved, "mm");
+    let (moved_ratios, _) = eval(&moved, &moved_shapes);
+    assert_eq!(
+        (ratios.len(), moved_ratios.len()),
+        (SHAPES.len(), SHAPES.len())
+    );
+    for ((shape, a), b) in SHAPES.iter().zip(&ratios).zip(&moved_ratios) {
+        assert!(
+            (a - b).abs() <= 0.01 * a,
+            "{shape}: ratio {a} on the shipped head, {b} scaled, turned and moved"
+        );
+    }
+}
+
+/// Writes a rig on the ICT mesh built from `controls` (`fdp`, `vertex`, `region`) with `units`.
+fn ict_rig_with(dir: &Path, units: &str, controls: &[(&str, u32, &str)]) -> PathBuf {
+    let mesh = ict_dir().join("generic_neutral_mesh.obj");
+    let mut t = format!(
+        "name = \"t\"\nunits = \"{units}\"\nmesh = \"{}\"\nfrozen = [[14062, 26718]]\n\n[regions]\ntop_from = 2.3\nbottom_below = -1.8\nband = 1.4\n",
+        mesh.display()
+    );
+    for (fdp, v, region) in controls {
+        t.push_str(&format!(
+            "\n[[controls]]\nfdp = \"{fdp}\"\nvertex = {v}\nregion = \"{region}\"\n"
+        ));
+    }
+    let path = dir.join(format!("t-{}.toml", controls.len()));
+    std::fs::write(&path, t).unwrap();
+    path
+}
+
+/// A control as (fdp, vertex, region).
+type Control = (String, u32, String);
+
+/// The shipped ICT rig's controls.
+fn ict_controls() -> Vec<Control> {
+    let rig = mimic_assets::load_rig(&repo().join("configs/rigs/ict-face.toml")).unwrap();
+    rig.controls
+        .iter()
+        .map(|c| (c.fdp.to_string(), c.vertex, c.region.name().to_string()))
+        .collect()
+}
+
+fn check_kinds(rig: &Path) -> Vec<(String, Vec<String>)> {
+    let o = mimic(&["rig", "check", rig.to_str().unwrap(), "--json"]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+    v["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| {
+            (
+                w["kind"].as_str().unwrap().to_string(),
+                w["fdps"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .map(|f| f.as_str().unwrap().to_string())
+                    .collect(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn rig_check_reports_each_kind_of_warning() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let base = ict_controls();
+    let with = |edit: &dyn Fn(&mut Vec<Control>), units: &str| {
+        let mut c = base.clone();
+        edit(&mut c);
+        let c: Vec<(&str, u32, &str)> = c
+            .iter()
+            .map(|(f, v, r)| (f.as_str(), *v, r.as_str()))
+            .collect();
+        ict_rig_with(d, units, &c)
+    };
+    let kinds = |p: &Path| check_kinds(p);
+    let has = |w: &[(String, Vec<String>)], kind: &str, fdps: &[&str]| {
+        w.iter()
+            .any(|(k, f)| k == kind && fdps.iter().all(|x| f.iter().any(|g| g == x)))
+    };
+    // The shipped controls: only the cheeks, which sit below the middle region (known).
+    let clean = kinds(&with(&|_| {}, "cm"));
+    assert!(
+        clean.iter().all(|(k, f)| k == "outside_region"
+            && (f == &["5.1".to_string()] || f == &["5.2".to_string()])),
+        "{clean:?}"
+    );
+    // A missing FDP (a rig with 37 controls).
+    let w = kinds(&with(&|c| c.retain(|x| x.0 != "8.7"), "cm"));
+    assert!(has(&w, "missing_fdp", &["8.7"]), "{w:?}");
+    // Two FDPs on one vertex.
+    let w = kinds(&with(
+        &|c| {
+            let v = c.iter().find(|x| x.0 == "2.2").unwrap().1;
+            c.iter_mut().find(|x| x.0 == "2.3").unwrap().1 = v;
+        },
+        "cm",
+    ));
+    assert!(has(&w, "shared_vertex", &["2.2", "2.3"]), "{w:?}");
+    // A brow control said to drive the bottom region.
+    let w = kinds(&with(
+        &|c| c.iter_mut().find(|x| x.0 == "4.3").unwrap().2 = "bottom".into(),
+        "cm",
+    ));
+    assert!(has(&w, "outside_region", &["4.3"]), "{w:?}");
+    // The left lip midpoint moved onto the left mouth corner: no longer 8.6's mirror image.
+    let w = kinds(&with(
+        &|c| {
+            let v = c.iter().find(|x| x.0 == "8.3").unwrap().1;
+            c.iter_mut().find(|x| x.0 == "8.5").unwrap().1 = v;
+        },
+        "cm",
+    ));
+    assert!(has(&w, "not_mirrored", &["8.5", "8.6"]), "{w:?}");
+    // The nose tip moved onto the right nostril: off the midline.
+    let w = kinds(&with(
+        &|c| {
+            let v = c.iter().find(|x| x.0 == "9.4").unwrap().1;
+            c.iter_mut().find(|x| x.0 == "9.3").unwrap().1 = v;
+        },
+        "cm",
+    ));
+    assert!(has(&w, "off_midline", &["9.3"]), "{w:?}");
+    // A cm head labelled metres.
+    let w = kinds(&with(&|_| {}, "m"));
+    assert!(has(&w, "units", &[]), "{w:?}");
+    let w = kinds(&with(&|_| {}, "mm"));
+    assert!(has(&w, "units", &[]), "{w:?}");
+    // Without eye corners there is no face frame.
+    let w = kinds(&with(&|c| c.retain(|x| x.0 != "3.7"), "cm"));
+    assert!(has(&w, "no_face_frame", &[]), "{w:?}");
+    // Text output: one line per warning.
+    let o = mimic(&["rig", "check", with(&|_| {}, "m").to_str().unwrap()]);
+    let (stdout, _) = text(&o);
+    assert!(stdout.contains("warning: units: units = \"m\""), "{stdout}");
+}
+
+#[test]
+fn rig_check_draws_the_neutral_with_regions_and_labels() {
+    if std::env::var_os("MIMIC_SKIP_GPU_TESTS").is_some() {
+        eprintln!("MIMIC_SKIP_GPU_TESTS is set: skipping a GPU test");
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let png = dir.path().join("check.png");
+    let o = mimic(&[
+        "rig",
+        "check",
+        "ict-face",
+        "-o",
+        png.to_str().unwrap(),
+        "--size",
+        "320x320",
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    let image = mimic_render::Image::load_png(&png).unwrap();
+    assert_eq!((image.width, image.height), (320, 320));
+    let px = |x: u32, y: u32| {
+        let at = ((y * image.width + x) * 4) as usize;
+        [image.rgba[at], image.rgba[at + 1], image.rgba[at + 2]]
+    };
+    // The legend's first swatch (scale 1 at 320 px: x 4..10, y 4..9) is the top region's colour.
+    let top = mimic_rig::picture::srgb8(mimic_rig::picture::REGION_COLORS[0]);
+    assert_eq!(px(6, 6), [top[0], top[1], top[2]]);
+    // The face fills the middle of the picture: not the background there.
+    let background = px(1, image.height - 2);
+    let face = px(image.width / 2, image.height / 3);
+    assert_ne!(face, background);
+}
+
+#[test]
+fn a_glb_head_gives_the_same_rig_as_its_obj() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let obj = ict_dir().join("generic_neutral_mesh.obj");
+    let mesh = mimic_assets::load_obj(&obj).unwrap();
+    let glb = d.join("head.glb");
+    std::fs::write(
+        &glb,
+        mimic_rig::gltf_mesh::write_glb(&mesh.positions, &mesh.triangles, Vec3::ZERO),
+    )
+    .unwrap();
+    let (from_obj, from_glb) = (d.join("obj.toml"), d.join("glb.toml"));
+    rig_new(&obj, &from_obj, "cm");
+    rig_new(&glb, &from_glb, "cm");
+    // The GLB's rig names an OBJ copy written beside it.
+    assert!(d.join("glb.mesh.obj").is_file());
+    let a = mimic_assets::load_rig(&from_obj).unwrap();
+    let b = mimic_assets::load_rig(&from_glb).unwrap();
+    assert_eq!(a.controls, b.controls);
+    assert_eq!(a.frozen, b.frozen);
+    assert_eq!(a.mesh.triangles, b.mesh.triangles);
+}
