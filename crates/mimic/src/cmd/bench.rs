@@ -184,7 +184,7 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
     let deform = mimic_solve::deform::MovingDeform::new(basis, &p.rig.mesh.positions);
     let floor_buf = vec![1f32; deform.bytes_read() / 4];
     let baseline_steps = (args.steps / 4).max(50);
-    let mut base: [Vec<u32>; 7] = Default::default();
+    let mut base: [Vec<u32>; 8] = Default::default();
     let ns = elapsed_ns;
     for _ in 0..baseline_steps {
         let t = Instant::now();
@@ -200,6 +200,9 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         let t = Instant::now();
         fans.normals(&u_a, |v, nv| normals[v] = nv);
         base[3].push(ns(t));
+        let t = Instant::now();
+        fans.normals_gather(&u_a, |v, nv| normals[v] = nv);
+        base[7].push(ns(t));
         let t = Instant::now();
         moving.basis.apply(&d, &mut u_rows);
         let moved = moving.rows.iter().zip(&u_rows).zip(&rest_rows);
@@ -217,7 +220,7 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         base[6].push(ns(t));
     }
     std::hint::black_box((&normals, &positions));
-    let [ba, ba_pairs, bn, bn_fans, prev_deform, deform_alone, floor] =
+    let [ba, ba_pairs, bn, bn_fans, prev_deform, deform_alone, floor, bn_gather] =
         base.map(|mut v| median_p99_us(&mut v).0);
     let numpy = if args.numpy {
         Some(numpy_reference(basis, &moving.rows)?)
@@ -255,6 +258,7 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
             "normals_kernel_speedup": if bn_fans > 0.0 { bn / bn_fans } else { 0.0 },
             "deform_speedup": if deform_m > 0.0 { ba / deform_m } else { 0.0 },
             "normals_speedup": if normals_m > 0.0 { bn / normals_m } else { 0.0 },
+            "normals_fans_gather_median_us": bn_gather,
             "previous_deform_median_us": prev_deform,
             "deform_kernel_median_us": deform_alone,
         },
@@ -285,7 +289,7 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
             1e6 / step_m.max(1e-9)
         );
         println!(
-            "  baseline, every vertex: apply {ba:.1} us (previous row-pair kernel {ba_pairs:.1} us), normals by fans {bn_fans:.1} us (face scatter {bn:.1} us)"
+            "  baseline, every vertex: apply {ba:.1} us (previous row-pair kernel {ba_pairs:.1} us), normals by fans {bn_fans:.1} us (by gathers {bn_gather:.1} us; face scatter {bn:.1} us)"
         );
         println!(
             "  deform: previous (blocked product in index order, then add and scatter) {prev_deform:.1} us, current kernel alone {deform_alone:.1} us; floor (one read of its {} kB) {floor:.1} us",
