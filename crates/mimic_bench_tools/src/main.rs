@@ -70,15 +70,22 @@ fn face_area(rig: &mimic_types::Rig) -> (Vec<Vec3>, Vec<[u32; 3]>, Vec<u32>) {
     (positions, triangles, old_of_new)
 }
 
+/// Positions, triangles and, per vertex, the index it had in the input.
+type Decimated = (Vec<Vec3>, Vec<[u32; 3]>, Vec<u32>);
+
 /// Simplifies to about `target` vertices (border kept in place), drops unused vertices; returns
 /// the new positions and triangles and the input index of each kept vertex.
 fn decimate(
     positions: &[Vec3],
     triangles: &[[u32; 3]],
     target: usize,
-) -> anyhow::Result<(Vec<Vec3>, Vec<[u32; 3]>, Vec<u32>)> {
+) -> anyhow::Result<Decimated> {
     let flat: Vec<[f32; 3]> = positions.iter().map(|p| p.to_array()).collect();
-    let bytes: Vec<u8> = flat.iter().flatten().flat_map(|f| f.to_le_bytes()).collect();
+    let bytes: Vec<u8> = flat
+        .iter()
+        .flatten()
+        .flat_map(|f| f.to_le_bytes())
+        .collect();
     let adapter = meshopt::VertexDataAdapter::new(&bytes, 12, 0).context("vertex adapter")?;
     let indices: Vec<u32> = triangles.iter().flatten().copied().collect();
     // Index count roughly proportional to vertices; search the target count for the vertex goal.

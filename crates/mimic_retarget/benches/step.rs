@@ -35,8 +35,7 @@ fn frames(point_count: usize) -> Vec<LandmarkFrame> {
 }
 
 fn step(c: &mut Criterion) {
-    let layout =
-        mimic_assets::load_layout(&repo().join("configs/layouts/kinect121.toml")).unwrap();
+    let layout = mimic_assets::load_layout(&repo().join("configs/layouts/kinect121.toml")).unwrap();
     let frames = frames(layout.point_count);
     let span = frames.last().unwrap().timestamp_us - frames[0].timestamp_us + 33_333;
     for name in ["ict-face-3k", "ict-face"] {

@@ -91,8 +91,7 @@ impl MovingPatch {
     /// [`MovingPatch::new`]); others are left as they are. The new positions are also kept for
     /// [`MovingPatch::normals`].
     pub(crate) fn deform(&mut self, d: &[Vec3], positions: &mut [Vec3]) {
-        self.deform
-            .deform(d, &mut self.local_positions, positions);
+        self.deform.deform(d, &mut self.local_positions, positions);
     }
 
     /// Recomputes the area-weighted normals of the vertices the moving rows can affect, from the

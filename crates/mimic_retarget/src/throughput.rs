@@ -72,8 +72,7 @@ pub fn step_sessions(
                         frame.points.clone_from(&src.points);
                         frame.valid.clone_from(&src.valid);
                         frame.tracked = src.tracked;
-                        frame.timestamp_us =
-                            src.timestamp_us + (s / frames.len()) as i64 * span_us;
+                        frame.timestamp_us = src.timestamp_us + (s / frames.len()) as i64 * span_us;
                         if r.step(&frame, &mut out) == FrameStatus::Tracked {
                             tracked += 1;
                         }

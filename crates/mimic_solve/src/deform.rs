@@ -85,7 +85,7 @@ impl MovingDeform {
                 }
             }
             starts.push(cols.len() as u32);
-            for a in 0..3 {
+            for a in [0usize, 1, 2] {
                 rest_blocked.extend(block.iter().map(|&i| rest[i as usize][a]));
                 rest_blocked.resize(rest_blocked.len().next_multiple_of(BLOCK), 0.0);
             }
@@ -314,7 +314,14 @@ mod tests {
     #[test]
     fn deform_equals_rest_plus_apply_bit_for_bit() {
         let mut seed = 11u64;
-        for &(n, m) in &[(1usize, 1usize), (23, 5), (24, 38), (70, 38), (203, 38), (61, 70)] {
+        for &(n, m) in &[
+            (1usize, 1usize),
+            (23, 5),
+            (24, 38),
+            (70, 38),
+            (203, 38),
+            (61, 70),
+        ] {
             let data = if m >= 5 {
                 banded(n, m, &mut seed)
             } else {
@@ -358,9 +365,9 @@ mod tests {
                 assert_eq!(Vec3::from(compact[k]), positions[i]);
             }
             // Frozen rows are left alone.
-            for i in 0..n {
+            for (i, p) in positions.iter().enumerate() {
                 if basis.row(i).iter().all(|w| *w == 0.0) {
-                    assert!(positions[i].is_nan());
+                    assert!(p.is_nan());
                 }
             }
         }

@@ -441,6 +441,17 @@ mod tests {
         assert!(seen.iter().all(|&c| c == 1), "each fan vertex written once");
         let mut portable = vec![Vec3::NAN; count];
         fans.normals_portable(&pa, &mut |v, n| portable[v] = n);
+        // The gather variant loads the same values into the same lanes: the same sums.
+        let mut gathered = vec![Vec3::NAN; count];
+        fans.normals_gather(&pa, |v, n| gathered[v] = n);
+        for v in 0..count {
+            assert!(
+                gathered[v] == fast[v] || (gathered[v].is_nan() && fast[v].is_nan()),
+                "gather v={v}: {} vs {}",
+                gathered[v],
+                fast[v]
+            );
+        }
         for v in 0..count {
             let (t, tol) = truth[v];
             for (what, got) in [

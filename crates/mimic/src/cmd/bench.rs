@@ -220,8 +220,16 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         base[6].push(ns(t));
     }
     std::hint::black_box((&normals, &positions));
-    let [ba, ba_pairs, bn, bn_fans, prev_deform, deform_alone, floor, bn_gather] =
-        base.map(|mut v| median_p99_us(&mut v).0);
+    let [
+        ba,
+        ba_pairs,
+        bn,
+        bn_fans,
+        prev_deform,
+        deform_alone,
+        floor,
+        bn_gather,
+    ] = base.map(|mut v| median_p99_us(&mut v).0);
     let numpy = if args.numpy {
         Some(numpy_reference(basis, &moving.rows)?)
     } else {
@@ -347,8 +355,18 @@ fn bench_sessions(
     let mut one = Vec::new();
     let mut many = Vec::new();
     for _ in 0..2 {
-        one.push(mimic_retarget::throughput::step_sessions(make(1)?, frames, span_us, steps)?);
-        many.push(mimic_retarget::throughput::step_sessions(make(k)?, frames, span_us, steps)?);
+        one.push(mimic_retarget::throughput::step_sessions(
+            make(1)?,
+            frames,
+            span_us,
+            steps,
+        )?);
+        many.push(mimic_retarget::throughput::step_sessions(
+            make(k)?,
+            frames,
+            span_us,
+            steps,
+        )?);
     }
     let best = |v: &[mimic_retarget::throughput::SessionsReport]| {
         v.iter().map(|r| r.frames_per_second).fold(0f64, f64::max)
