@@ -5,15 +5,20 @@ Usage: bench_numpy.py MATRIX.f32 ROWS COLS [REPS]
 
 MATRIX.f32 holds ROWS x COLS little-endian float32, row-major (the moving rows of the rig's basis,
 written by `mimic bench`); D is a COLS x 3 float32 matrix of control displacements. Times only the
-product `B @ D` (a fresh output each call, as a numpy user writes it; and `np.matmul(..., out=)`
+product `B @ D` on one BLAS thread (a fresh output each call, as a numpy user writes it; and `np.matmul(..., out=)`
 into a kept buffer), REPS times after a warm-up, and prints the medians in microseconds as JSON.
 """
 
 import json
+import os
 import sys
 import time
 
-import numpy as np
+# One thread, like the step it is compared with (a multi-threaded BLAS spins on a busy machine).
+for var in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
+    os.environ.setdefault(var, "1")
+
+import numpy as np  # noqa: E402  (after the thread settings)
 
 
 def main() -> None:
