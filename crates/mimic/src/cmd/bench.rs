@@ -31,7 +31,7 @@ pub struct Args {
     #[arg(long, value_delimiter = ',')]
     pub rigs: Vec<String>,
     /// Also step 1 and then N independent sessions at once (one named thread each, one basis
-    /// shared) and report frames/s and frames/s per core.
+    /// shared; at least 20 000 steps each) and report frames/s and frames/s per core.
     #[arg(long)]
     pub sessions: Option<usize>,
     /// Also time numpy's `B @ D` (float32) over the same rows: runs `python3 tools/bench_numpy.py`.
@@ -329,7 +329,8 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
     Ok(report)
 }
 
-/// Steps 1 session, then `k` at once, then 1 and `k` again (A/B pairs), on the benchmark's frames.
+/// Steps 1 session, then `k` at once, then 1 and `k` again (A/B pairs), at least 20 000 steps
+/// each, on the benchmark's frames; reports the best run of each.
 fn bench_sessions(
     args: &Args,
     p: &crate::cmd::setup::Prepared,
@@ -351,7 +352,8 @@ fn bench_sessions(
             })
             .collect()
     };
-    let steps = args.steps.max(100);
+    // Long enough (about 0.2-2 s a run) that thread start and timer noise do not count.
+    let steps = args.steps.max(20_000);
     let mut one = Vec::new();
     let mut many = Vec::new();
     for _ in 0..2 {
