@@ -6,21 +6,16 @@
 
 use glam::{Vec3, Vec3A};
 use mimic_solve::Basis;
-use mimic_solve::basis::MovingRows;
+use mimic_solve::deform::MovingDeform;
 use mimic_solve::normals::VertexFans;
 
 /// Moving rows of a basis and the neighbourhood whose normals follow them.
 #[derive(Clone, Debug)]
 pub(crate) struct MovingPatch {
-    /// Vertex index of each moving row.
-    rows: Vec<u32>,
-    /// `B` restricted to the moving rows.
-    compact: Basis,
-    /// Scratch for the compact product.
-    u: Vec<Vec3>,
-    /// Rest position of each moving row, in `rows` order.
-    rest_rows: Vec<Vec3A>,
-    /// Vertices the normal pass reads, by local index: first the moving rows (in `rows` order),
+    /// `rest + B d` over the moving rows, in one pass (rows in its own order).
+    deform: MovingDeform,
+    /// Vertices the normal pass reads, by local index: first the moving rows (in the order of
+    /// `deform.rows()`),
     /// then the other vertices whose normal can change (corners of triangles with a moving
     /// vertex), then the other corners of their triangles.
     local_vertices: Vec<u32>,
@@ -36,10 +31,8 @@ impl MovingPatch {
     /// positions of every vertex of the mesh (`basis.vertex_count()` of them).
     pub(crate) fn new(basis: &Basis, triangles: &[[u32; 3]], rest: &[Vec3]) -> Self {
         let n = basis.vertex_count().min(rest.len());
-        let MovingRows {
-            rows,
-            basis: compact,
-        } = basis.moving_rows(n);
+        let deform = MovingDeform::new(basis, &rest[..n]);
+        let rows = deform.rows().to_vec();
         let mut moving = vec![false; n];
         rows.iter().for_each(|&i| moving[i as usize] = true);
         let mut in_normal_set = vec![false; n];
@@ -79,13 +72,7 @@ impl MovingPatch {
             .collect();
         let fans = VertexFans::new(normal_count, local_vertices.len(), &local_triangles);
         Self {
-            u: vec![Vec3::ZERO; rows.len()],
-            rest_rows: rows
-                .iter()
-                .map(|&i| Vec3A::from(rest[i as usize]))
-                .collect(),
-            rows,
-            compact,
+            deform,
             local_positions: local_vertices
                 .iter()
                 .map(|&v| Vec3A::from(rest[v as usize]))
@@ -97,22 +84,14 @@ impl MovingPatch {
 
     /// Number of moving vertices.
     pub(crate) fn moving_count(&self) -> usize {
-        self.rows.len()
+        self.deform.rows().len()
     }
 
     /// `positions[i] = rest[i] + (B d)_i` for every moving vertex (`rest` as given to
     /// [`MovingPatch::new`]); others are left as they are. The new positions are also kept for
     /// [`MovingPatch::normals`].
     pub(crate) fn deform(&mut self, d: &[Vec3], positions: &mut [Vec3]) {
-        self.compact.apply(d, &mut self.u);
-        let moved = self.rows.iter().zip(&self.u).zip(&self.rest_rows);
-        for (((&i, u), rest), local) in moved.zip(&mut self.local_positions) {
-            let p = *rest + Vec3A::from(*u);
-            *local = p;
-            if let Some(out) = positions.get_mut(i as usize) {
-                *out = Vec3::from(p);
-            }
-        }
+        self.deform.deform(d, &mut self.local_positions, positions);
     }
 
     /// Recomputes the area-weighted normals of the vertices the moving rows can affect, from the

@@ -11,7 +11,7 @@ const GRID: usize = 15;
 
 /// A 15 x 15 grid (cm) with a bump, 6 controls on it, and a layout whose points sit at
 /// `SRC_SCALE` times the rig's positions (a metre-scale performer of the same face).
-fn rig_and_layout() -> (Rig, Layout) {
+pub(crate) fn rig_and_layout() -> (Rig, Layout) {
     let mut positions = Vec::new();
     for y in 0..GRID {
         for x in 0..GRID {
@@ -95,7 +95,7 @@ fn rig_and_layout() -> (Rig, Layout) {
 
 const SRC_SCALE: f32 = 0.01;
 
-fn neutral_points(rig: &Rig, layout: &Layout) -> Vec<Vec3> {
+pub(crate) fn neutral_points(rig: &Rig, layout: &Layout) -> Vec<Vec3> {
     let stable = [(0, 14), (14, 14), (0, 7), (14, 7), (0, 0), (14, 0)];
     rig.controls
         .iter()

@@ -297,7 +297,7 @@ unsafe fn apply_blocked_avx2_fma(
 /// The CPU must support AVX2; `dst` must be valid for writing 24 f32.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-unsafe fn store_xyz8(
+pub(crate) unsafe fn store_xyz8(
     dst: *mut f32,
     x: std::arch::x86_64::__m256,
     y: std::arch::x86_64::__m256,

@@ -9,6 +9,7 @@
 
 pub mod basis;
 mod build;
+pub mod deform;
 pub mod error;
 pub mod geodesic;
 pub mod kabsch;

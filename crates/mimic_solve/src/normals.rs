@@ -141,7 +141,29 @@ impl VertexFans {
             // SAFETY: AVX2 and FMA are checked just above; every centre and entry is below
             // position_count <= positions.len() (asserted), and each group's entries lie in
             // `entries` by construction.
-            unsafe { self.normals_avx2(positions, &mut write) };
+            unsafe { self.normals_avx2::<false>(positions, &mut write) };
+            return;
+        }
+        self.normals_portable(positions, &mut write);
+    }
+
+    /// [`VertexFans::normals`] with the neighbours fetched by AVX2 gathers (one per axis and
+    /// step) instead of 8 loads and a transpose: kept for the benchmarks' A/B comparison. Same
+    /// sums in the same order, so the same normals bit for bit.
+    ///
+    /// # Panics
+    /// As [`VertexFans::normals`].
+    pub fn normals_gather(&self, positions: &[Vec3A], mut write: impl FnMut(usize, Vec3)) {
+        assert!(
+            positions.len() >= self.position_count,
+            "VertexFans::normals_gather: {} positions, fans name {}",
+            positions.len(),
+            self.position_count
+        );
+        #[cfg(target_arch = "x86_64")]
+        if crate::basis::avx2_fma() {
+            // SAFETY: as in `normals`.
+            unsafe { self.normals_avx2::<true>(positions, &mut write) };
             return;
         }
         self.normals_portable(positions, &mut write);
@@ -181,7 +203,11 @@ impl VertexFans {
     /// The CPU must support AVX2 and FMA, and `positions.len() >= self.position_count`.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn normals_avx2(&self, positions: &[Vec3A], write: &mut impl FnMut(usize, Vec3)) {
+    unsafe fn normals_avx2<const GATHER: bool>(
+        &self,
+        positions: &[Vec3A],
+        write: &mut impl FnMut(usize, Vec3),
+    ) {
         use std::arch::x86_64::*;
         debug_assert!(positions.len() >= self.position_count);
         let base = positions.as_ptr().cast::<f32>();
@@ -189,6 +215,17 @@ impl VertexFans {
         // SAFETY (of the caller): every index read below is < position_count <= positions.len().
         let load8 = |idx: &[u32]| -> (__m256, __m256, __m256) {
             // SAFETY: idx holds 8 indices below positions.len(); Vec3A is 16 bytes (x, y, z, pad).
+            if GATHER {
+                // SAFETY: as above; the gathers read f32 4 * idx[k] + axis of `positions`.
+                return unsafe {
+                    let i = _mm256_slli_epi32::<2>(_mm256_loadu_si256(idx.as_ptr().cast()));
+                    (
+                        _mm256_i32gather_ps::<4>(base, i),
+                        _mm256_i32gather_ps::<4>(base.add(1), i),
+                        _mm256_i32gather_ps::<4>(base.add(2), i),
+                    )
+                };
+            }
             unsafe {
                 let at = |k: usize| base.add(idx[k] as usize * 4);
                 let r0 = _mm256_loadu2_m128(at(4), at(0));
@@ -404,6 +441,17 @@ mod tests {
         assert!(seen.iter().all(|&c| c == 1), "each fan vertex written once");
         let mut portable = vec![Vec3::NAN; count];
         fans.normals_portable(&pa, &mut |v, n| portable[v] = n);
+        // The gather variant loads the same values into the same lanes: the same sums.
+        let mut gathered = vec![Vec3::NAN; count];
+        fans.normals_gather(&pa, |v, n| gathered[v] = n);
+        for v in 0..count {
+            assert!(
+                gathered[v] == fast[v] || (gathered[v].is_nan() && fast[v].is_nan()),
+                "gather v={v}: {} vs {}",
+                gathered[v],
+                fast[v]
+            );
+        }
         for v in 0..count {
             let (t, tol) = truth[v];
             for (what, got) in [

@@ -26,10 +26,105 @@ pub struct Args {
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
+    /// Rigs to run, one after the other (default: `ict-face-3k`, the source method's scale, then
+    /// `--rig`).
+    #[arg(long, value_delimiter = ',')]
+    pub rigs: Vec<String>,
+    /// Also step 1 and then N independent sessions at once (one named thread each, one basis
+    /// shared; at least 20 000 steps each) and report frames/s and frames/s per core.
+    #[arg(long)]
+    pub sessions: Option<usize>,
+    /// Also time numpy's `B @ D` (float32) over the same rows: runs `python3 tools/bench_numpy.py`.
+    #[arg(long)]
+    pub numpy: bool,
 }
 
 /// Runs `mimic bench`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let rigs = if args.rigs.is_empty() {
+        let mut r = vec!["ict-face-3k".to_string()];
+        if args.rig.rig != "ict-face-3k" {
+            r.push(args.rig.rig.clone());
+        }
+        r
+    } else {
+        args.rigs.clone()
+    };
+    let mut reports = Vec::new();
+    for name in &rigs {
+        let mut rig_args = args.rig.clone();
+        rig_args.rig = name.clone();
+        reports.push(bench_rig(&args, &rig_args)?);
+    }
+    let recording = mimic_capture::read_recording(&args.recording, None)?;
+    let fit = fit_throughput(&recording)?;
+    if args.json {
+        let report = json!({
+            "rigs": reports,
+            "fit": fit.as_ref().map(|f| json!({"model": "candide3", "frames": f.frames, "lost": f.lost, "frames_per_second": f.frames_per_s, "median_residual_px": f.median_residual_px})),
+            "build": if cfg!(debug_assertions) { "debug (not representative)" } else { "release" },
+        });
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&report).context("report")?
+        );
+    } else if let Some(f) = &fit {
+        println!(
+            "fit CANDIDE-3 to the recording: {:.0} frames/s ({} frames, median residual {:.2} px)",
+            f.frames_per_s, f.frames, f.median_residual_px
+        );
+    }
+    Ok(())
+}
+
+/// The 1-minute load average (Linux), for the record next to each figure.
+fn load_average() -> Option<f64> {
+    let text = std::fs::read_to_string("/proc/loadavg").ok()?;
+    text.split_whitespace().next()?.parse().ok()
+}
+
+/// Sum of `v` in 16 independent partial sums (vectorised): one read of every value, the
+/// bandwidth floor of a kernel that reads the same bytes.
+fn read_all(v: &[f32]) -> f32 {
+    let mut acc = [0f32; 16];
+    let mut chunks = v.chunks_exact(16);
+    for c in &mut chunks {
+        for (a, x) in acc.iter_mut().zip(c) {
+            *a += *x;
+        }
+    }
+    acc.iter().sum::<f32>() + chunks.remainder().iter().sum::<f32>()
+}
+
+/// numpy's `B @ D` over `rows` (the moving rows of `basis`), through `tools/bench_numpy.py`.
+fn numpy_reference(basis: &mimic_solve::Basis, rows: &[u32]) -> anyhow::Result<serde_json::Value> {
+    let m = basis.control_count();
+    let mut bytes = Vec::with_capacity(rows.len() * m * 4);
+    for &i in rows {
+        bytes.extend(basis.row(i as usize).iter().flat_map(|w| w.to_le_bytes()));
+    }
+    let path = std::env::temp_dir().join(format!("mimic-bench-{}.f32", std::process::id()));
+    std::fs::write(&path, &bytes).with_context(|| format!("writing {}", path.display()))?;
+    let out = std::process::Command::new("python3")
+        .arg("tools/bench_numpy.py")
+        .arg(&path)
+        .arg(rows.len().to_string())
+        .arg(m.to_string())
+        .output()
+        .context("running python3 tools/bench_numpy.py");
+    let _ = std::fs::remove_file(&path);
+    let out = out?;
+    anyhow::ensure!(
+        out.status.success(),
+        "tools/bench_numpy.py failed: {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).context("tools/bench_numpy.py output")
+}
+
+/// Benchmarks one rig; prints its text report unless `--json`, returns its JSON report.
+fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Value> {
+    let load_start = load_average();
     let recording = mimic_capture::read_recording(&args.recording, None)?;
     let layout_name = recording.header.layout.clone();
     let frames: Vec<_> = recording.frames.iter().map(|f| f.frame.clone()).collect();
@@ -40,7 +135,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     );
     let span_us =
         frames.last().map(|f| f.timestamp_us).unwrap_or(0) - frames[0].timestamp_us + 33_333;
-    let mut p = prepare(&args.rig, &args.pipeline, &layout_name)?;
+    let mut p = prepare(rig_args, &args.pipeline, &layout_name)?;
     let mut out = p.retargeter.new_output();
     let mut samples = StageSamples::with_capacity(args.steps);
     let mut k = 0usize;
@@ -64,9 +159,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
 
-    // Baselines in the same process: the dense product over every vertex of the rig and
-    // full-mesh normals, as a pipeline without the moving-part restriction would do, each with the
-    // current kernel and with the previous one (row-pair product, face-by-face scatter normals).
+    // Baselines in the same process, interleaved so that each variant runs in the same VM speed
+    // state: the dense product over every vertex of the rig and full-mesh normals, as a pipeline
+    // without the moving-part restriction would do, each with the current kernel and with the
+    // previous one (row-pair product, face-by-face scatter normals); the previous deform (the
+    // blocked product over the moving rows in index order, then a pass adding the rest positions
+    // and scattering); the current deform kernel alone; and one plain read of the bytes it reads.
     let n = p.rig.mesh.vertex_count();
     let basis = p.retargeter.basis();
     let d = out.displacements.clone();
@@ -74,8 +172,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut normals = vec![Vec3::ZERO; n];
     let fans = mimic_solve::normals::VertexFans::new(n, n, &p.rig.mesh.triangles);
     let mut u_a = vec![glam::Vec3A::ZERO; n];
+    let moving = basis.moving_rows(n);
+    let rest_rows: Vec<glam::Vec3A> = moving
+        .rows
+        .iter()
+        .map(|&i| p.rig.mesh.positions[i as usize].into())
+        .collect();
+    let mut u_rows = vec![Vec3::ZERO; moving.rows.len()];
+    let mut local = vec![glam::Vec3A::ZERO; moving.rows.len()];
+    let mut positions = p.rig.mesh.positions.clone();
+    let deform = mimic_solve::deform::MovingDeform::new(basis, &p.rig.mesh.positions);
+    let floor_buf = vec![1f32; deform.bytes_read() / 4];
     let baseline_steps = (args.steps / 4).max(50);
-    let mut base: [Vec<u32>; 4] = Default::default();
+    let mut base: [Vec<u32>; 8] = Default::default();
     let ns = elapsed_ns;
     for _ in 0..baseline_steps {
         let t = Instant::now();
@@ -91,16 +200,51 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let t = Instant::now();
         fans.normals(&u_a, |v, nv| normals[v] = nv);
         base[3].push(ns(t));
+        let t = Instant::now();
+        fans.normals_gather(&u_a, |v, nv| normals[v] = nv);
+        base[7].push(ns(t));
+        let t = Instant::now();
+        moving.basis.apply(&d, &mut u_rows);
+        let moved = moving.rows.iter().zip(&u_rows).zip(&rest_rows);
+        for (((&i, u), rest), l) in moved.zip(&mut local) {
+            let q = *rest + glam::Vec3A::from(*u);
+            *l = q;
+            positions[i as usize] = Vec3::from(q);
+        }
+        base[4].push(ns(t));
+        let t = Instant::now();
+        deform.deform(&d, &mut local, &mut positions);
+        base[5].push(ns(t));
+        let t = Instant::now();
+        std::hint::black_box(read_all(std::hint::black_box(&floor_buf)));
+        base[6].push(ns(t));
     }
-    std::hint::black_box(&normals);
-    let [ba, ba_pairs, bn, bn_fans] = base.map(|mut v| median_p99_us(&mut v).0);
+    std::hint::black_box((&normals, &positions));
+    let [
+        ba,
+        ba_pairs,
+        bn,
+        bn_fans,
+        prev_deform,
+        deform_alone,
+        floor,
+        bn_gather,
+    ] = base.map(|mut v| median_p99_us(&mut v).0);
+    let numpy = if args.numpy {
+        Some(numpy_reference(basis, &moving.rows)?)
+    } else {
+        None
+    };
+    let sessions = match args.sessions {
+        Some(k) if k > 0 => Some(bench_sessions(args, &p, &frames, span_us, k)?),
+        _ => None,
+    };
 
     let steps = samples.steps();
     let (stages, step) = samples.summary();
     let (step_m, step_p99) = (step.median_us, step.p99_us);
     let deform_m = stages.get(Stage::Deform).median_us;
     let normals_m = stages.get(Stage::Normals).median_us;
-    let fit = fit_throughput(&recording)?;
     let report = json!({
         "rig": p.rig.name,
         "vertices": n,
@@ -122,16 +266,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "normals_kernel_speedup": if bn_fans > 0.0 { bn / bn_fans } else { 0.0 },
             "deform_speedup": if deform_m > 0.0 { ba / deform_m } else { 0.0 },
             "normals_speedup": if normals_m > 0.0 { bn / normals_m } else { 0.0 },
+            "normals_fans_gather_median_us": bn_gather,
+            "previous_deform_median_us": prev_deform,
+            "deform_kernel_median_us": deform_alone,
         },
-        "fit": fit.as_ref().map(|f| json!({"model": "candide3", "frames": f.frames, "lost": f.lost, "frames_per_second": f.frames_per_s, "median_residual_px": f.median_residual_px})),
-        "build": if cfg!(debug_assertions) { "debug (not representative)" } else { "release" },
+        "floor": {
+            "what": "one vectorised read of the bytes the deform kernel reads (kept weights and rest positions), same process",
+            "bytes": deform.bytes_read(),
+            "kept_block_columns": deform.kept_fraction(),
+            "read_median_us": floor,
+        },
+        "numpy": numpy,
+        "sessions": sessions,
+        "load_average": {"start": load_start, "end": load_average()},
     });
-    if args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&report).context("report")?
-        );
-    } else {
+    if !args.json {
         println!(
             "rig {} ({} vertices, {} moving, {} controls), basis {:.0} ms, {} steps",
             p.rig.name,
@@ -148,16 +297,94 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             1e6 / step_m.max(1e-9)
         );
         println!(
-            "  baseline, every vertex: apply {ba:.1} us (previous row-pair kernel {ba_pairs:.1} us), normals by fans {bn_fans:.1} us (face scatter {bn:.1} us)"
+            "  baseline, every vertex: apply {ba:.1} us (previous row-pair kernel {ba_pairs:.1} us), normals by fans {bn_fans:.1} us (by gathers {bn_gather:.1} us; face scatter {bn:.1} us)"
         );
-        if let Some(f) = &fit {
+        println!(
+            "  deform: previous (blocked product in index order, then add and scatter) {prev_deform:.1} us, current kernel alone {deform_alone:.1} us; floor (one read of its {} kB) {floor:.1} us",
+            deform.bytes_read() / 1000
+        );
+        if let Some(np) = &report["numpy"].as_object() {
             println!(
-                "  fit CANDIDE-3 to the recording: {:.0} frames/s ({} frames, median residual {:.2} px)",
-                f.frames_per_s, f.frames, f.median_residual_px
+                "  numpy B @ D (float32, same rows): {:.1} us (into a kept buffer {:.1} us)",
+                np["matmul_median_us"].as_f64().unwrap_or(0.0),
+                np["matmul_out_median_us"].as_f64().unwrap_or(0.0)
             );
         }
+        if let Some(s) = &report["sessions"].as_object() {
+            println!(
+                "  sessions: 1 at {:.0} frames/s, {} at {:.0} frames/s ({:.2}x; {:.0} frames/s per core)",
+                s["one_frames_per_second"].as_f64().unwrap_or(0.0),
+                s["sessions"],
+                s["many_frames_per_second"].as_f64().unwrap_or(0.0),
+                s["speedup"].as_f64().unwrap_or(0.0),
+                s["per_core_frames_per_second"].as_f64().unwrap_or(0.0)
+            );
+        }
+        println!(
+            "  load average {} at the start, {} at the end",
+            load_start.map_or("?".into(), |l| format!("{l:.2}")),
+            load_average().map_or("?".into(), |l| format!("{l:.2}"))
+        );
     }
-    Ok(())
+    Ok(report)
+}
+
+/// Steps 1 session, then `k` at once, then 1 and `k` again (A/B pairs), at least 20 000 steps
+/// each, on the benchmark's frames; reports the best run of each.
+fn bench_sessions(
+    args: &Args,
+    p: &crate::cmd::setup::Prepared,
+    frames: &[mimic_types::LandmarkFrame],
+    span_us: i64,
+    k: usize,
+) -> anyhow::Result<serde_json::Value> {
+    let basis = std::sync::Arc::new(p.retargeter.basis().clone());
+    let make = |count: usize| -> anyhow::Result<Vec<mimic_retarget::Retargeter>> {
+        (0..count)
+            .map(|_| {
+                mimic_retarget::Retargeter::new(
+                    &p.rig,
+                    &p.layout,
+                    basis.clone(),
+                    args.pipeline.settings(),
+                )
+                .context("session retargeter")
+            })
+            .collect()
+    };
+    // Long enough (about 0.2-2 s a run) that thread start and timer noise do not count.
+    let steps = args.steps.max(20_000);
+    let mut one = Vec::new();
+    let mut many = Vec::new();
+    for _ in 0..2 {
+        one.push(mimic_retarget::throughput::step_sessions(
+            make(1)?,
+            frames,
+            span_us,
+            steps,
+        )?);
+        many.push(mimic_retarget::throughput::step_sessions(
+            make(k)?,
+            frames,
+            span_us,
+            steps,
+        )?);
+    }
+    let best = |v: &[mimic_retarget::throughput::SessionsReport]| {
+        v.iter().map(|r| r.frames_per_second).fold(0f64, f64::max)
+    };
+    let (f1, fk) = (best(&one), best(&many));
+    let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+    Ok(json!({
+        "sessions": k,
+        "cores": cores,
+        "steps_per_session": steps,
+        "one_frames_per_second": f1,
+        "many_frames_per_second": fk,
+        "speedup": if f1 > 0.0 { fk / f1 } else { 0.0 },
+        "per_core_frames_per_second": fk / k.min(cores) as f64,
+        "runs": {"one": one, "many": many},
+    }))
 }
 
 /// CANDIDE-3 fitting speed on a recording whose layout lists correspondences (`None` otherwise):
