@@ -8,12 +8,15 @@
 //! - [`take`]: Live Link Face CSV takes, columns by name, `Timecode` parsed to microseconds;
 //! - [`namemap`]: blendshape spellings (ARKit, Live Link, MediaPipe) to a rig's morph-target
 //!   names with per-target gain, offset and clamp, kept as data (`configs/namemaps/*.toml`);
-//! - [`osf_frames`]: an OpenSeeFace face as an `openseeface68` landmark frame.
+//! - [`osf_frames`]: an OpenSeeFace face as an `openseeface68` landmark frame;
+//! - [`import`]: a `.osf` capture as a v1 recording (`mimic import openseeface`).
 //!
 //! Errors name the packet (by number or byte offset) or the file and line.
-//! Depends on mimic_types, glam, serde and toml.
+//! Depends on mimic_types, mimic_capture (recordings, without its tokio replay), glam, serde and
+//! toml.
 
 mod error;
+pub mod import;
 pub mod livelink;
 pub mod namemap;
 pub mod openseeface;
