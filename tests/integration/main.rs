@@ -14,6 +14,7 @@ mod info;
 mod loopback;
 mod lost;
 mod morph;
+mod openseeface;
 mod regression;
 mod render;
 mod replay;

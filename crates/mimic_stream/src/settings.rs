@@ -2,6 +2,7 @@
 
 use mimic_retarget::RetargetSettings;
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Duration;
 
 /// The address `mimic serve` listens on unless told otherwise: loopback only.
@@ -39,6 +40,9 @@ pub struct ServerSettings {
     pub record_dir: Option<PathBuf>,
     /// Accepted frames queued per session for its recording before the session waits for the disk.
     pub record_queue_frames: usize,
+    /// A bound UDP socket for OpenSeeFace's datagrams (`mimic serve --openseeface`): one
+    /// session per face id (`server/openseeface.rs`); `None`, the default, for none.
+    pub openseeface: Option<Arc<std::net::UdpSocket>>,
     /// Pipeline settings of every session (`positions` and `normals` are forced off: the
     /// server computes positions itself, only for viewers that ask for them).
     pub retarget: RetargetSettings,
@@ -61,6 +65,7 @@ impl Default for ServerSettings {
             max_time_jump: Duration::from_secs(10),
             record_dir: None,
             record_queue_frames: 128,
+            openseeface: None,
             retarget: RetargetSettings::default(),
         }
     }

@@ -24,7 +24,9 @@ pub struct OsfImport {
 /// Frame times from a CSV of named columns: `packet` (0-based datagram number) and `t_us` or
 /// `video_t_us` (microseconds), e.g. `megamind_frames.csv`: the video time behind each datagram,
 /// for captures of a video file, where OpenSeeFace's own timestamps follow its processing speed.
-pub fn read_frame_times(path: &Path) -> Result<std::collections::HashMap<usize, i64>, TrackerError> {
+pub fn read_frame_times(
+    path: &Path,
+) -> Result<std::collections::HashMap<usize, i64>, TrackerError> {
     let text = mimic_types::limits::read_capped(path, &mimic_types::limits::WEIGHTS_FILE).map_err(
         |source| TrackerError::Io {
             path: path.to_path_buf(),
@@ -49,10 +51,16 @@ pub fn read_frame_times(path: &Path) -> Result<std::collections::HashMap<usize, 
     let mut times = std::collections::HashMap::new();
     for row in &csv.rows {
         let p: usize = row.field(packet).parse().map_err(|_| {
-            err(row.line, format!("packet `{}` is not a number", row.field(packet)))
+            err(
+                row.line,
+                format!("packet `{}` is not a number", row.field(packet)),
+            )
         })?;
         let t: i64 = row.field(time).parse().map_err(|_| {
-            err(row.line, format!("time `{}` is not an integer", row.field(time)))
+            err(
+                row.line,
+                format!("time `{}` is not an integer", row.field(time)),
+            )
         })?;
         times.insert(p, t);
     }
@@ -107,9 +115,7 @@ pub fn import_osf(
                 path: path.to_path_buf(),
                 record: *i,
                 file_offset: *offset,
-                reason: format!(
-                    "face {face_id}: time {t} s does not come after the previous one"
-                ),
+                reason: format!("face {face_id}: time {t} s does not come after the previous one"),
             });
         }
         prev_us = t_us as i64;

@@ -90,7 +90,9 @@ pub const CURVE_NAMES: [&str; CURVES] = [
 
 /// The stream index of curve `name` (ASCII case ignored).
 pub fn curve_index(name: &str) -> Option<usize> {
-    CURVE_NAMES.iter().position(|n| n.eq_ignore_ascii_case(name))
+    CURVE_NAMES
+        .iter()
+        .position(|n| n.eq_ignore_ascii_case(name))
 }
 
 /// One Live Link Face packet.

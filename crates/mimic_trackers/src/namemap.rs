@@ -94,8 +94,9 @@ impl NameMap {
     /// Parses a name map file's text; errors name `path` and the line.
     pub fn parse(text: &str, path: &Path) -> Result<Self, TrackerError> {
         let line_of = |e: &toml::de::Error| {
-            e.span()
-                .map_or(1, |s| text[..s.start.min(text.len())].lines().count().max(1))
+            e.span().map_or(1, |s| {
+                text[..s.start.min(text.len())].lines().count().max(1)
+            })
         };
         let f: File = toml::from_str(text).map_err(|e| TrackerError::Line {
             path: path.to_path_buf(),
@@ -117,7 +118,10 @@ impl NameMap {
                 ));
             }
             for name in std::iter::once(&e.source).chain(&e.aliases) {
-                if index.insert(name.to_ascii_lowercase(), k).is_some_and(|j| j != k) {
+                if index
+                    .insert(name.to_ascii_lowercase(), k)
+                    .is_some_and(|j| j != k)
+                {
                     return Err(bad(format!("spelling `{name}` is in two entries")));
                 }
             }
@@ -247,7 +251,8 @@ targets = []
         assert!(e.to_string().starts_with("m.toml:1:"), "{e}");
         let twice = "name = \"x\"\n[[entry]]\nsource = \"a\"\ntargets = []\n[[entry]]\nsource = \"A\"\ntargets = []\n";
         assert!(NameMap::parse(twice, Path::new("m.toml")).is_err());
-        let bad_clamp = "name = \"x\"\n[[entry]]\nsource = \"a\"\ntargets = []\nclamp = [1.0, 0.0]\n";
+        let bad_clamp =
+            "name = \"x\"\n[[entry]]\nsource = \"a\"\ntargets = []\nclamp = [1.0, 0.0]\n";
         assert!(NameMap::parse(bad_clamp, Path::new("m.toml")).is_err());
     }
 }

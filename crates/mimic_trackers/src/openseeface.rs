@@ -175,7 +175,8 @@ pub fn decode_packet(packet: &[u8]) -> Result<Vec<OsfFace>, PacketError> {
         .enumerate()
         .map(|(i, block)| {
             let mut f = OsfFace::default();
-            decode_face(block, &mut f).map_err(|e| PacketError::new(i * FACE_BYTES + e.offset, e.reason))?;
+            decode_face(block, &mut f)
+                .map_err(|e| PacketError::new(i * FACE_BYTES + e.offset, e.reason))?;
             Ok(f)
         })
         .collect()

@@ -114,7 +114,10 @@ mod tests {
         let left_jaw = to_recording([-0.3423, -0.1582, 0.6132]);
         let chin = to_recording([0.1401, 0.6354, 0.3948]);
         let nose = to_recording([0.0, 0.0, -0.0454]);
-        assert!(left_jaw.x > right_jaw.x, "the subject's left is image right (+x)");
+        assert!(
+            left_jaw.x > right_jaw.x,
+            "the subject's left is image right (+x)"
+        );
         assert!(chin.y < nose.y, "y is up");
         assert!(nose.z > right_jaw.z, "z is toward the camera");
         let back = from_recording(right_jaw);

@@ -132,8 +132,8 @@ pub fn parse_take(text: &str, path: &Path) -> Result<Take, TrackerError> {
     let names: Vec<&str> = header.split(',').map(str::trim).collect();
     let find = |n: &str| names.iter().position(|c| c.eq_ignore_ascii_case(n));
     let timecode = find("Timecode").ok_or_else(|| err(1, "no `Timecode` column".into()))?;
-    let count = find("BlendShapeCount")
-        .ok_or_else(|| err(1, "no `BlendShapeCount` column".into()))?;
+    let count =
+        find("BlendShapeCount").ok_or_else(|| err(1, "no `BlendShapeCount` column".into()))?;
     let mut columns = [None; CURVES];
     for (c, name) in names.iter().enumerate() {
         if let Some(i) = curve_index(name) {
@@ -175,12 +175,16 @@ pub fn parse_take(text: &str, path: &Path) -> Result<Take, TrackerError> {
                         ),
                     )
                 })?;
-                curves[k] = v.parse::<f32>().ok().filter(|x| x.is_finite()).ok_or_else(|| {
-                    err(
-                        line,
-                        format!("column `{}`: `{v}` is not a number", CURVE_NAMES[k]),
-                    )
-                })?;
+                curves[k] = v
+                    .parse::<f32>()
+                    .ok()
+                    .filter(|x| x.is_finite())
+                    .ok_or_else(|| {
+                        err(
+                            line,
+                            format!("column `{}`: `{v}` is not a number", CURVE_NAMES[k]),
+                        )
+                    })?;
             }
         }
         raw.push((line, secs, frames, n > 0, curves));
@@ -266,7 +270,10 @@ mod tests {
             Path::new("t.csv"),
         )
         .unwrap_err();
-        assert!(e.to_string().starts_with("t.csv:3: column `JawOpen`"), "{e}");
+        assert!(
+            e.to_string().starts_with("t.csv:3: column `JawOpen`"),
+            "{e}"
+        );
         let e = parse_take(
             "Timecode,BlendShapeCount,JawOpen\n00:00:01:00.0,1,0.5\n00:00:00:01.0,1,0.1\n",
             Path::new("t.csv"),

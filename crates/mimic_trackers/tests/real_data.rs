@@ -45,7 +45,10 @@ fn megamind_capture_decodes_as_its_source_says() {
         let faces = decode_packet(&r.datagram).unwrap();
         assert_eq!(faces.len(), 1);
         let f = &faces[0];
-        assert_eq!((f.face_id, f.width, f.height, f.success), (0, 720.0, 528.0, 1));
+        assert_eq!(
+            (f.face_id, f.width, f.height, f.success),
+            (0, 720.0, 528.0, 1)
+        );
         assert!(f.timestamp > prev_t, "timestamps increase strictly");
         prev_t = f.timestamp;
         assert_eq!(encode_packet(&faces), r.datagram, "byte-exact re-encode");

@@ -23,6 +23,11 @@ pub struct Args {
     /// `blendshapecount` columns are not sent.
     #[arg(long)]
     pub weights: Option<PathBuf>,
+    /// Send the recording (an `openseeface68` one, e.g. from `mimic import openseeface`) as
+    /// OpenSeeFace UDP datagrams to this address (a `mimic serve --openseeface` port), at its
+    /// pace, instead of to `--to`.
+    #[arg(long, value_name = "ADDR", conflicts_with = "weights")]
+    pub openseeface: Option<std::net::SocketAddr>,
     /// Frame rate of a weights CSV without a `t_us` column.
     #[arg(long, default_value_t = 60.0, value_parser = parse_rate)]
     pub rate: f64,
@@ -92,6 +97,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return send_weights(&args, csv);
     }
     let recording = args.recording.clone().context("no recording given")?;
+    if let Some(addr) = args.openseeface {
+        return send_openseeface(&args, &recording, addr);
+    }
     let recording_reader = RecordingReader::open(&recording, None)?;
     let mut header = recording_reader.header().clone();
     if let Some(s) = &args.session {
@@ -152,6 +160,61 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => {}
     }
     ended_early(write_failed, bye.as_ref())
+}
+
+/// `mimic send --openseeface`: the recording's frames as OpenSeeFace datagrams (face 0 of a
+/// 640 x 480 image), each sent when its time comes.
+fn send_openseeface(
+    args: &Args,
+    recording: &std::path::Path,
+    addr: std::net::SocketAddr,
+) -> anyhow::Result<()> {
+    use mimic_trackers::openseeface::encode_packet;
+    use mimic_trackers::osf_frames::{LAYOUT, to_face};
+    let rec = mimic_capture::read_recording(recording, None)?;
+    anyhow::ensure!(
+        rec.header.layout == LAYOUT,
+        "{}: layout `{}`; --openseeface sends `{LAYOUT}` recordings (mimic import openseeface)",
+        recording.display(),
+        rec.header.layout
+    );
+    let bind = if addr.ip().is_loopback() {
+        "127.0.0.1:0"
+    } else {
+        "0.0.0.0:0"
+    };
+    let socket = std::net::UdpSocket::bind(bind).context("binding a UDP socket")?;
+    let first_t = rec.frames.first().map_or(0, |f| f.frame.timestamp_us);
+    let start = std::time::Instant::now();
+    let mut sent = 0usize;
+    for f in &rec.frames {
+        if !args.fast {
+            let due = (f.frame.timestamp_us - first_t).max(0) as f64 / 1e6 / args.speed;
+            let now = start.elapsed().as_secs_f64();
+            if due > now {
+                std::thread::sleep(Duration::from_secs_f64(due - now));
+            }
+        }
+        let packet = encode_packet(&[to_face(&f.frame, 0, 640.0, 480.0)]);
+        socket
+            .send_to(&packet, addr)
+            .with_context(|| format!("sending datagram {sent} to {addr}"))?;
+        sent += 1;
+        if args.max_frames.is_some_and(|m| sent >= m) {
+            break;
+        }
+    }
+    let span = rec
+        .frames
+        .last()
+        .map_or(0, |f| f.frame.timestamp_us - first_t);
+    println!(
+        "sent {sent} OpenSeeFace datagrams to {addr} in {:.3} s (recording {:.3} s, speed {})",
+        start.elapsed().as_secs_f64(),
+        span as f64 * 1e-6,
+        args.speed
+    );
+    Ok(())
 }
 
 /// After the sending stopped: a write error after the server's `bye` came is reported as that

@@ -29,6 +29,11 @@ pub struct Args {
     /// Do not listen for UDP frames.
     #[arg(long)]
     pub no_udp: bool,
+    /// Also receive OpenSeeFace's UDP datagrams on this address (its default port is
+    /// 127.0.0.1:11573): one session `openseeface-<face id>` per face, `openseeface68` layout,
+    /// the `--rig` rig (docs/trackers.md).
+    #[arg(long, value_name = "ADDR")]
+    pub openseeface: Option<SocketAddr>,
     /// Maximum tracker sessions at once.
     #[arg(long, default_value_t = ServerSettings::default().max_sessions)]
     pub max_sessions: usize,
@@ -112,6 +117,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         record_dir: record_dir(args.record.as_deref())?,
         record_queue_frames: args.record_queue.max(1),
         retarget: args.pipeline.settings(),
+        openseeface: bind_udp(args.openseeface, "--openseeface")?,
         ..ServerSettings::default()
     };
     if !args.listen.ip().is_loopback() {
@@ -140,8 +146,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             None => "off".to_string(),
         };
         // The first stdout line says where to connect (tests and scripts read it).
+        let trackers: String = [("openseeface", &settings.openseeface)]
+            .iter()
+            .filter_map(|(name, s)| Some(format!(" {name} {}", s.as_ref()?.local_addr().ok()?)))
+            .collect();
         println!(
-            "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}",
+            "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}{trackers}",
             catalog.rig_names()
         );
         std::io::stdout().flush()?;
@@ -172,6 +182,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// A tracker's UDP socket bound at `addr` (warned about beyond loopback), for the server.
+fn bind_udp(
+    addr: Option<SocketAddr>,
+    flag: &str,
+) -> anyhow::Result<Option<Arc<std::net::UdpSocket>>> {
+    let Some(addr) = addr else { return Ok(None) };
+    if !addr.ip().is_loopback() {
+        tracing::warn!(%addr, "{flag}: receiving beyond loopback, as asked: anyone who can reach it can open sessions");
+    }
+    let socket =
+        std::net::UdpSocket::bind(addr).with_context(|| format!("{flag}: binding UDP {addr}"))?;
+    Ok(Some(Arc::new(socket)))
 }
 
 /// The `--record` folder, created if missing and checked writable before any session starts.

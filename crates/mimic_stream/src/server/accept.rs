@@ -45,6 +45,7 @@ impl Server {
                 done_tx.clone(),
             ));
         }
+        super::openseeface::spawn(shared, &stop_rx, &done_tx);
         tokio::pin!(shutdown);
         loop {
             let permit = tokio::select! {
