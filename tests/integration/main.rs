@@ -11,6 +11,7 @@ mod faults;
 mod fit;
 mod import;
 mod info;
+mod livelink;
 mod loopback;
 mod lost;
 mod morph;

@@ -287,3 +287,42 @@ mod tests {
         assert!(!is_take_header("t_us,jawOpen"));
     }
 }
+
+/// A take's tracked rows as morph-target weights through a name map.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TakeWeights {
+    /// Target names, one per weight of each frame.
+    pub targets: Vec<String>,
+    /// `(line, t_us, weights)` of each tracked row.
+    pub frames: Vec<(usize, i64, Vec<f32>)>,
+    /// Rows with no face (`BlendShapeCount` 0), not in `frames`.
+    pub untracked: usize,
+    /// Blendshape columns the map does not list (sent under their own names).
+    pub unmapped: Vec<String>,
+}
+
+/// The take's blendshape curves (the first 52; head and eye angles are not weights) through
+/// `map`, for its tracked rows.
+pub fn take_weights(take: &Take, map: &crate::namemap::NameMap) -> TakeWeights {
+    let columns: Vec<usize> = (0..crate::livelink::BLENDSHAPES)
+        .filter(|&k| take.present[k])
+        .collect();
+    let names: Vec<&str> = columns.iter().map(|&k| CURVE_NAMES[k]).collect();
+    let mapping = map.resolve(&names);
+    let mut values = vec![0.0f32; columns.len()];
+    let mut frames = Vec::with_capacity(take.rows.len());
+    for r in take.rows.iter().filter(|r| r.tracked) {
+        for (v, &k) in values.iter_mut().zip(&columns) {
+            *v = r.curves[k];
+        }
+        let mut w = vec![0.0f32; mapping.targets.len()];
+        mapping.apply(map, &values, &mut w);
+        frames.push((r.line, r.t_us, w));
+    }
+    TakeWeights {
+        untracked: take.rows.len() - frames.len(),
+        targets: mapping.targets,
+        frames,
+        unmapped: mapping.unmapped,
+    }
+}
