@@ -118,3 +118,76 @@ fn a_take_with_dropouts_sends_only_its_tracked_rows() {
     assert!(stdout.contains("server: 1662 frames, 0 late"), "{stdout}");
     server.stop();
 }
+
+#[test]
+fn live_link_udp_packets_drive_a_weights_session_with_the_head_pose() {
+    use mimic_trackers::livelink::{CURVES, HEAD_YAW, LiveLinkPacket, curve_index, encode_packet};
+    let Some(dir) = takes() else { return };
+    let take = mimic_trackers::take::read_take(&dir.join("S07-001.csv")).unwrap();
+    let port = std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let addr = format!("127.0.0.1:{port}");
+    let server = Serve::start(&[
+        "--rig",
+        "ict-face",
+        "--no-udp",
+        "--livelink",
+        &addr,
+        "--viewer-queue",
+        "100000",
+        "--idle-timeout",
+        "1",
+    ]);
+    let mut v = viewer(&server.tcp, "livelink-iPhone", false);
+    server.wait_for("the viewer", |s| s["viewers_active"] == 1);
+    let tv = mimic_testkit::spawn("viewer", move || read_session(&mut v));
+    let udp = std::net::UdpSocket::bind("127.0.0.1:0").unwrap();
+    let n = 120;
+    let yaw = |i: usize| 0.4 * (i as f32 / 15.0).sin();
+    let packet = |i: usize| {
+        let mut curves = [0.0f32; CURVES];
+        curves.copy_from_slice(&take.rows[i].curves);
+        curves[HEAD_YAW] = yaw(i);
+        encode_packet(&LiveLinkPacket {
+            device_id: "9A1B7D4E-0000-4000-8000-000000000001".into(),
+            subject: "iPhone".into(),
+            frame: 1000 + 2 * i as i32,
+            subframe: 0.0,
+            rate_numerator: 60,
+            rate_denominator: 1,
+            curves,
+        })
+    };
+    udp.send_to(b"not a packet", &addr).unwrap();
+    for i in 0..n {
+        udp.send_to(&packet(i), &addr).unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    // An old packet again: late.
+    udp.send_to(&packet(3), &addr).unwrap();
+    let x = server.wait_for_session("livelink-iPhone", "the idle end", |x| x["active"] == false);
+    let s = server.stats();
+    let frames = x["frames"].as_u64().unwrap();
+    assert_eq!(frames, n as u64, "{x}");
+    assert_eq!(x["late"], 1);
+    assert_eq!(s["udp_bad_packets"], 1);
+    assert_eq!(frames + 1 + 1, n as u64 + 2, "accepted + late + bad = sent");
+    let seen = tv.join().unwrap();
+    assert_eq!(seen.frames.len(), n);
+    let jaw = curve_index("JawOpen").unwrap();
+    for (i, f) in seen.frames.iter().enumerate() {
+        // Frame 1000 + 2i at 60 fps, from the first packet's (each rounded to 1 us).
+        let want_us = (2 * i) as f64 / 60.0 * 1e6;
+        assert!((f.timestamp_us as f64 - want_us).abs() <= 1.0, "frame {i}");
+        let w = take.rows[i].curves[jaw].clamp(0.0, 1.0);
+        assert!((f.displacements[0].x - w).abs() <= 1e-6, "frame {i}");
+        // A pure yaw psi about y takes x to (cos psi, 0, -sin psi).
+        let ex = f.pose.rotation * glam::Vec3::X;
+        let want = glam::Vec3::new(yaw(i).cos(), 0.0, -yaw(i).sin());
+        assert!((ex - want).length() <= 1e-5, "frame {i}: {ex} vs {want}");
+    }
+    server.stop();
+}

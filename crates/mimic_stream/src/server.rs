@@ -12,6 +12,7 @@ use std::sync::Arc;
 mod accept;
 mod admission;
 mod landmark;
+mod livelink;
 mod openseeface;
 mod session;
 mod state;

@@ -67,8 +67,9 @@ struct File {
     entries: Vec<Entry>,
 }
 
-/// A name map: entries found by any of their spellings.
-#[derive(Clone, Debug, PartialEq)]
+/// A name map: entries found by any of their spellings (the default one is empty: every name
+/// passes through unchanged).
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct NameMap {
     /// The map's name.
     pub name: String,

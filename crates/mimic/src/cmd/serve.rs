@@ -34,6 +34,14 @@ pub struct Args {
     /// the `--rig` rig (docs/trackers.md).
     #[arg(long, value_name = "ADDR")]
     pub openseeface: Option<SocketAddr>,
+    /// Also receive Live Link Face's UDP packets on this address (the app's default port is
+    /// 11111): one weights session `livelink-<subject>` per subject, driving the `--rig` rig's
+    /// morph targets through `--namemap` (docs/trackers.md).
+    #[arg(long, value_name = "ADDR")]
+    pub livelink: Option<SocketAddr>,
+    /// Name map for Live Link curves (default: configs/namemaps/arkit.toml).
+    #[arg(long, value_name = "TOML")]
+    pub namemap: Option<PathBuf>,
     /// Maximum tracker sessions at once.
     #[arg(long, default_value_t = ServerSettings::default().max_sessions)]
     pub max_sessions: usize,
@@ -118,6 +126,17 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         record_queue_frames: args.record_queue.max(1),
         retarget: args.pipeline.settings(),
         openseeface: bind_udp(args.openseeface, "--openseeface")?,
+        livelink: match bind_udp(args.livelink, "--livelink")? {
+            Some(socket) => {
+                let path = args
+                    .namemap
+                    .clone()
+                    .unwrap_or_else(|| dirs.root.join("namemaps/arkit.toml"));
+                let namemap = Arc::new(mimic_trackers::namemap::NameMap::load(&path)?);
+                Some(mimic_stream::LiveLinkIntake { socket, namemap })
+            }
+            None => None,
+        },
         ..ServerSettings::default()
     };
     if !args.listen.ip().is_loopback() {
@@ -146,10 +165,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             None => "off".to_string(),
         };
         // The first stdout line says where to connect (tests and scripts read it).
-        let trackers: String = [("openseeface", &settings.openseeface)]
-            .iter()
-            .filter_map(|(name, s)| Some(format!(" {name} {}", s.as_ref()?.local_addr().ok()?)))
-            .collect();
+        let livelink = settings.livelink.as_ref().map(|l| l.socket.clone());
+        let trackers: String = [
+            ("openseeface", &settings.openseeface),
+            ("livelink", &livelink),
+        ]
+        .iter()
+        .filter_map(|(name, s)| Some(format!(" {name} {}", s.as_ref()?.local_addr().ok()?)))
+        .collect();
         println!(
             "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}{trackers}",
             catalog.rig_names()

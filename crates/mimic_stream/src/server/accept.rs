@@ -46,6 +46,7 @@ impl Server {
             ));
         }
         super::openseeface::spawn(shared, &stop_rx, &done_tx);
+        super::livelink::spawn(shared, &stop_rx, &done_tx);
         tokio::pin!(shutdown);
         loop {
             let permit = tokio::select! {
