@@ -111,9 +111,9 @@ impl NameMap {
                 line: 1,
                 reason: format!("entry `{}`: {reason}", e.source),
             };
-            if !(e.gain.is_finite() && e.offset.is_finite())
-                || !(e.clamp[0].is_finite() && e.clamp[1].is_finite() && e.clamp[0] <= e.clamp[1])
-            {
+            let finite = e.gain.is_finite() && e.offset.is_finite();
+            let [lo, hi] = e.clamp;
+            if !(finite && lo.is_finite() && hi.is_finite() && lo <= hi) {
                 return Err(bad(
                     "gain and offset must be finite and clamp [lo, hi] with lo <= hi".into(),
                 ));

@@ -161,7 +161,7 @@ pub fn decode_face(block: &[u8], out: &mut OsfFace) -> Result<(), PacketError> {
 
 /// Decodes a datagram: one face per 1785-byte block (at least one).
 pub fn decode_packet(packet: &[u8]) -> Result<Vec<OsfFace>, PacketError> {
-    if packet.is_empty() || packet.len() % FACE_BYTES != 0 {
+    if packet.is_empty() || !packet.len().is_multiple_of(FACE_BYTES) {
         return Err(PacketError::new(
             packet.len() - packet.len() % FACE_BYTES,
             format!(

@@ -23,6 +23,7 @@ use mimic_trackers::namemap::{Mapping, NameMap};
 use mimic_types::HeadPose;
 use serde_json::{Map, Value, json};
 use std::collections::HashMap;
+use std::collections::hash_map::Entry;
 use std::convert::Infallible;
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -310,17 +311,14 @@ async fn livelink_loop(
             shared.udp_bad.bump();
             continue;
         };
-        if !subjects.contains_key(&p.subject) {
-            match open_subject(&shared, &p.subject, peer).await {
-                Some(live) => {
-                    subjects.insert(p.subject.clone(), live);
-                }
+        let live = match subjects.entry(p.subject.clone()) {
+            Entry::Occupied(e) => e.into_mut(),
+            Entry::Vacant(e) => match open_subject(&shared, &p.subject, peer).await {
+                Some(live) => e.insert(live),
                 None => continue,
-            }
-        }
-        if let Some(live) = subjects.get_mut(&p.subject) {
-            live.proto.accept(&live.session, &p, arrival);
-        }
+            },
+        };
+        live.proto.accept(&live.session, &p, arrival);
     }
     for (_, live) in subjects.drain() {
         end(live, "shutdown").await;

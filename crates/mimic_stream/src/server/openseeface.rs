@@ -25,6 +25,7 @@ use mimic_trackers::osf_frames::{LAYOUT, POINT_COUNT, fill_frame};
 use mimic_types::LandmarkFrame;
 use serde_json::{Map, Value, json};
 use std::collections::HashMap;
+use std::collections::hash_map::Entry;
 use std::convert::Infallible;
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -298,7 +299,7 @@ pub(crate) async fn openseeface_loop(
         let Ok((len, peer)) = got else { continue };
         let arrival = Instant::now();
         let packet = buf.get(..len).unwrap_or_default();
-        if packet.is_empty() || packet.len() % FACE_BYTES != 0 {
+        if packet.is_empty() || !packet.len().is_multiple_of(FACE_BYTES) {
             shared.udp_bad.bump();
             continue;
         }
@@ -307,17 +308,14 @@ pub(crate) async fn openseeface_loop(
                 shared.udp_bad.bump();
                 continue;
             }
-            if !faces.contains_key(&face.face_id) {
-                match open_face(&shared, face.face_id, peer).await {
-                    Some(live) => {
-                        faces.insert(face.face_id, live);
-                    }
+            let live = match faces.entry(face.face_id) {
+                Entry::Occupied(e) => e.into_mut(),
+                Entry::Vacant(e) => match open_face(&shared, face.face_id, peer).await {
+                    Some(live) => e.insert(live),
                     None => continue,
-                }
-            }
-            if let Some(live) = faces.get_mut(&face.face_id) {
-                live.proto.accept(&live.session, &face, arrival).await;
-            }
+                },
+            };
+            live.proto.accept(&live.session, &face, arrival).await;
         }
     }
     for (_, live) in faces.drain() {
