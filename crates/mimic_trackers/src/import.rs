@@ -21,18 +21,24 @@ pub struct OsfImport {
     pub other_faces: usize,
 }
 
+/// Frame-times CSV files (`megamind_frames.csv` is 3.5 KB).
+pub const FRAME_TIMES_FILE: mimic_types::limits::FileKind = mimic_types::limits::FileKind {
+    what: "frame-times CSV files",
+    max_bytes: 64 << 20,
+};
+
 /// Frame times from a CSV of named columns: `packet` (0-based datagram number) and `t_us` or
 /// `video_t_us` (microseconds), e.g. `megamind_frames.csv`: the video time behind each datagram,
 /// for captures of a video file, where OpenSeeFace's own timestamps follow its processing speed.
 pub fn read_frame_times(
     path: &Path,
 ) -> Result<std::collections::HashMap<usize, i64>, TrackerError> {
-    let text = mimic_types::limits::read_capped(path, &mimic_types::limits::WEIGHTS_FILE).map_err(
-        |source| TrackerError::Io {
+    let text = mimic_types::limits::read_capped(path, &FRAME_TIMES_FILE).map_err(|source| {
+        TrackerError::Io {
             path: path.to_path_buf(),
             source,
-        },
-    )?;
+        }
+    })?;
     let err = |line: usize, reason: String| TrackerError::Line {
         path: path.to_path_buf(),
         line,
@@ -165,4 +171,53 @@ pub fn import_osf(
         datagrams: records.len(),
         other_faces,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::openseeface::{encode_packet, encode_record};
+
+    #[test]
+    fn captures_import_and_bad_ones_name_the_record() {
+        let dir =
+            std::env::temp_dir().join(format!("mimic-trackers-import-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let face = |t: f64, id: i32| OsfFace {
+            timestamp: t,
+            face_id: id,
+            success: 1,
+            ..OsfFace::default()
+        };
+        let mut cap = Vec::new();
+        encode_record(0, &encode_packet(&[face(10.0, 1), face(10.0, 2)]), &mut cap);
+        encode_record(40, &encode_packet(&[face(10.04, 1)]), &mut cap);
+        let path = dir.join("two.osf");
+        std::fs::write(&path, &cap).unwrap();
+        let got = import_osf(&path, None, None, None).unwrap();
+        assert_eq!((got.face_id, got.datagrams, got.other_faces), (1, 2, 1));
+        let times: Vec<i64> = got
+            .imported
+            .frames
+            .iter()
+            .map(|f| f.frame.timestamp_us)
+            .collect();
+        assert_eq!(times, vec![0, 40_000]);
+        assert_eq!(got.imported.header.layout, LAYOUT);
+        // A datagram of the wrong size, and one going back in time.
+        let mut bad = cap.clone();
+        encode_record(80, &[0u8; 100], &mut bad);
+        std::fs::write(&path, &bad).unwrap();
+        let e = import_osf(&path, None, None, None).unwrap_err().to_string();
+        assert!(e.contains("two.osf: record 2 (file offset"), "{e}");
+        let mut back = cap;
+        encode_record(80, &encode_packet(&[face(9.0, 1)]), &mut back);
+        std::fs::write(&path, &back).unwrap();
+        let e = import_osf(&path, None, None, None).unwrap_err().to_string();
+        assert!(
+            e.contains("record 2") && e.contains("does not come after"),
+            "{e}"
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
 }
