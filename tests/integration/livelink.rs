@@ -191,3 +191,45 @@ fn live_link_udp_packets_drive_a_weights_session_with_the_head_pose() {
     }
     server.stop();
 }
+
+#[test]
+fn a_take_sent_as_live_link_packets_is_counted_in_a_livelink_session() {
+    let Some(dir) = takes() else { return };
+    let csv = dir.join("S88-001.csv");
+    let port = std::net::UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let addr = format!("127.0.0.1:{port}");
+    let server = Serve::start(&[
+        "--rig",
+        "ict-face",
+        "--no-udp",
+        "--livelink",
+        &addr,
+        "--idle-timeout",
+        "1",
+    ]);
+    let o = mimic(&[
+        "send",
+        "--weights",
+        csv.to_str().unwrap(),
+        "--livelink",
+        &addr,
+        "--session",
+        "phone",
+        "--speed",
+        "16",
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}{stderr}");
+    assert!(stdout.contains("sent 1662 Live Link packets"), "{stdout}");
+    let x = server.wait_for_session("livelink-phone", "the idle end", |x| x["active"] == false);
+    let n = |k: &str| x[k].as_u64().unwrap();
+    // Every packet counted: accepted + late + future (+ undecodable, none here) = sent.
+    assert_eq!(n("frames") + n("late") + n("future"), 1662, "{x}");
+    assert_eq!(server.stats()["udp_bad_packets"], 0);
+    assert_eq!(n("udp_frames"), n("frames"));
+    server.stop();
+}

@@ -28,6 +28,11 @@ pub struct Args {
     /// pace, instead of to `--to`.
     #[arg(long, value_name = "ADDR", conflicts_with = "weights")]
     pub openseeface: Option<std::net::SocketAddr>,
+    /// Send a Live Link Face take (`--weights TAKE.csv`) as the app's UDP packets to this
+    /// address (a `mimic serve --livelink` port), at the take's pace, instead of to `--to`; the
+    /// subject name is `--session` (default `mimic-send`).
+    #[arg(long, value_name = "ADDR", requires = "weights")]
+    pub livelink: Option<std::net::SocketAddr>,
     /// Name map for a Live Link Face take's names (default: configs/namemaps/arkit.toml).
     #[arg(long, value_name = "TOML")]
     pub namemap: Option<PathBuf>,
@@ -98,8 +103,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(csv) = &args.weights {
         if is_live_link_take(csv)? {
+            if let Some(addr) = args.livelink {
+                return send_take_udp(&args, csv, addr);
+            }
             return send_take(&args, csv);
         }
+        anyhow::ensure!(
+            args.livelink.is_none(),
+            "{}: --livelink sends Live Link Face takes (a `Timecode` and `BlendShapeCount` header)",
+            csv.display()
+        );
         return send_weights(&args, csv);
     }
     let recording = args.recording.clone().context("no recording given")?;
@@ -466,6 +479,59 @@ fn send_take(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
         );
     }
     ended_early(write_failed, bye.as_ref())
+}
+
+/// `mimic send --weights TAKE.csv --livelink ADDR`: the take's tracked rows as Live Link Face
+/// packets (all 61 curves, 60 fps frame times from the take's start), each sent when it is due.
+fn send_take_udp(
+    args: &Args,
+    csv: &std::path::Path,
+    addr: std::net::SocketAddr,
+) -> anyhow::Result<()> {
+    use mimic_trackers::livelink::{LiveLinkPacket, encode_packet};
+    let take = mimic_trackers::take::read_take(csv)?;
+    let bind = if addr.ip().is_loopback() {
+        "127.0.0.1:0"
+    } else {
+        "0.0.0.0:0"
+    };
+    let socket = std::net::UdpSocket::bind(bind).context("binding a UDP socket")?;
+    let subject = args.session.clone().unwrap_or_else(|| "mimic-send".into());
+    let start = std::time::Instant::now();
+    let mut sent = 0usize;
+    for row in take.rows.iter().filter(|r| r.tracked) {
+        if !args.fast {
+            let due = row.t_us as f64 / 1e6 / args.speed;
+            let now = start.elapsed().as_secs_f64();
+            if due > now {
+                std::thread::sleep(Duration::from_secs_f64(due - now));
+            }
+        }
+        let frames = row.t_us as f64 * 60.0 / 1e6;
+        let packet = encode_packet(&LiveLinkPacket {
+            device_id: "00000000-0000-4000-8000-6d696d696373".into(),
+            subject: subject.clone(),
+            frame: frames.floor() as i32,
+            subframe: frames.fract() as f32,
+            rate_numerator: 60,
+            rate_denominator: 1,
+            curves: row.curves,
+        });
+        socket
+            .send_to(&packet, addr)
+            .with_context(|| format!("sending packet {sent} to {addr}"))?;
+        sent += 1;
+        if args.max_frames.is_some_and(|m| sent >= m) {
+            break;
+        }
+    }
+    println!(
+        "sent {sent} Live Link packets (subject `{subject}`) to {addr} in {:.3} s (take {:.3} s, speed {})",
+        start.elapsed().as_secs_f64(),
+        take.duration_s(),
+        args.speed
+    );
+    Ok(())
 }
 
 /// Connects to a server as a tracker; its replies (welcome, errors, bye) are read on their own
