@@ -31,5 +31,5 @@ pub use mimic_wire as wire;
 
 pub use catalog::{Catalog, CatalogError, MorphSet, RigEntry};
 pub use server::{HELLO_MAX_BYTES, Server};
-pub use settings::{BindError, DEFAULT_LISTEN, ServerSettings, check_bind};
+pub use settings::{BindError, DEFAULT_LISTEN, LiveLinkIntake, ServerSettings, check_bind};
 pub use stats::{LatencyHistogram, LatencySummary, ServerStats, SessionSnapshot, ViewerSnapshot};

@@ -12,6 +12,8 @@ use std::sync::Arc;
 mod accept;
 mod admission;
 mod landmark;
+mod livelink;
+mod openseeface;
 mod session;
 mod slots;
 mod state;

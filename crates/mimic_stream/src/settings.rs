@@ -3,10 +3,20 @@
 use mimic_retarget::RetargetSettings;
 use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Duration;
 
 /// The address `mimic serve` listens on unless told otherwise: loopback only.
 pub const DEFAULT_LISTEN: &str = "127.0.0.1:7878";
+
+/// Live Link Face's intake: its bound UDP socket and the name map its curves go through.
+#[derive(Clone, Debug)]
+pub struct LiveLinkIntake {
+    /// The bound UDP socket.
+    pub socket: Arc<std::net::UdpSocket>,
+    /// Curve names to the rig's morph-target names (`configs/namemaps/arkit.toml`).
+    pub namemap: Arc<mimic_trackers::namemap::NameMap>,
+}
 
 /// Limits and pipeline settings of a [`Server`](crate::Server).
 #[derive(Clone, Debug)]
@@ -59,6 +69,12 @@ pub struct ServerSettings {
     pub record_sync: bool,
     /// Accepted frames queued per session for its recording before the session waits for the disk.
     pub record_queue_frames: usize,
+    /// A bound UDP socket for OpenSeeFace's datagrams (`mimic serve --openseeface`): one
+    /// session per face id (`server/openseeface.rs`); `None`, the default, for none.
+    pub openseeface: Option<Arc<std::net::UdpSocket>>,
+    /// Live Link Face's intake (`mimic serve --livelink`): one weights session per subject
+    /// (`server/livelink.rs`); `None`, the default, for none.
+    pub livelink: Option<LiveLinkIntake>,
     /// Pipeline settings of every session (`positions` and `normals` are forced off: the
     /// server computes positions itself, only for viewers that ask for them).
     pub retarget: RetargetSettings,
@@ -87,6 +103,8 @@ impl Default for ServerSettings {
             record_dir: None,
             record_sync: false,
             record_queue_frames: 128,
+            openseeface: None,
+            livelink: None,
             retarget: RetargetSettings::default(),
         }
     }

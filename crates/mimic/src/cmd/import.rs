@@ -79,6 +79,26 @@ pub enum ImportCommand {
         #[arg(long)]
         source: Option<String>,
     },
+    /// OpenSeeFace UDP capture (`.osf`: per datagram its receive time, length and bytes) to an
+    /// `openseeface68` recording (docs/trackers.md).
+    Openseeface {
+        /// The `.osf` capture.
+        capture: PathBuf,
+        /// Output recording (.jsonl).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Face id to import (default: the capture's first).
+        #[arg(long)]
+        face: Option<i32>,
+        /// Time each datagram by this CSV (`packet`, `t_us` or `video_t_us` columns), e.g. the
+        /// video time behind each datagram of a capture of a video file (default: the
+        /// datagrams' own timestamps).
+        #[arg(long, value_name = "CSV")]
+        frame_times: Option<PathBuf>,
+        /// Text for the header's `source` field (default: names the tracker and file).
+        #[arg(long)]
+        source: Option<String>,
+    },
 }
 
 /// Runs an import subcommand.
@@ -136,6 +156,33 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             output,
             None,
         ),
+        ImportCommand::Openseeface {
+            capture,
+            output,
+            face,
+            frame_times,
+            source,
+        } => {
+            let times = frame_times
+                .as_deref()
+                .map(mimic_trackers::import::read_frame_times)
+                .transpose()?;
+            let osf = mimic_trackers::import::import_osf(
+                &capture,
+                face,
+                source.as_deref(),
+                times.as_ref(),
+            )?;
+            if osf.other_faces > 0 {
+                eprintln!(
+                    "{}: {} faces of other ids left out (imported face {}; --face picks one)",
+                    capture.display(),
+                    osf.other_faces,
+                    osf.face_id
+                );
+            }
+            (osf.imported, output, None)
+        }
     };
     if let Some((FitModel::Candide3, pixels)) = fit {
         return write_fitted(&imported, pixels.as_deref(), &output);

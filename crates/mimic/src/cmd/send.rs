@@ -23,6 +23,19 @@ pub struct Args {
     /// `blendshapecount` columns are not sent.
     #[arg(long)]
     pub weights: Option<PathBuf>,
+    /// Send the recording (an `openseeface68` one, e.g. from `mimic import openseeface`) as
+    /// OpenSeeFace UDP datagrams to this address (a `mimic serve --openseeface` port), at its
+    /// pace, instead of to `--to`.
+    #[arg(long, value_name = "ADDR", conflicts_with = "weights")]
+    pub openseeface: Option<std::net::SocketAddr>,
+    /// Send a Live Link Face take (`--weights TAKE.csv`) as the app's UDP packets to this
+    /// address (a `mimic serve --livelink` port), at the take's pace, instead of to `--to`; the
+    /// subject name is `--session` (default `mimic-send`).
+    #[arg(long, value_name = "ADDR", requires = "weights")]
+    pub livelink: Option<std::net::SocketAddr>,
+    /// Name map for a Live Link Face take's names (default: configs/namemaps/arkit.toml).
+    #[arg(long, value_name = "TOML")]
+    pub namemap: Option<PathBuf>,
     /// Frame rate of a weights CSV without a `t_us` column.
     #[arg(long, default_value_t = 60.0, value_parser = parse_rate)]
     pub rate: f64,
@@ -92,9 +105,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         libc::signal(libc::SIGPIPE, libc::SIG_IGN);
     }
     if let Some(csv) = &args.weights {
+        if is_live_link_take(csv)? {
+            if let Some(addr) = args.livelink {
+                return send_take_udp(&args, csv, addr);
+            }
+            return send_take(&args, csv);
+        }
+        anyhow::ensure!(
+            args.livelink.is_none(),
+            "{}: --livelink sends Live Link Face takes (a `Timecode` and `BlendShapeCount` header)",
+            csv.display()
+        );
         return send_weights(&args, csv);
     }
     let recording = args.recording.clone().context("no recording given")?;
+    if let Some(addr) = args.openseeface {
+        return send_openseeface(&args, &recording, addr);
+    }
     let recording_reader = RecordingReader::open(&recording, None)?;
     let mut header = recording_reader.header().clone();
     if let Some(s) = &args.session {
@@ -105,10 +132,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(r) = &args.rig {
         header.extra.insert("rig".into(), Value::from(r.as_str()));
     }
-    if let Some(t) = crate::cmd::serve::token_or_env(args.token.as_deref()) {
+    if let Some(t) = crate::cmd::setup::token_or_env(args.token.as_deref()) {
         header.extra.insert("token".into(), Value::from(t));
     }
-    let (stream, reader) = connect(&args.to)?;
+    let (stream, reader) = connect(&args.to, None)?;
     let mut writer = RecordingWriter::new(&stream, &header)?.flush_each_frame(true);
     let options = ReplayOptions {
         pace: if args.fast {
@@ -158,6 +185,61 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None => {}
     }
     ended_early(write_failed, bye.as_ref())
+}
+
+/// `mimic send --openseeface`: the recording's frames as OpenSeeFace datagrams (face 0 of a
+/// 640 x 480 image), each sent when its time comes.
+fn send_openseeface(
+    args: &Args,
+    recording: &std::path::Path,
+    addr: std::net::SocketAddr,
+) -> anyhow::Result<()> {
+    use mimic_trackers::openseeface::encode_packet;
+    use mimic_trackers::osf_frames::{LAYOUT, to_face};
+    let rec = mimic_capture::read_recording(recording, None)?;
+    anyhow::ensure!(
+        rec.header.layout == LAYOUT,
+        "{}: layout `{}`; --openseeface sends `{LAYOUT}` recordings (mimic import openseeface)",
+        recording.display(),
+        rec.header.layout
+    );
+    let bind = if addr.ip().is_loopback() {
+        "127.0.0.1:0"
+    } else {
+        "0.0.0.0:0"
+    };
+    let socket = std::net::UdpSocket::bind(bind).context("binding a UDP socket")?;
+    let first_t = rec.frames.first().map_or(0, |f| f.frame.timestamp_us);
+    let start = std::time::Instant::now();
+    let mut sent = 0usize;
+    for f in &rec.frames {
+        if !args.fast {
+            let due = (f.frame.timestamp_us - first_t).max(0) as f64 / 1e6 / args.speed;
+            let now = start.elapsed().as_secs_f64();
+            if due > now {
+                std::thread::sleep(Duration::from_secs_f64(due - now));
+            }
+        }
+        let packet = encode_packet(&[to_face(&f.frame, 0, 640.0, 480.0)]);
+        socket
+            .send_to(&packet, addr)
+            .with_context(|| format!("sending datagram {sent} to {addr}"))?;
+        sent += 1;
+        if args.max_frames.is_some_and(|m| sent >= m) {
+            break;
+        }
+    }
+    let span = rec
+        .frames
+        .last()
+        .map_or(0, |f| f.frame.timestamp_us - first_t);
+    println!(
+        "sent {sent} OpenSeeFace datagrams to {addr} in {:.3} s (recording {:.3} s, speed {})",
+        start.elapsed().as_secs_f64(),
+        span as f64 * 1e-6,
+        args.speed
+    );
+    Ok(())
 }
 
 /// After the sending stopped: a write error after the server's `bye` came is reported as that
@@ -250,10 +332,10 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
     if let Some(r) = &args.rig {
         hello["rig"] = Value::from(r.as_str());
     }
-    if let Some(t) = crate::cmd::serve::token_or_env(args.token.as_deref()) {
+    if let Some(t) = crate::cmd::setup::token_or_env(args.token.as_deref()) {
         hello["token"] = Value::from(t);
     }
-    let (mut stream, reader) = connect(&args.to)?;
+    let (mut stream, reader) = connect(&args.to, None)?;
     stream.write_all(format!("{hello}\n").as_bytes())?;
     let start = std::time::Instant::now();
     let speed = if args.speed > 0.0 { args.speed } else { 1.0 };
@@ -297,9 +379,180 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
     ended_early(write_failed, bye.as_ref())
 }
 
+/// Whether a weights CSV is a Live Link Face take (`Timecode` and `BlendShapeCount` columns).
+fn is_live_link_take(csv: &std::path::Path) -> anyhow::Result<bool> {
+    use std::io::BufRead;
+    let f = std::fs::File::open(csv).with_context(|| format!("{}: cannot open", csv.display()))?;
+    let mut first = String::new();
+    std::io::BufReader::new(f)
+        .take(64 * 1024)
+        .read_line(&mut first)
+        .with_context(|| format!("{}: cannot read", csv.display()))?;
+    Ok(mimic_trackers::take::is_take_header(&first))
+}
+
+/// `mimic send --weights TAKE.csv` for a Live Link Face take: its tracked rows through the name
+/// map, paced by the take's `Timecode`; only the targets the session's rig has are sent, and the
+/// names it lacks are reported once, in one line.
+fn send_take(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
+    use std::io::Write;
+    let take = mimic_trackers::take::read_take(csv)?;
+    let map_path = args.namemap.clone().unwrap_or_else(|| {
+        mimic_assets::ConfigDirs::locate(None)
+            .root
+            .join("namemaps/arkit.toml")
+    });
+    let map = mimic_trackers::namemap::NameMap::load(&map_path)?;
+    let tw = mimic_trackers::take::take_weights(&take, &map);
+    let rate = take.sample_rate_hz();
+    let mut hello = serde_json::json!({"mode": "weights", "rate_hz": rate,
+        "source": format!("Live Link Face take {} (mimic send)", csv.display())});
+    if let Some(s) = &args.session {
+        hello["session"] = Value::from(s.as_str());
+    }
+    if let Some(r) = &args.rig {
+        hello["rig"] = Value::from(r.as_str());
+    }
+    if let Some(t) = crate::cmd::setup::token_or_env(args.token.as_deref()) {
+        hello["token"] = Value::from(t);
+    }
+    let (welcome_tx, welcome_rx) = std::sync::mpsc::sync_channel(1);
+    let (mut stream, reader) = connect(&args.to, Some(welcome_tx))?;
+    stream.write_all(format!("{hello}\n").as_bytes())?;
+    let welcome = welcome_rx
+        .recv_timeout(Duration::from_secs(30))
+        .context("no welcome from the server")?;
+    let rig_targets: Vec<String> = welcome["targets"]
+        .as_array()
+        .map(|a| {
+            a.iter()
+                .filter_map(|t| t.as_str().map(String::from))
+                .collect()
+        })
+        .unwrap_or_default();
+    let rig_map = mimic_retarget::WeightMap::new(&rig_targets);
+    let mut scratch = vec![0.0f32; rig_targets.len()];
+    let (kept, lacking): (Vec<usize>, Vec<usize>) = (0..tw.targets.len())
+        .partition(|&k| rig_map.apply([(tw.targets[k].as_str(), 0.0)], &mut scratch) == 0);
+    if !lacking.is_empty() {
+        let names: Vec<&str> = lacking.iter().map(|&k| tw.targets[k].as_str()).collect();
+        println!(
+            "rig `{}` has no morph target for {} of the take's {} names (not sent): {}",
+            welcome["rig"].as_str().unwrap_or("?"),
+            names.len(),
+            tw.targets.len(),
+            names.join(", ")
+        );
+    }
+    let start = std::time::Instant::now();
+    let mut sent = 0usize;
+    let mut last_due = 0.0f64;
+    let mut write_failed = None;
+    for (_, t_us, w) in &tw.frames {
+        let due = *t_us as f64 / 1e6 / args.speed;
+        if !args.fast {
+            let now = start.elapsed().as_secs_f64();
+            if due > now {
+                std::thread::sleep(Duration::from_secs_f64(due - now));
+            }
+        }
+        last_due = due;
+        let weights: serde_json::Map<String, Value> = kept
+            .iter()
+            .map(|&k| (tw.targets[k].clone(), Value::from(f64::from(w[k]))))
+            .collect();
+        let mut line = serde_json::json!({"t_us": t_us, "weights": weights}).to_string();
+        line.push('\n');
+        if let Err(e) = stream.write_all(line.as_bytes()) {
+            write_failed = Some(anyhow::Error::from(e).context("sending a weight frame"));
+            break;
+        }
+        sent += 1;
+        if args.max_frames.is_some_and(|m| sent >= m) {
+            break;
+        }
+    }
+    let paced = start.elapsed().as_secs_f64();
+    let _ = stream.shutdown(Shutdown::Write);
+    stream.set_read_timeout(Some(Duration::from_secs(10)))?;
+    let bye = reader.join().ok().flatten();
+    println!(
+        "take {}: {} rows ({} with no face, not sent), {:.3} s at {} fps timecode; sent {sent} weight frames in {paced:.3} s (due {last_due:.3} s)",
+        csv.display(),
+        take.rows.len(),
+        tw.untracked,
+        take.duration_s(),
+        take.timecode_rate
+    );
+    if let Some(b) = &bye {
+        println!(
+            "server: {} frames, {} late, {} malformed, {} unknown weight names ({})",
+            b["frames"], b["late"], b["malformed"], b["unknown_weights"], b["reason"]
+        );
+    }
+    ended_early(write_failed, bye.as_ref())
+}
+
+/// `mimic send --weights TAKE.csv --livelink ADDR`: the take's tracked rows as Live Link Face
+/// packets (all 61 curves, 60 fps frame times from the take's start), each sent when it is due.
+fn send_take_udp(
+    args: &Args,
+    csv: &std::path::Path,
+    addr: std::net::SocketAddr,
+) -> anyhow::Result<()> {
+    use mimic_trackers::livelink::{LiveLinkPacket, encode_packet};
+    let take = mimic_trackers::take::read_take(csv)?;
+    let bind = if addr.ip().is_loopback() {
+        "127.0.0.1:0"
+    } else {
+        "0.0.0.0:0"
+    };
+    let socket = std::net::UdpSocket::bind(bind).context("binding a UDP socket")?;
+    let subject = args.session.clone().unwrap_or_else(|| "mimic-send".into());
+    let start = std::time::Instant::now();
+    let mut sent = 0usize;
+    for row in take.rows.iter().filter(|r| r.tracked) {
+        if !args.fast {
+            let due = row.t_us as f64 / 1e6 / args.speed;
+            let now = start.elapsed().as_secs_f64();
+            if due > now {
+                std::thread::sleep(Duration::from_secs_f64(due - now));
+            }
+        }
+        let frames = row.t_us as f64 * 60.0 / 1e6;
+        let packet = encode_packet(&LiveLinkPacket {
+            device_id: "00000000-0000-4000-8000-6d696d696373".into(),
+            subject: subject.clone(),
+            frame: frames.floor() as i32,
+            subframe: frames.fract() as f32,
+            rate_numerator: 60,
+            rate_denominator: 1,
+            curves: row.curves,
+        });
+        socket
+            .send_to(&packet, addr)
+            .with_context(|| format!("sending packet {sent} to {addr}"))?;
+        sent += 1;
+        if args.max_frames.is_some_and(|m| sent >= m) {
+            break;
+        }
+    }
+    println!(
+        "sent {sent} Live Link packets (subject `{subject}`) to {addr} in {:.3} s (take {:.3} s, speed {})",
+        start.elapsed().as_secs_f64(),
+        take.duration_s(),
+        args.speed
+    );
+    Ok(())
+}
+
 /// Connects to a server as a tracker; its replies (welcome, errors, bye) are read on their own
-/// thread, errors reported on stderr, and the thread returns the `bye` message, if one came.
-fn connect(to: &str) -> anyhow::Result<(TcpStream, std::thread::JoinHandle<Option<Value>>)> {
+/// thread, errors reported on stderr, the welcome handed to `welcome` (if given), and the
+/// thread returns the `bye` message, if one came.
+fn connect(
+    to: &str,
+    welcome: Option<std::sync::mpsc::SyncSender<Value>>,
+) -> anyhow::Result<(TcpStream, std::thread::JoinHandle<Option<Value>>)> {
     let stream = TcpStream::connect(to).with_context(|| format!("connecting to {to}"))?;
     stream.set_nodelay(true)?;
     let replies = stream.try_clone()?;
@@ -327,7 +580,12 @@ fn connect(to: &str) -> anyhow::Result<(TcpStream, std::thread::JoinHandle<Optio
                 let line = line.trim_end_matches(['\n', '\r']);
                 let v: Value = serde_json::from_str(line).unwrap_or(Value::Null);
                 match v["type"].as_str() {
-                    Some("welcome") => tracing::info!("{line}"),
+                    Some("welcome") => {
+                        tracing::info!("{line}");
+                        if let Some(w) = &welcome {
+                            let _ = w.try_send(v.clone());
+                        }
+                    }
                     Some("bye") => bye = Some(v),
                     _ => eprintln!("server: {line}"),
                 }

@@ -29,6 +29,19 @@ pub struct Args {
     /// Do not listen for UDP frames.
     #[arg(long)]
     pub no_udp: bool,
+    /// Also receive OpenSeeFace's UDP datagrams on this address (its default port is
+    /// 127.0.0.1:11573): one session `openseeface-<face id>` per face, `openseeface68` layout,
+    /// the `--rig` rig (docs/trackers.md).
+    #[arg(long, value_name = "ADDR")]
+    pub openseeface: Option<SocketAddr>,
+    /// Also receive Live Link Face's UDP packets on this address (the app's default port is
+    /// 11111): one weights session `livelink-<subject>` per subject, driving the `--rig` rig's
+    /// morph targets through `--namemap` (docs/trackers.md).
+    #[arg(long, value_name = "ADDR")]
+    pub livelink: Option<SocketAddr>,
+    /// Name map for Live Link curves (default: configs/namemaps/arkit.toml).
+    #[arg(long, value_name = "TOML")]
+    pub namemap: Option<PathBuf>,
     /// Maximum tracker sessions at once.
     #[arg(long, default_value_t = ServerSettings::default().max_sessions)]
     pub max_sessions: usize,
@@ -100,19 +113,21 @@ fn seconds(s: f64, what: &str) -> anyhow::Result<Duration> {
     Duration::try_from_secs_f64(s).with_context(|| format!("{what}: {s} is not a duration"))
 }
 
-/// `--token`, else the MIMIC_TOKEN environment variable (shared by serve, send and view).
-pub fn token_or_env(flag: Option<&str>) -> Option<String> {
-    flag.map(str::to_string)
-        .or_else(|| std::env::var("MIMIC_TOKEN").ok())
-}
-
 /// Runs `mimic serve` until Ctrl-C.
 pub fn run(args: Args) -> anyhow::Result<()> {
     // Protected mode first: no rig is loaded for a server that may not start.
-    let token = token_or_env(args.token.as_deref());
+    let token = crate::cmd::setup::token_or_env(args.token.as_deref());
     check_bind("TCP", args.listen, token.as_deref())?;
     if !args.no_udp {
         check_bind("UDP", args.udp.unwrap_or(args.listen), token.as_deref())?;
+    }
+    // The trackers' own protocols carry no token: beyond loopback they need one all the same
+    // (an operator's explicit choice), and are warned about in `bind_udp`.
+    if let Some(addr) = args.openseeface {
+        check_bind("OpenSeeFace UDP", addr, token.as_deref())?;
+    }
+    if let Some(addr) = args.livelink {
+        check_bind("Live Link Face UDP", addr, token.as_deref())?;
     }
     let dirs = args.rig.config_dirs();
     let mut entries = Vec::new();
@@ -156,6 +171,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         record_queue_frames: args.record_queue.max(1),
         record_sync: args.record_sync,
         retarget: args.pipeline.settings(),
+        openseeface: bind_udp(args.openseeface, "--openseeface")?,
+        livelink: match bind_udp(args.livelink, "--livelink")? {
+            Some(socket) => {
+                let path = args
+                    .namemap
+                    .clone()
+                    .unwrap_or_else(|| dirs.root.join("namemaps/arkit.toml"));
+                let namemap = Arc::new(mimic_trackers::namemap::NameMap::load(&path)?);
+                Some(mimic_stream::LiveLinkIntake { socket, namemap })
+            }
+            None => None,
+        },
         ..ServerSettings::default()
     };
     if !args.listen.ip().is_loopback() {
@@ -184,8 +211,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             None => "off".to_string(),
         };
         // The first stdout line says where to connect (tests and scripts read it).
+        let livelink = settings.livelink.as_ref().map(|l| l.socket.clone());
+        let trackers: String = [
+            ("openseeface", &settings.openseeface),
+            ("livelink", &livelink),
+        ]
+        .iter()
+        .filter_map(|(name, s)| Some(format!(" {name} {}", s.as_ref()?.local_addr().ok()?)))
+        .collect();
         println!(
-            "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}",
+            "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}{trackers}",
             catalog.rig_names()
         );
         std::io::stdout().flush()?;
@@ -216,6 +251,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// A tracker's UDP socket bound at `addr` (warned about beyond loopback), for the server.
+fn bind_udp(
+    addr: Option<SocketAddr>,
+    flag: &str,
+) -> anyhow::Result<Option<Arc<std::net::UdpSocket>>> {
+    let Some(addr) = addr else { return Ok(None) };
+    if !addr.ip().is_loopback() {
+        tracing::warn!(%addr, "{flag}: receiving beyond loopback, as asked: this tracker protocol carries no token, so anyone who can reach it can open sessions");
+    }
+    let socket =
+        std::net::UdpSocket::bind(addr).with_context(|| format!("{flag}: binding UDP {addr}"))?;
+    Ok(Some(Arc::new(socket)))
 }
 
 /// The `--record` folder, created if missing and checked writable before any session starts.

@@ -90,7 +90,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let live = mimic_view::client::connect(
                 addr,
                 &args.session,
-                crate::cmd::serve::token_or_env(args.token.as_deref()).as_deref(),
+                crate::cmd::setup::token_or_env(args.token.as_deref()).as_deref(),
             )
             .with_context(|| format!("connecting to {addr}"))?;
             // Colour a live rig with the local configs' materials when they have that rig.

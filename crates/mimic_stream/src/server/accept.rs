@@ -44,6 +44,8 @@ impl Server {
                 done_tx.clone(),
             ));
         }
+        super::openseeface::spawn(shared, &stop_rx, &done_tx);
+        super::livelink::spawn(shared, &stop_rx, &done_tx);
         tokio::pin!(shutdown);
         loop {
             let accepted = tokio::select! {

@@ -379,7 +379,11 @@ pub(crate) async fn run<P: Protocol>(
 
 /// Ends a session: marks its record ended, sends END to its viewers and `bye` to its tracker,
 /// and waits (briefly) for the reply writer to drain.
-async fn teardown<P: Protocol>(s: Session, reason: String, writer: tokio::task::JoinHandle<()>) {
+pub(crate) async fn teardown<P: Protocol>(
+    s: Session,
+    reason: String,
+    writer: tokio::task::JoinHandle<()>,
+) {
     let settings = s.settings();
     *lock(&s.record.end_reason) = Some(reason.clone());
     s.record.active.store(false, Ordering::Relaxed);

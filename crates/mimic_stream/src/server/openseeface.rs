@@ -1,0 +1,348 @@
+//! OpenSeeFace UDP intake (`mimic serve --openseeface ADDR`): OpenSeeFace's own datagrams
+//! (`mimic_trackers::openseeface`), one session per face id, named `openseeface-<id>`, opened on
+//! that face's first packet with the `openseeface68` layout and the server's default rig, ended
+//! after the idle timeout (or at shutdown). Each face's pose-free 3D points become a landmark
+//! frame (`mimic_trackers::osf_frames`) timed by the datagram's timestamp from the session's first,
+//! retargeted, broadcast to the session's viewers and, with a record folder, recorded, as a
+//! landmark session's UDP frames are. Every packet is counted: a frame accepted (`frames`), late
+//! or from the future (`late`, `future`) or refused by the pipeline (`malformed`) in its session,
+//! an undecodable datagram in the server's `udp_bad_packets`. OpenSeeFace sends no hello and reads
+//! no reply, so nothing is sent back.
+
+use super::admission::{Admission, Refusal, find_rig, open};
+use super::session::{LineOutcome, Protocol, Session, TrackerLine, teardown};
+use super::state::{Shared, lock};
+use crate::catalog::RigEntry;
+use crate::record::{Recorder, SessionLabel};
+use crate::settings::ServerSettings;
+use crate::stats::SessionSnapshot;
+use crate::timing::FrameClock;
+use glam::Vec3;
+use mimic_capture::{RecordedFrame, RecordingHeader};
+use mimic_retarget::{FrameOutput, FrameStatus, RetargetSettings, Retargeter};
+use mimic_trackers::openseeface::{FACE_BYTES, OsfFace, decode_face};
+use mimic_trackers::osf_frames::{LAYOUT, POINT_COUNT, fill_frame};
+use mimic_types::LandmarkFrame;
+use serde_json::{Map, Value, json};
+use std::collections::HashMap;
+use std::collections::hash_map::Entry;
+use std::convert::Infallible;
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+use tokio::net::UdpSocket;
+use tokio::sync::{mpsc, watch};
+
+/// A face's first packet, as admission sees it.
+#[derive(Debug)]
+pub(crate) struct OsfHello {
+    face_id: i32,
+    peer: SocketAddr,
+}
+
+/// What admission found: the face and a retargeter for the default rig.
+#[derive(Debug)]
+pub(crate) struct OsfAdmitted {
+    face_id: i32,
+    peer: SocketAddr,
+    retargeter: Retargeter,
+}
+
+/// One face's session: its frame path and recording.
+#[derive(Debug)]
+pub(crate) struct OpenSeeFace {
+    retargeter: Retargeter,
+    out: FrameOutput,
+    frame: LandmarkFrame,
+    positions: Vec<Vec3>,
+    scratch: Vec<Vec3>,
+    clock: FrameClock,
+    first_timestamp: Option<f64>,
+    recorder: Option<Recorder>,
+    last_packet: Instant,
+}
+
+impl OpenSeeFace {
+    /// Retargets, broadcasts and records one face of a datagram.
+    async fn accept(&mut self, s: &Session, face: &OsfFace, arrival: Instant) {
+        self.last_packet = arrival;
+        let t0 = *self.first_timestamp.get_or_insert(face.timestamp);
+        let t_us = (face.timestamp - t0) * 1e6;
+        if !t_us.is_finite() || t_us.abs() > 9e15 {
+            s.record.malformed.bump();
+            return;
+        }
+        fill_frame(face, t_us.round() as i64, &mut self.frame);
+        if s.check_time(&mut self.clock, self.frame.timestamp_us, arrival)
+            .is_err()
+        {
+            return;
+        }
+        let status = self.retargeter.step(&self.frame, &mut self.out);
+        let r = &s.record;
+        match status {
+            FrameStatus::Tracked => r.tracked.bump(),
+            FrameStatus::Calibrating => r.calibrating.bump(),
+            FrameStatus::Lost => r.lost.bump(),
+            FrameStatus::Rejected => {
+                r.malformed.bump();
+                return;
+            }
+        }
+        let seq = s.next_seq(true);
+        let (rig, scratch) = (&s.rig, &mut self.scratch);
+        s.broadcast(
+            seq,
+            &self.out,
+            &mut self.positions,
+            |d, positions| rig.deform(d, scratch, positions),
+            arrival,
+        );
+        if let Some(rec) = &self.recorder {
+            rec.record(RecordedFrame::unlabelled(self.frame.clone()))
+                .await;
+        }
+    }
+}
+
+impl Protocol for OpenSeeFace {
+    type Hello = OsfHello;
+    type Admitted = OsfAdmitted;
+    type Event = Infallible;
+    const KIND: &'static str = "openseeface";
+
+    fn admit(shared: &Shared, hello: OsfHello) -> Result<Admission<OsfAdmitted>, Refusal> {
+        let Some(layout) = shared.catalog.layout(LAYOUT) else {
+            return Err(Refusal::UnknownLayout {
+                layout: LAYOUT.into(),
+            });
+        };
+        let entry = find_rig(shared, None)?;
+        let retarget = RetargetSettings {
+            positions: false,
+            normals: false,
+            ..shared.settings.retarget.clone()
+        };
+        let retargeter = Retargeter::new(&entry.rig, layout, entry.basis.clone(), retarget)
+            .map_err(|e| Refusal::LayoutUnusable(e.to_string()))?;
+        Ok(Admission {
+            session: Some(format!("openseeface-{}", hello.face_id)),
+            rig_message: entry.message.clone(),
+            rig: entry,
+            layout: LAYOUT.into(),
+            admitted: OsfAdmitted {
+                face_id: hello.face_id,
+                peer: hello.peer,
+                retargeter,
+            },
+        })
+    }
+
+    fn describe(a: &OsfAdmitted, rig: &RigEntry, name: &str, id: u32) -> Value {
+        json!({
+            "session": name, "session_id": id, "rig": rig.name(), "layout": LAYOUT,
+            "vertices": rig.rig.mesh.vertex_count(), "controls": rig.rig.controls.len(),
+            "source": format!("OpenSeeFace UDP from {}, face {}", a.peer, a.face_id),
+            "rate_hz": Value::Null,
+        })
+    }
+
+    async fn start(a: OsfAdmitted, s: &Session) -> (Self, Value) {
+        let settings = s.settings();
+        let mut recorder = None;
+        if let Some(dir) = settings.record_dir.as_ref() {
+            let source = format!("OpenSeeFace UDP from {}, face {}", a.peer, a.face_id);
+            let header = RecordingHeader::new(LAYOUT, &source, 30.0, Some(POINT_COUNT));
+            let who = SessionLabel {
+                name: &s.name,
+                id: s.id,
+                rig: s.rig.name(),
+                peer: Some(a.peer),
+            };
+            match Recorder::start(
+                dir,
+                &header,
+                &who,
+                settings.record_queue_frames,
+                s.record.record.clone(),
+                s.shared.recordings_open.clone(),
+            )
+            .await
+            {
+                Ok(r) => {
+                    *lock(&s.record.recording) = Some(r.path().display().to_string());
+                    recorder = Some(r);
+                }
+                Err(e) => tracing::error!(session = %s.name, "not recorded: {e}"),
+            }
+        }
+        tracing::info!(session = %s.name, id = s.id, face = a.face_id, peer = %a.peer, "openseeface session started");
+        let proto = OpenSeeFace {
+            positions: s.rig.rig.mesh.positions.clone(),
+            scratch: Vec::new(),
+            out: a.retargeter.new_output(),
+            retargeter: a.retargeter,
+            frame: LandmarkFrame {
+                timestamp_us: 0,
+                points: Vec::with_capacity(POINT_COUNT),
+                valid: Vec::with_capacity(POINT_COUNT),
+                tracked: false,
+            },
+            clock: s.clock(),
+            first_timestamp: None,
+            recorder,
+            last_packet: Instant::now(),
+        };
+        (proto, json!({"type": "welcome", "session": s.name}))
+    }
+
+    async fn on_event(&mut self, _: &Session, event: Infallible) {
+        match event {}
+    }
+
+    async fn on_line(&mut self, _: &Session, _: TrackerLine<'_>) -> LineOutcome {
+        LineOutcome::Skipped
+    }
+
+    fn too_long(limit: usize) -> String {
+        format!("datagram longer than {limit} bytes")
+    }
+
+    async fn finish(self, _: &Session) {
+        if let Some(r) = self.recorder {
+            r.finish().await;
+        }
+    }
+
+    fn summary(settings: &ServerSettings, end: &SessionSnapshot, _bye: bool) -> Map<String, Value> {
+        let mut m = Map::new();
+        let recorded = settings.record_dir.is_some().then_some(end.recorded);
+        m.insert("recorded".into(), json!(recorded));
+        m
+    }
+}
+
+/// A live face: its session and frame path.
+struct Live {
+    session: Session,
+    proto: OpenSeeFace,
+    writer: tokio::task::JoinHandle<()>,
+}
+
+/// Ends a face's session (frames flushed, END to its viewers).
+async fn end(live: Live, reason: &str) {
+    let Live {
+        session,
+        proto,
+        writer,
+    } = live;
+    proto.finish(&session).await;
+    teardown::<OpenSeeFace>(session, reason.to_string(), writer).await;
+}
+
+/// Opens the session of a face seen for the first time; `None` (counted as refused) when it
+/// cannot be opened.
+async fn open_face(shared: &Arc<Shared>, face_id: i32, peer: SocketAddr) -> Option<Live> {
+    // Nothing is ever answered over OpenSeeFace's UDP: the replies are drained and dropped.
+    let (reply_tx, mut reply_rx) = mpsc::channel::<String>(4);
+    let writer = tokio::spawn(async move { while reply_rx.recv().await.is_some() {} });
+    match open::<OpenSeeFace>(shared, OsfHello { face_id, peer }, reply_tx) {
+        Ok((session, admitted)) => {
+            let (proto, _welcome) = OpenSeeFace::start(admitted, &session).await;
+            Some(Live {
+                session,
+                proto,
+                writer,
+            })
+        }
+        Err(refusal) => {
+            shared.refused.bump();
+            tracing::warn!(face = face_id, %peer, "openseeface session refused: {refusal}");
+            writer.abort();
+            None
+        }
+    }
+}
+
+/// Receives OpenSeeFace datagrams until shutdown, one session per face id.
+pub(crate) async fn openseeface_loop(
+    shared: Arc<Shared>,
+    udp: UdpSocket,
+    mut stop: watch::Receiver<bool>,
+    done: mpsc::Sender<()>,
+) {
+    let mut buf = vec![0u8; 65_536];
+    let mut faces: HashMap<i32, Live> = HashMap::new();
+    let mut face = OsfFace::default();
+    let idle = shared.settings.idle_timeout;
+    let mut tick =
+        tokio::time::interval(Duration::from_millis(100).min(idle.max(Duration::from_millis(1))));
+    loop {
+        let got = tokio::select! {
+            _ = stop.changed() => break,
+            _ = tick.tick() => {
+                let now = Instant::now();
+                let idle_ids: Vec<i32> = faces
+                    .iter()
+                    .filter(|(_, l)| now.duration_since(l.proto.last_packet) >= idle)
+                    .map(|(id, _)| *id)
+                    .collect();
+                for id in idle_ids {
+                    if let Some(live) = faces.remove(&id) {
+                        end(live, "idle_timeout").await;
+                    }
+                }
+                continue;
+            }
+            r = udp.recv_from(&mut buf) => r,
+        };
+        let Ok((len, peer)) = got else { continue };
+        let arrival = Instant::now();
+        let packet = buf.get(..len).unwrap_or_default();
+        if packet.is_empty() || !packet.len().is_multiple_of(FACE_BYTES) {
+            shared.udp_bad.bump();
+            continue;
+        }
+        for block in packet.chunks_exact(FACE_BYTES) {
+            if decode_face(block, &mut face).is_err() {
+                shared.udp_bad.bump();
+                continue;
+            }
+            let live = match faces.entry(face.face_id) {
+                Entry::Occupied(e) => e.into_mut(),
+                Entry::Vacant(e) => match open_face(&shared, face.face_id, peer).await {
+                    Some(live) => e.insert(live),
+                    None => continue,
+                },
+            };
+            live.proto.accept(&live.session, &face, arrival).await;
+        }
+    }
+    for (_, live) in faces.drain() {
+        end(live, "shutdown").await;
+    }
+    drop(done);
+}
+
+/// Starts the OpenSeeFace intake when the settings hold its socket (a socket tokio cannot take
+/// is logged and left unused).
+pub(crate) fn spawn(shared: &Arc<Shared>, stop: &watch::Receiver<bool>, done: &mpsc::Sender<()>) {
+    let Some(socket) = shared.settings.openseeface.as_ref() else {
+        return;
+    };
+    let udp = socket.try_clone().and_then(|s| {
+        s.set_nonblocking(true)?;
+        UdpSocket::from_std(s)
+    });
+    match udp {
+        Ok(udp) => {
+            tokio::spawn(openseeface_loop(
+                shared.clone(),
+                udp,
+                stop.clone(),
+                done.clone(),
+            ));
+        }
+        Err(e) => tracing::error!("OpenSeeFace socket unusable: {e}"),
+    }
+}

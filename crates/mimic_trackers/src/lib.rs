@@ -1,0 +1,26 @@
+//! Outside trackers' formats, as pure parsers and encoders over bytes and text (no I/O but the
+//! capped file reads, no tokio):
+//!
+//! - [`openseeface`]: OpenSeeFace's UDP datagram (one 1785-byte block per face), decoded and
+//!   encoded, and the `.osf` capture container (receive time, length, datagram);
+//! - [`livelink`]: Live Link Face's UDP packet (61 curves in ARKit enum order, head and eye
+//!   rotation), decoded and encoded;
+//! - [`take`]: Live Link Face CSV takes, columns by name, `Timecode` parsed to microseconds;
+//! - [`namemap`]: blendshape spellings (ARKit, Live Link, MediaPipe) to a rig's morph-target
+//!   names with per-target gain, offset and clamp, kept as data (`configs/namemaps/*.toml`);
+//! - [`osf_frames`]: an OpenSeeFace face as an `openseeface68` landmark frame;
+//! - [`import`]: a `.osf` capture as a v1 recording (`mimic import openseeface`).
+//!
+//! Errors name the packet (by number or byte offset) or the file and line.
+//! Depends on mimic_types, mimic_capture (recordings, without its tokio replay), glam, serde and
+//! toml.
+
+mod error;
+pub mod import;
+pub mod livelink;
+pub mod namemap;
+pub mod openseeface;
+pub mod osf_frames;
+pub mod take;
+
+pub use error::{PacketError, TrackerError};

@@ -1,0 +1,153 @@
+//! OpenSeeFace end to end on its real capture (`shared/data/openseeface/megamind.osf`, when this
+//! checkout has it): `mimic import openseeface` to an `openseeface68` recording that replays onto
+//! ict-face, and the capture sent over loopback UDP at its recorded pace (`mimic send
+//! --openseeface`) into `mimic serve --openseeface`, where every packet is counted (accepted, bad
+//! or late), a viewer receives the frames and `--record` keeps them.
+
+use crate::loopback::{Serve, read_session, viewer};
+use crate::{mimic, repo, text};
+use std::net::UdpSocket;
+use std::path::PathBuf;
+
+/// `shared/data/openseeface` beside the repository or beside its worktrees' folder.
+fn osf_data() -> Option<PathBuf> {
+    let found = [
+        "../shared/data/openseeface",
+        "../../shared/data/openseeface",
+    ]
+    .iter()
+    .map(|p| repo().join(p))
+    .find(|d| d.join("megamind.osf").is_file());
+    if found.is_none() {
+        println!("note: shared/data/openseeface not found; skipping");
+    }
+    found
+}
+
+/// Imports the capture (with `extra` flags) into `dir/name`.
+fn import(data: &std::path::Path, dir: &std::path::Path, name: &str, extra: &[&str]) -> String {
+    let out = dir.join(name).display().to_string();
+    let osf = data.join("megamind.osf").display().to_string();
+    let mut args = vec!["import", "openseeface", osf.as_str(), "-o", out.as_str()];
+    args.extend_from_slice(extra);
+    let o = mimic(&args);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}{stderr}");
+    assert!(stdout.contains("231 frames (0 lost tracking)"), "{stdout}");
+    out
+}
+
+#[test]
+fn the_capture_imports_with_sides_kept_and_replays_onto_ict_face() {
+    let Some(data) = osf_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let times = data.join("megamind_frames.csv").display().to_string();
+    let rec = import(&data, dir.path(), "mm.jsonl", &["--frame-times", &times]);
+    let r = mimic_capture::read_recording(std::path::Path::new(&rec), Some(68)).unwrap();
+    assert_eq!(r.header.layout, "openseeface68");
+    assert_eq!(r.frames.len(), 231);
+    // The clip's times: frame 6 to frame 269 at 23.976 fps (megamind_frames.csv).
+    let last = r.frames.last().unwrap().frame.timestamp_us;
+    let want = ((269.0 - 6.0) * 1e6 / 23.976f64).round() as i64;
+    assert!((last - want).abs() <= 1, "{last} vs {want}");
+    // The subject's left points (jaw top 16, outer eye corner 45, mouth corner 62) lie at image
+    // right (+x) of their right twins (0, 36, 58) in every frame.
+    for f in &r.frames {
+        let p = &f.frame.points;
+        for (left, right) in [(16, 0), (45, 36), (62, 58), (26, 17)] {
+            assert!(p[left].x > p[right].x, "t {}", f.frame.timestamp_us);
+        }
+    }
+    let o = mimic(&["replay", &rec, "--rig", "ict-face"]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}{stderr}");
+    assert!(
+        stdout.contains("231 frames in (0 rejected, 0 lost"),
+        "{stdout}"
+    );
+}
+
+#[test]
+fn the_capture_sent_over_udp_at_its_pace_is_counted_retargeted_viewed_and_recorded() {
+    let Some(data) = osf_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let rec = import(&data, dir.path(), "mm.jsonl", &[]);
+    let record_dir = dir.path().join("rec");
+    // A free loopback port for the OpenSeeFace intake.
+    let port = UdpSocket::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let osf_addr = format!("127.0.0.1:{port}");
+    let server = Serve::start(&[
+        "--rig",
+        "ict-face",
+        "--openseeface",
+        &osf_addr,
+        "--viewer-queue",
+        "100000",
+        "--idle-timeout",
+        "1.5",
+        "--record",
+        record_dir.to_str().unwrap(),
+    ]);
+    let mut v = viewer(&server.tcp, "openseeface-0", false);
+    server.wait_for("the viewer", |s| s["viewers_active"] == 1);
+    let tv = mimic_testkit::spawn("viewer", move || read_session(&mut v));
+    // Three bad datagrams (not a whole number of faces) before the capture.
+    let bad = UdpSocket::bind("127.0.0.1:0").unwrap();
+    for n in [1usize, 100, 1786] {
+        bad.send_to(&vec![7u8; n], &osf_addr).unwrap();
+    }
+    let started = std::time::Instant::now();
+    let o = mimic(&["send", &rec, "--openseeface", &osf_addr]);
+    let took = started.elapsed().as_secs_f64();
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}{stderr}");
+    assert!(
+        stdout.contains("sent 231 OpenSeeFace datagrams"),
+        "{stdout}"
+    );
+    // At its recorded pace: the capture spans 3.52 s of tracker time.
+    assert!(took >= 3.5, "sent in {took} s");
+    let sent = 231 + 3;
+    let counted = |s: &serde_json::Value| {
+        let x = Serve::session(s, "openseeface-0", 0);
+        let n = |k: &str| x[k].as_u64().unwrap_or(0);
+        n("frames")
+            + n("late")
+            + n("future")
+            + n("malformed")
+            + s["udp_bad_packets"].as_u64().unwrap()
+    };
+    let s = server.wait_for("every packet counted", |s| counted(s) == sent);
+    assert_eq!(s["udp_bad_packets"], 3);
+    let x = server.wait_for_session("openseeface-0", "the idle end", |x| x["active"] == false);
+    assert_eq!(x["layout"], "openseeface68");
+    assert_eq!(x["end_reason"], "idle_timeout");
+    let frames = x["frames"].as_u64().unwrap();
+    assert!(frames >= 225, "{x}");
+    assert_eq!(
+        x["tracked"].as_u64().unwrap()
+            + x["calibrating"].as_u64().unwrap()
+            + x["lost"].as_u64().unwrap(),
+        frames
+    );
+    let seen = tv.join().unwrap();
+    assert_eq!(seen.frames.len() as u64, frames);
+    assert!(seen.rig.is_some() && seen.end.is_some());
+    assert_eq!(seen.session.as_ref().unwrap()["layout"], "openseeface68");
+    assert!(
+        seen.frames
+            .windows(2)
+            .all(|w| w[0].timestamp_us < w[1].timestamp_us)
+    );
+    assert_eq!(x["recorded"].as_u64().unwrap(), frames);
+    let recorded: Vec<_> = std::fs::read_dir(&record_dir).unwrap().collect();
+    assert_eq!(recorded.len(), 1);
+    let path = recorded[0].as_ref().unwrap().path();
+    let r = mimic_capture::read_recording(&path, Some(68)).unwrap();
+    assert_eq!(r.frames.len() as u64, frames);
+    server.stop();
+}
