@@ -1,5 +1,5 @@
-//! Live Link Face takes end to end (the real takes of `shared/data/livelinkface`, when this
-//! checkout has them): `mimic send --weights TAKE.csv` paces the take by its `Timecode` (duration
+//! Live Link Face takes end to end (the real takes in `tests/data/livelinkface`, copied
+//! from the shared data): `mimic send --weights TAKE.csv` paces the take by its `Timecode` (duration
 //! within 1 % of the take's), drives the ICT rig's morph targets through the name map
 //! (`configs/namemaps/arkit.toml`) and reports the names the rig lacks once, in one line.
 
@@ -7,17 +7,14 @@ use crate::loopback::{Serve, read_session, viewer};
 use crate::{mimic, repo, text};
 use std::path::PathBuf;
 
-/// `shared/data/livelinkface` beside the repository or beside its worktrees' folder.
+/// `tests/data/livelinkface` (a copy of the project's shared data, with its SOURCE.md and licence).
 fn takes() -> Option<PathBuf> {
-    let found = [
-        "../shared/data/livelinkface",
-        "../../shared/data/livelinkface",
-    ]
-    .iter()
-    .map(|p| repo().join(p))
-    .find(|d| d.join("S07-001.csv").is_file());
+    let found = ["tests/data/livelinkface"]
+        .iter()
+        .map(|p| repo().join(p))
+        .find(|d| d.join("S07-001.csv").is_file());
     if found.is_none() {
-        println!("note: shared/data/livelinkface not found; skipping");
+        panic!("tests/data/livelinkface/S07-001.csv missing: the repository ships it");
     }
     found
 }

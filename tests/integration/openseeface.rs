@@ -1,5 +1,5 @@
-//! OpenSeeFace end to end on its real capture (`shared/data/openseeface/megamind.osf`, when this
-//! checkout has it): `mimic import openseeface` to an `openseeface68` recording that replays onto
+//! OpenSeeFace end to end on its real capture (`tests/data/openseeface/megamind.osf`, a copy of
+//! the shared data's): `mimic import openseeface` to an `openseeface68` recording that replays onto
 //! ict-face, and the capture sent over loopback UDP at its recorded pace (`mimic send
 //! --openseeface`) into `mimic serve --openseeface`, where every packet is counted (accepted, bad
 //! or late), a viewer receives the frames and `--record` keeps them.
@@ -9,17 +9,14 @@ use crate::{mimic, repo, text};
 use std::net::UdpSocket;
 use std::path::PathBuf;
 
-/// `shared/data/openseeface` beside the repository or beside its worktrees' folder.
+/// `tests/data/openseeface` (a copy of the project's shared data, with its SOURCE.md and licence).
 fn osf_data() -> Option<PathBuf> {
-    let found = [
-        "../shared/data/openseeface",
-        "../../shared/data/openseeface",
-    ]
-    .iter()
-    .map(|p| repo().join(p))
-    .find(|d| d.join("megamind.osf").is_file());
+    let found = ["tests/data/openseeface"]
+        .iter()
+        .map(|p| repo().join(p))
+        .find(|d| d.join("megamind.osf").is_file());
     if found.is_none() {
-        println!("note: shared/data/openseeface not found; skipping");
+        panic!("tests/data/openseeface/megamind.osf missing: the repository ships it");
     }
     found
 }

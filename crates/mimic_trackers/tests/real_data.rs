@@ -1,6 +1,6 @@
-//! The parsers on the real captures of `shared/data` (OpenSeeFace's `megamind.osf`, the two Live
-//! Link Face takes) when this checkout has them, and the shipped name map. Expected values are
-//! those that `shared/data/*/SOURCE.md` states, found there by other tools.
+//! The parsers on the real captures in `tests/data` (OpenSeeFace's `megamind.osf`, the two Live
+//! Link Face takes, copied from the shared data), and the shipped name map. Expected values are
+//! those that `tests/data/*/SOURCE.md` states, found there by other tools.
 
 #![allow(
     clippy::unwrap_used,
@@ -18,14 +18,14 @@ fn repo_root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../..")
 }
 
-/// `shared/data` beside the repository (or beside its worktrees' folder), if present.
+/// `tests/data` of the repository (copies of the shared data's captures, with SOURCE.md and licences).
 fn shared_data() -> Option<PathBuf> {
-    let found = ["../shared/data", "../../shared/data"]
+    let found = ["tests/data"]
         .iter()
         .map(|p| repo_root().join(p))
         .find(|d| d.join("openseeface").is_dir());
     if found.is_none() {
-        println!("note: shared/data not found; skipping the checks on the real captures");
+        panic!("tests/data/openseeface missing: the repository ships the real captures");
     }
     found
 }
