@@ -13,19 +13,15 @@ use std::path::{Path, PathBuf};
 
 const GFE: [&str; 3] = ["a_affirmative", "a_doubt_question", "a_yn_question"];
 
-/// The GFE files: `../shared/data/kinect-gfe-libras` next to the repository, or under
-/// `$MIMIC_SHARED_DATA` (a worktree elsewhere).
+/// The GFE files: `tests/data/kinect-gfe-libras` (a copy of the shared data's, with its SOURCE.md).
 fn data() -> Option<PathBuf> {
-    let d = std::env::var_os("MIMIC_SHARED_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| repo().join("../shared/data"))
-        .join("kinect-gfe-libras");
-    if d.is_dir() {
-        Some(d)
-    } else {
-        eprintln!("skipping: {} is missing", d.display());
-        None
-    }
+    let d = repo().join("tests/data/kinect-gfe-libras");
+    assert!(
+        d.is_dir(),
+        "{} missing: the repository ships it",
+        d.display()
+    );
+    Some(d)
 }
 
 /// Imports `datapoints` to `out` (extra args appended); returns stdout.

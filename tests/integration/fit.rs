@@ -23,14 +23,12 @@ fn median(mut v: Vec<f64>) -> f64 {
 fn gfe_fit_writes_kinect121_with_a_bounded_reprojection_residual() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("fit.jsonl");
-    let data = repo().join("../shared/data/kinect-gfe-libras");
-    let data = if data.is_dir() {
-        data
-    } else {
-        // The raw GFE files are outside the repo; without them the shipped recordings are checked below.
-        eprintln!("skipping the import half: {} is missing", data.display());
-        return;
-    };
+    let data = repo().join("tests/data/kinect-gfe-libras");
+    assert!(
+        data.is_dir(),
+        "{} missing: the repository ships it",
+        data.display()
+    );
     let o = mimic(&[
         "import",
         "gfe",
@@ -150,11 +148,12 @@ fn fitted_recordings_replay_with_the_kinect121_layout() {
 fn openface_capture_fits_through_the_ibug68_correspondences() {
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("of.csv");
-    let src = repo().join("../shared/data/openface-68pt-3d-sequence/OpenFace_Test.csv");
-    if !src.is_file() {
-        eprintln!("skipping: {} is missing", src.display());
-        return;
-    }
+    let src = repo().join("tests/data/openface-68pt-3d-sequence/OpenFace_Test.csv");
+    assert!(
+        src.is_file(),
+        "{} missing: the repository ships it",
+        src.display()
+    );
     std::fs::copy(&src, &csv).unwrap();
     let out = dir.path().join("of.jsonl");
     let o = mimic(&[
