@@ -26,7 +26,7 @@ pub use glb::{GlbSummary, GltfMaterial, GltfMesh, Scene, write_glb};
 pub use morphs::{Morph, basis_morphs, basis_weights, target_morphs};
 pub use rig::{RigLookParts, rig_look_parts, write_rig_glb};
 pub use take::{Interpolation, Take, head_translation};
-pub use units::metres_per_unit;
+pub use units::{MODEL_UNIT_METRES, metres_per_unit};
 pub use vertices::{SplitVertices, split_vertices};
 
 /// Why a GLB could not be written.
