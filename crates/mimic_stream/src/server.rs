@@ -11,6 +11,7 @@ use std::sync::Arc;
 
 mod accept;
 mod admission;
+mod intake;
 mod landmark;
 mod livelink;
 mod openseeface;

@@ -9,25 +9,25 @@
 //! accepted frame (`frames`), a late one (`late`, `future`) in its session, an undecodable packet
 //! in the server's `udp_bad_packets`. Nothing is sent back.
 
-use super::admission::{Admission, Refusal, find_rig, open};
-use super::session::{LineOutcome, Protocol, Session, TrackerLine, teardown};
+use super::admission::{Admission, Refusal, find_rig};
+use super::intake::{Idle, Live, end_all, end_idle, idle_tick, open_live, tokio_socket};
+use super::session::{LineOutcome, Protocol, Session, TrackerLine};
 use super::state::Shared;
+use super::weights::{MorphFrame, describe_weights, morph_targets, weights_summary};
 use crate::catalog::RigEntry;
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
 use crate::timing::FrameClock;
-use glam::{EulerRot, Quat, Vec3};
-use mimic_retarget::{FrameOutput, FrameStatus};
+use glam::{EulerRot, Quat};
 use mimic_trackers::livelink::{BLENDSHAPES, CURVE_NAMES, LiveLinkPacket, decode_packet};
 use mimic_trackers::namemap::{Mapping, NameMap};
-use mimic_types::HeadPose;
 use serde_json::{Map, Value, json};
 use std::collections::HashMap;
 use std::collections::hash_map::Entry;
 use std::convert::Infallible;
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 use tokio::net::UdpSocket;
 use tokio::sync::{mpsc, watch};
 
@@ -47,9 +47,7 @@ pub(crate) struct LiveLink {
     routes: Vec<Vec<usize>>,
     values: [f32; BLENDSHAPES],
     mapped: Vec<f32>,
-    weights: Vec<f32>,
-    out: FrameOutput,
-    positions: Vec<Vec3>,
+    frame: MorphFrame,
     clock: FrameClock,
     first_us: Option<i64>,
     started: Instant,
@@ -74,35 +72,28 @@ impl LiveLink {
         self.values.copy_from_slice(&p.curves[..BLENDSHAPES]);
         self.mapping
             .apply(&self.namemap, &self.values, &mut self.mapped);
-        self.weights.iter_mut().for_each(|w| *w = 0.0);
+        let weights = &mut self.frame.weights;
+        weights.iter_mut().for_each(|w| *w = 0.0);
         for (t, rig) in self.routes.iter().enumerate() {
             for &k in rig {
-                if let (Some(w), Some(v)) = (self.weights.get_mut(k), self.mapped.get(t)) {
+                if let (Some(w), Some(v)) = (weights.get_mut(k), self.mapped.get(t)) {
                     *w = *v;
                 }
             }
         }
-        mimic_solve::morph_basis::morph_controls(&self.weights, &mut self.out.displacements);
         let [yaw, pitch, roll] = p.head_rotation();
         let rotation = if yaw.is_finite() && pitch.is_finite() && roll.is_finite() {
             Quat::from_euler(EulerRot::YXZ, yaw, pitch, roll)
         } else {
             Quat::IDENTITY
         };
-        self.out.pose.rotation = rotation;
-        self.out.target_rotation = rotation;
-        self.out.timestamp_us = t_us;
-        s.record.tracked.bump();
-        let seq = s.next_seq(true);
-        let rest = &s.rig.rig.mesh.positions;
-        let weights = &self.weights;
-        s.broadcast(
-            seq,
-            &self.out,
-            &mut self.positions,
-            |_, positions| morph.blend(rest, weights, positions),
-            arrival,
-        );
+        self.frame.send(s, morph, t_us, rotation, true, arrival);
+    }
+}
+
+impl Idle for LiveLink {
+    fn last_packet(&self) -> Instant {
+        self.last_packet
     }
 }
 
@@ -114,11 +105,7 @@ impl Protocol for LiveLink {
 
     fn admit(shared: &Shared, hello: LiveLinkHello) -> Result<Admission<LiveLinkHello>, Refusal> {
         let rig = find_rig(shared, None)?;
-        let Some(morph) = rig.morph.as_ref() else {
-            return Err(Refusal::NoMorphTargets {
-                rig: rig.name().to_string(),
-            });
-        };
+        let morph = morph_targets(&rig)?;
         let safe: String = hello
             .subject
             .chars()
@@ -141,14 +128,8 @@ impl Protocol for LiveLink {
     }
 
     fn describe(hello: &LiveLinkHello, rig: &RigEntry, name: &str, id: u32) -> Value {
-        let k = rig.morph.as_ref().map_or(0, |m| m.len());
-        json!({
-            "session": name, "session_id": id, "rig": rig.name(), "layout": null,
-            "mode": "weights", "targets": k,
-            "vertices": rig.rig.mesh.vertex_count(), "controls": 3 * k,
-            "source": format!("Live Link Face `{}` from {}", hello.subject, hello.peer),
-            "rate_hz": Value::Null,
-        })
+        let source = format!("Live Link Face `{}` from {}", hello.subject, hello.peer);
+        describe_weights(rig, name, id, json!(source), Value::Null)
     }
 
     async fn start(hello: LiveLinkHello, s: &Session) -> (Self, Value) {
@@ -187,19 +168,7 @@ impl Protocol for LiveLink {
             namemap,
             routes,
             values: [0.0; BLENDSHAPES],
-            weights: vec![0.0; k],
-            out: FrameOutput {
-                timestamp_us: 0,
-                status: FrameStatus::Tracked,
-                positions: Vec::new(),
-                normals: Vec::new(),
-                displacements: vec![Vec3::ZERO; 3 * k],
-                pose: HeadPose::default(),
-                target_rotation: Quat::IDENTITY,
-                filled: 0,
-                times: Default::default(),
-            },
-            positions: s.rig.rig.mesh.positions.clone(),
+            frame: MorphFrame::new(s),
             clock: s.clock(),
             first_us: None,
             started: Instant::now(),
@@ -223,54 +192,7 @@ impl Protocol for LiveLink {
     async fn finish(self, _: &Session) {}
 
     fn summary(_: &ServerSettings, end: &SessionSnapshot, _bye: bool) -> Map<String, Value> {
-        let mut m = Map::new();
-        m.insert("unknown_weights".into(), json!(end.unknown_weights));
-        m
-    }
-}
-
-/// A live subject: its session and frame path.
-struct Live {
-    session: Session,
-    proto: LiveLink,
-    writer: tokio::task::JoinHandle<()>,
-}
-
-/// Ends a subject's session (END to its viewers).
-async fn end(live: Live, reason: &str) {
-    let Live {
-        session,
-        proto,
-        writer,
-    } = live;
-    proto.finish(&session).await;
-    teardown::<LiveLink>(session, reason.to_string(), writer).await;
-}
-
-/// Opens the session of a subject seen for the first time; `None` (counted as refused) when it
-/// cannot be opened.
-async fn open_subject(shared: &Arc<Shared>, subject: &str, peer: SocketAddr) -> Option<Live> {
-    let (reply_tx, mut reply_rx) = mpsc::channel::<String>(4);
-    let writer = tokio::spawn(async move { while reply_rx.recv().await.is_some() {} });
-    let hello = LiveLinkHello {
-        subject: subject.to_string(),
-        peer,
-    };
-    match open::<LiveLink>(shared, hello, reply_tx) {
-        Ok((session, admitted)) => {
-            let (proto, _welcome) = LiveLink::start(admitted, &session).await;
-            Some(Live {
-                session,
-                proto,
-                writer,
-            })
-        }
-        Err(refusal) => {
-            shared.refused.bump();
-            tracing::warn!(subject, %peer, "livelink session refused: {refusal}");
-            writer.abort();
-            None
-        }
+        weights_summary(end)
     }
 }
 
@@ -282,25 +204,14 @@ async fn livelink_loop(
     done: mpsc::Sender<()>,
 ) {
     let mut buf = vec![0u8; 65_536];
-    let mut subjects: HashMap<String, Live> = HashMap::new();
+    let mut subjects: HashMap<String, Live<LiveLink>> = HashMap::new();
     let idle = shared.settings.idle_timeout;
-    let mut tick =
-        tokio::time::interval(Duration::from_millis(100).min(idle.max(Duration::from_millis(1))));
+    let mut tick = idle_tick(idle);
     loop {
         let got = tokio::select! {
             _ = stop.changed() => break,
             _ = tick.tick() => {
-                let now = Instant::now();
-                let idle_names: Vec<String> = subjects
-                    .iter()
-                    .filter(|(_, l)| now.duration_since(l.proto.last_packet) >= idle)
-                    .map(|(n, _)| n.clone())
-                    .collect();
-                for n in idle_names {
-                    if let Some(live) = subjects.remove(&n) {
-                        end(live, "idle_timeout").await;
-                    }
-                }
+                end_idle(&mut subjects, idle).await;
                 continue;
             }
             r = udp.recv_from(&mut buf) => r,
@@ -313,16 +224,21 @@ async fn livelink_loop(
         };
         let live = match subjects.entry(p.subject.clone()) {
             Entry::Occupied(e) => e.into_mut(),
-            Entry::Vacant(e) => match open_subject(&shared, &p.subject, peer).await {
-                Some(live) => e.insert(live),
-                None => continue,
-            },
+            Entry::Vacant(e) => {
+                let hello = LiveLinkHello {
+                    subject: p.subject.clone(),
+                    peer,
+                };
+                let what = format!("livelink subject `{}` from {peer}", p.subject);
+                match open_live::<LiveLink>(&shared, hello, &what).await {
+                    Some(live) => e.insert(live),
+                    None => continue,
+                }
+            }
         };
         live.proto.accept(&live.session, &p, arrival);
     }
-    for (_, live) in subjects.drain() {
-        end(live, "shutdown").await;
-    }
+    end_all(&mut subjects).await;
     drop(done);
 }
 
@@ -331,19 +247,12 @@ pub(crate) fn spawn(shared: &Arc<Shared>, stop: &watch::Receiver<bool>, done: &m
     let Some(intake) = shared.settings.livelink.as_ref() else {
         return;
     };
-    let udp = intake.socket.try_clone().and_then(|s| {
-        s.set_nonblocking(true)?;
-        UdpSocket::from_std(s)
-    });
-    match udp {
-        Ok(udp) => {
-            tokio::spawn(livelink_loop(
-                shared.clone(),
-                udp,
-                stop.clone(),
-                done.clone(),
-            ));
-        }
-        Err(e) => tracing::error!("Live Link socket unusable: {e}"),
+    if let Some(udp) = tokio_socket(&intake.socket, "Live Link") {
+        tokio::spawn(livelink_loop(
+            shared.clone(),
+            udp,
+            stop.clone(),
+            done.clone(),
+        ));
     }
 }

@@ -9,8 +9,9 @@
 //! an undecodable datagram in the server's `udp_bad_packets`. OpenSeeFace sends no hello and reads
 //! no reply, so nothing is sent back.
 
-use super::admission::{Admission, Refusal, find_rig, open};
-use super::session::{LineOutcome, Protocol, Session, TrackerLine, teardown};
+use super::admission::{Admission, Refusal, find_rig};
+use super::intake::{Idle, Live, end_all, end_idle, idle_tick, open_live, tokio_socket};
+use super::session::{LineOutcome, Protocol, Session, TrackerLine};
 use super::state::{Shared, lock};
 use crate::catalog::RigEntry;
 use crate::record::{Recorder, SessionLabel};
@@ -29,7 +30,7 @@ use std::collections::hash_map::Entry;
 use std::convert::Infallible;
 use std::net::SocketAddr;
 use std::sync::Arc;
-use std::time::{Duration, Instant};
+use std::time::Instant;
 use tokio::net::UdpSocket;
 use tokio::sync::{mpsc, watch};
 
@@ -102,6 +103,12 @@ impl OpenSeeFace {
             rec.record(RecordedFrame::unlabelled(self.frame.clone()))
                 .await;
         }
+    }
+}
+
+impl Idle for OpenSeeFace {
+    fn last_packet(&self) -> Instant {
+        self.last_packet
     }
 }
 
@@ -222,48 +229,6 @@ impl Protocol for OpenSeeFace {
     }
 }
 
-/// A live face: its session and frame path.
-struct Live {
-    session: Session,
-    proto: OpenSeeFace,
-    writer: tokio::task::JoinHandle<()>,
-}
-
-/// Ends a face's session (frames flushed, END to its viewers).
-async fn end(live: Live, reason: &str) {
-    let Live {
-        session,
-        proto,
-        writer,
-    } = live;
-    proto.finish(&session).await;
-    teardown::<OpenSeeFace>(session, reason.to_string(), writer).await;
-}
-
-/// Opens the session of a face seen for the first time; `None` (counted as refused) when it
-/// cannot be opened.
-async fn open_face(shared: &Arc<Shared>, face_id: i32, peer: SocketAddr) -> Option<Live> {
-    // Nothing is ever answered over OpenSeeFace's UDP: the replies are drained and dropped.
-    let (reply_tx, mut reply_rx) = mpsc::channel::<String>(4);
-    let writer = tokio::spawn(async move { while reply_rx.recv().await.is_some() {} });
-    match open::<OpenSeeFace>(shared, OsfHello { face_id, peer }, reply_tx) {
-        Ok((session, admitted)) => {
-            let (proto, _welcome) = OpenSeeFace::start(admitted, &session).await;
-            Some(Live {
-                session,
-                proto,
-                writer,
-            })
-        }
-        Err(refusal) => {
-            shared.refused.bump();
-            tracing::warn!(face = face_id, %peer, "openseeface session refused: {refusal}");
-            writer.abort();
-            None
-        }
-    }
-}
-
 /// Receives OpenSeeFace datagrams until shutdown, one session per face id.
 pub(crate) async fn openseeface_loop(
     shared: Arc<Shared>,
@@ -272,26 +237,15 @@ pub(crate) async fn openseeface_loop(
     done: mpsc::Sender<()>,
 ) {
     let mut buf = vec![0u8; 65_536];
-    let mut faces: HashMap<i32, Live> = HashMap::new();
+    let mut faces: HashMap<i32, Live<OpenSeeFace>> = HashMap::new();
     let mut face = OsfFace::default();
     let idle = shared.settings.idle_timeout;
-    let mut tick =
-        tokio::time::interval(Duration::from_millis(100).min(idle.max(Duration::from_millis(1))));
+    let mut tick = idle_tick(idle);
     loop {
         let got = tokio::select! {
             _ = stop.changed() => break,
             _ = tick.tick() => {
-                let now = Instant::now();
-                let idle_ids: Vec<i32> = faces
-                    .iter()
-                    .filter(|(_, l)| now.duration_since(l.proto.last_packet) >= idle)
-                    .map(|(id, _)| *id)
-                    .collect();
-                for id in idle_ids {
-                    if let Some(live) = faces.remove(&id) {
-                        end(live, "idle_timeout").await;
-                    }
-                }
+                end_idle(&mut faces, idle).await;
                 continue;
             }
             r = udp.recv_from(&mut buf) => r,
@@ -310,17 +264,22 @@ pub(crate) async fn openseeface_loop(
             }
             let live = match faces.entry(face.face_id) {
                 Entry::Occupied(e) => e.into_mut(),
-                Entry::Vacant(e) => match open_face(&shared, face.face_id, peer).await {
-                    Some(live) => e.insert(live),
-                    None => continue,
-                },
+                Entry::Vacant(e) => {
+                    let hello = OsfHello {
+                        face_id: face.face_id,
+                        peer,
+                    };
+                    let what = format!("openseeface face {} from {peer}", face.face_id);
+                    match open_live::<OpenSeeFace>(&shared, hello, &what).await {
+                        Some(live) => e.insert(live),
+                        None => continue,
+                    }
+                }
             };
             live.proto.accept(&live.session, &face, arrival).await;
         }
     }
-    for (_, live) in faces.drain() {
-        end(live, "shutdown").await;
-    }
+    end_all(&mut faces).await;
     drop(done);
 }
 
@@ -330,19 +289,12 @@ pub(crate) fn spawn(shared: &Arc<Shared>, stop: &watch::Receiver<bool>, done: &m
     let Some(socket) = shared.settings.openseeface.as_ref() else {
         return;
     };
-    let udp = socket.try_clone().and_then(|s| {
-        s.set_nonblocking(true)?;
-        UdpSocket::from_std(s)
-    });
-    match udp {
-        Ok(udp) => {
-            tokio::spawn(openseeface_loop(
-                shared.clone(),
-                udp,
-                stop.clone(),
-                done.clone(),
-            ));
-        }
-        Err(e) => tracing::error!("OpenSeeFace socket unusable: {e}"),
+    if let Some(udp) = tokio_socket(socket, "OpenSeeFace") {
+        tokio::spawn(openseeface_loop(
+            shared.clone(),
+            udp,
+            stop.clone(),
+            done.clone(),
+        ));
     }
 }

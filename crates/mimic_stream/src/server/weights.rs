@@ -6,7 +6,7 @@
 use super::admission::{Admission, Refusal, find_rig};
 use super::session::{LineOutcome, Protocol, Session, TrackerLine, future_line, is_blank};
 use super::state::Shared;
-use crate::catalog::RigEntry;
+use crate::catalog::{MorphSet, RigEntry};
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
 use crate::timing::{FrameClock, TimeProblem};
@@ -22,13 +22,103 @@ use std::time::Instant;
 /// Distinct unknown weight names a session remembers (and warns about once each).
 const UNKNOWN_NAMES_KEPT: usize = 256;
 
+/// The frame path every weights session shares (named weights over TCP here, Live Link Face
+/// packets in `livelink.rs`): one weight per rig morph target, the frame viewers get (`d` as the
+/// morph basis's controls, the head rotation as its pose) and the blended positions.
+#[derive(Debug)]
+pub(crate) struct MorphFrame {
+    /// One weight per morph target of the session's rig, set by the protocol before [`Self::send`].
+    pub(crate) weights: Vec<f32>,
+    out: FrameOutput,
+    positions: Vec<Vec3>,
+}
+
+impl MorphFrame {
+    /// All weights zero, the rig's rest positions, no head rotation.
+    pub(crate) fn new(s: &Session) -> Self {
+        let k = s.rig.morph.as_ref().map_or(0, MorphSet::len);
+        Self {
+            weights: vec![0.0; k],
+            out: FrameOutput {
+                timestamp_us: 0,
+                status: FrameStatus::Tracked,
+                positions: Vec::new(),
+                normals: Vec::new(),
+                displacements: vec![Vec3::ZERO; 3 * k],
+                pose: HeadPose::default(),
+                target_rotation: Quat::IDENTITY,
+                filled: 0,
+                times: Default::default(),
+            },
+            positions: s.rig.rig.mesh.positions.clone(),
+        }
+    }
+
+    /// Counts the current weights as an accepted frame at `t_us` (`udp` when it came as a
+    /// packet) and broadcasts it with head rotation `rotation`; allocates nothing.
+    pub(crate) fn send(
+        &mut self,
+        s: &Session,
+        morph: &MorphSet,
+        t_us: i64,
+        rotation: Quat,
+        udp: bool,
+        arrival: Instant,
+    ) {
+        mimic_solve::morph_basis::morph_controls(&self.weights, &mut self.out.displacements);
+        self.out.pose.rotation = rotation;
+        self.out.target_rotation = rotation;
+        self.out.timestamp_us = t_us;
+        s.record.tracked.bump();
+        let seq = s.next_seq(udp);
+        let rest = &s.rig.rig.mesh.positions;
+        let weights = &self.weights;
+        s.broadcast(
+            seq,
+            &self.out,
+            &mut self.positions,
+            |_, positions| morph.blend(rest, weights, positions),
+            arrival,
+        );
+    }
+}
+
+/// The rig's morph targets, or the refusal of a weights session on a rig without them.
+pub(crate) fn morph_targets(rig: &RigEntry) -> Result<&MorphSet, Refusal> {
+    rig.morph.as_ref().ok_or_else(|| Refusal::NoMorphTargets {
+        rig: rig.name().to_string(),
+    })
+}
+
+/// A weights session as `/stats` lists it: its rig's morph targets are its controls (three each).
+pub(crate) fn describe_weights(
+    rig: &RigEntry,
+    name: &str,
+    id: u32,
+    source: Value,
+    rate_hz: Value,
+) -> Value {
+    let k = rig.morph.as_ref().map_or(0, MorphSet::len);
+    json!({
+        "session": name, "session_id": id, "rig": rig.name(), "layout": null,
+        "mode": "weights", "targets": k,
+        "vertices": rig.rig.mesh.vertex_count(), "controls": 3 * k,
+        "source": source, "rate_hz": rate_hz,
+    })
+}
+
+/// What a weights session's end summary adds: the unknown weight names it was sent.
+pub(crate) fn weights_summary(end: &SessionSnapshot) -> Map<String, Value> {
+    let mut m = Map::new();
+    m.insert("unknown_weights".into(), json!(end.unknown_weights));
+    m
+}
+
 /// A weights session's frame path.
 #[derive(Debug)]
 pub(crate) struct Weights {
-    weights: Vec<f32>,
+    frame: MorphFrame,
     scratch: Vec<f32>,
-    out: FrameOutput,
-    positions: Vec<Vec3>,
     clock: FrameClock,
     reported: HashSet<String>,
 }
@@ -59,7 +149,7 @@ impl Weights {
         let as_f32 = |x: f64| x.clamp(0.0, 1.0) as f32;
         let unknown = morph.map.apply(
             pairs.iter().map(|(n, v)| (n.as_str(), as_f32(*v))),
-            &mut self.weights,
+            &mut self.frame.weights,
         );
         if unknown > 0 {
             s.record.unknown_weights.add(unknown as u64);
@@ -80,19 +170,8 @@ impl Weights {
                 }
             }
         }
-        mimic_solve::morph_basis::morph_controls(&self.weights, &mut self.out.displacements);
-        self.out.timestamp_us = t_us;
-        s.record.tracked.bump();
-        let seq = s.next_seq(false);
-        let rest = &s.rig.rig.mesh.positions;
-        let weights = &self.weights;
-        s.broadcast(
-            seq,
-            &self.out,
-            &mut self.positions,
-            |_, positions| morph.blend(rest, weights, positions),
-            arrival,
-        );
+        self.frame
+            .send(s, morph, t_us, Quat::IDENTITY, false, arrival);
     }
 }
 
@@ -104,11 +183,7 @@ impl Protocol for Weights {
 
     fn admit(shared: &Shared, hello: WeightsHello) -> Result<Admission<WeightsHello>, Refusal> {
         let rig = find_rig(shared, hello.request.rig.clone())?;
-        let Some(morph) = rig.morph.as_ref() else {
-            return Err(Refusal::NoMorphTargets {
-                rig: rig.name().to_string(),
-            });
-        };
+        let morph = morph_targets(&rig)?;
         Ok(Admission {
             session: hello.request.session.clone(),
             rig_message: morph.message.clone(),
@@ -119,13 +194,7 @@ impl Protocol for Weights {
     }
 
     fn describe(hello: &WeightsHello, rig: &RigEntry, name: &str, id: u32) -> Value {
-        let k = rig.morph.as_ref().map_or(0, |m| m.len());
-        json!({
-            "session": name, "session_id": id, "rig": rig.name(), "layout": null,
-            "mode": "weights", "targets": k,
-            "vertices": rig.rig.mesh.vertex_count(), "controls": 3 * k,
-            "source": hello.source, "rate_hz": hello.rate_hz,
-        })
+        describe_weights(rig, name, id, json!(hello.source), json!(hello.rate_hz))
     }
 
     async fn start(_: WeightsHello, s: &Session) -> (Self, Value) {
@@ -142,20 +211,8 @@ impl Protocol for Weights {
             tracing::info!(session = %s.name, "weights sessions are not recorded (recordings hold landmark frames)");
         }
         let weights = Weights {
-            weights: vec![0.0; k],
+            frame: MorphFrame::new(s),
             scratch: vec![0.0; k],
-            out: FrameOutput {
-                timestamp_us: 0,
-                status: FrameStatus::Tracked,
-                positions: Vec::new(),
-                normals: Vec::new(),
-                displacements: vec![Vec3::ZERO; 3 * k],
-                pose: HeadPose::default(),
-                target_rotation: Quat::IDENTITY,
-                filled: 0,
-                times: Default::default(),
-            },
-            positions: s.rig.rig.mesh.positions.clone(),
             clock: s.clock(),
             reported: HashSet::new(),
         };
@@ -190,8 +247,6 @@ impl Protocol for Weights {
     async fn finish(self, _: &Session) {}
 
     fn summary(_: &ServerSettings, end: &SessionSnapshot, _bye: bool) -> Map<String, Value> {
-        let mut m = Map::new();
-        m.insert("unknown_weights".into(), json!(end.unknown_weights));
-        m
+        weights_summary(end)
     }
 }
