@@ -115,7 +115,8 @@ pub fn import_gfe_with_pixels(
         .unwrap_or_default();
     let default_source =
         format!("kinect-v1 face tracking (UCI Grammatical Facial Expressions, {name})");
-    let rate = mean_rate_hz(&frames).unwrap_or(16.0);
+    // Rounded to 0.1 Hz.
+    let rate = crate::mean_rate_hz(&frames).map_or(16.0, |r| (r * 10.0).round() / 10.0);
     let mut header = RecordingHeader::new(
         LAYOUT,
         source.unwrap_or(&default_source),
@@ -132,13 +133,6 @@ pub fn import_gfe_with_pixels(
         }
     ));
     Ok((Imported { header, frames }, pixels))
-}
-
-/// Mean frame rate, rounded to 0.1 Hz.
-fn mean_rate_hz(frames: &[RecordedFrame]) -> Option<f64> {
-    let (first, last) = (frames.first()?, frames.last()?);
-    let span = (last.frame.timestamp_us - first.frame.timestamp_us) as f64 * 1e-6;
-    (span > 0.0).then(|| ((frames.len() - 1) as f64 / span * 10.0).round() / 10.0)
 }
 
 /// Checks the header: 300 labels `0x 0y 0z … 99x 99y 99z`, optionally after one extra token.

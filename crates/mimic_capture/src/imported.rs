@@ -2,6 +2,14 @@
 
 use crate::recording::{RecordedFrame, RecordingHeader, RecordingWriter, WriteError};
 
+/// Mean frame rate of frames in time order, from the first to the last timestamp; `None` for
+/// fewer than two frames or no time between them.
+pub fn mean_rate_hz(frames: &[RecordedFrame]) -> Option<f64> {
+    let (first, last) = (frames.first()?, frames.last()?);
+    let span = (last.frame.timestamp_us - first.frame.timestamp_us) as f64 * 1e-6;
+    (span > 0.0).then(|| (frames.len() - 1) as f64 / span)
+}
+
 /// A converted recording held in memory: header and frames, ready for [`RecordingWriter`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct Imported {

@@ -16,7 +16,7 @@ pub mod recording;
 #[cfg(feature = "replay")]
 pub mod replay;
 
-pub use imported::Imported;
+pub use imported::{Imported, mean_rate_hz};
 pub use recording::{
     FrameError, FrameProblem, ReadStats, RecordedFrame, Recording, RecordingError, RecordingHeader,
     RecordingReader, RecordingSummary, RecordingWriter, RejectCounts, WriteError, parse_frame_line,

@@ -119,17 +119,7 @@ pub fn import_openface(
     let frames = parse_csv(&text, path, timing)?;
     let rate_hz = match timing {
         OpenFaceTiming::Rate(r) => r,
-        OpenFaceTiming::FileTimestamps => {
-            let span = match (frames.first(), frames.last()) {
-                (Some(a), Some(b)) => (b.frame.timestamp_us - a.frame.timestamp_us) as f64 * 1e-6,
-                _ => 0.0,
-            };
-            if span > 0.0 {
-                (frames.len() - 1) as f64 / span
-            } else {
-                30.0
-            }
-        }
+        OpenFaceTiming::FileTimestamps => crate::mean_rate_hz(&frames).unwrap_or(30.0),
     };
     let name = path
         .file_name()

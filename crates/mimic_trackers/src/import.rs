@@ -135,14 +135,7 @@ pub fn import_osf(
             reason: format!("no datagram holds face {face_id}"),
         });
     }
-    let span_s = frames
-        .last()
-        .map_or(0.0, |f| f.frame.timestamp_us as f64 * 1e-6);
-    let rate_hz = if span_s > 0.0 {
-        (frames.len() - 1) as f64 / span_s
-    } else {
-        30.0
-    };
+    let rate_hz = mimic_capture::mean_rate_hz(&frames).unwrap_or(30.0);
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
