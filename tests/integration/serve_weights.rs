@@ -62,7 +62,7 @@ fn a_weights_stream_reaches_viewers_as_the_blend_and_bad_frames_are_answered() {
         s.write_all(hello.as_bytes()).unwrap();
         s
     };
-    let (mut vp, mut vd) = (viewer(true), viewer(false));
+    let (vp, vd) = (viewer(true), viewer(false));
     serve.wait_for("two viewers", |s| s["viewers_active"] == 2);
 
     let mut tracker = connect(&serve.tcp);
@@ -93,6 +93,10 @@ fn a_weights_stream_reaches_viewers_as_the_blend_and_bad_frames_are_answered() {
         tracker.write_all(b"\n").unwrap();
     }
     tracker.shutdown(Shutdown::Write).unwrap();
+    // Both viewers read as real ones do, at once and concurrently: a viewer left unread for
+    // `--viewer-write-timeout` (10 s) is dropped as stalled, which a slow machine could reach
+    // while the checks below run on the other viewer.
+    let readers = [vp, vd].map(|mut v| mimic_testkit::spawn("viewer", move || read_viewer(&mut v)));
     let lines: Vec<Value> = (0..4).map(|_| read_json_line(&mut replies)).collect();
     let brief: Vec<(String, String, u64)> = lines
         .iter()
@@ -164,8 +168,8 @@ fn a_weights_stream_reaches_viewers_as_the_blend_and_bad_frames_are_answered() {
             * k as f32;
     let tol = f64::from((2 + 3 * k) as f32 * f32::EPSILON * scale);
 
-    for (viewer, positions) in [(&mut vp, true), (&mut vd, false)] {
-        let msgs = read_viewer(viewer);
+    for (reader, positions) in readers.into_iter().zip([true, false]) {
+        let msgs = reader.join().expect("viewer reader");
         let ViewerMessage::Rig(rig) = &msgs[1] else {
             panic!("second message is not the rig");
         };
