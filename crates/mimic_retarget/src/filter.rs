@@ -24,9 +24,9 @@ impl Default for OneEuroSettings {
 /// State of one filtered scalar.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct OneEuro {
-    value: f32,
-    derivative: f32,
-    primed: bool,
+    pub(crate) value: f32,
+    pub(crate) derivative: f32,
+    pub(crate) primed: bool,
 }
 
 fn smoothing(cutoff: f32, dt: f32) -> f32 {

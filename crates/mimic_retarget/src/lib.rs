@@ -10,10 +10,12 @@
 //! head turn) like lost ones and clamps control speeds.
 //! [`BlendshapeFitter`] turns the same control displacements into morph-target weights and the
 //! blended mesh (blendshape mode). [`StageSamples`] turns many steps' [`StageTimes`] into
-//! median / p99 per stage.
+//! median / p99 per stage. [`Checkpoint`] is a retargeter's learned state (neutral, scale,
+//! filters), serialisable, so another process can continue a session.
 //! No tokio, no wgpu, no file formats: sources and sinks live in other crates.
 
 mod blendshape;
+mod checkpoint;
 mod filter;
 pub mod frame_metrics;
 mod gate;
@@ -27,6 +29,7 @@ pub mod throughput;
 mod weight_stats;
 
 pub use blendshape::{BlendshapeError, BlendshapeFitter, BlendshapeSettings, WeightMap};
+pub use checkpoint::{Checkpoint, CheckpointError};
 pub use filter::{OneEuro, OneEuroSettings};
 pub use gate::{GateReading, GateReason, GateSettings, face_size};
 pub use pipeline::{FrameOutput, FrameStatus, RetargetError, Retargeter, Stage, StageTimes, Stats};

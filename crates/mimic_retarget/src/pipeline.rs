@@ -101,7 +101,7 @@ pub enum FrameStatus {
 }
 
 /// Counters over a retargeter's life.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 pub struct Stats {
     /// Frames given to `step`.
     pub frames: u64,
@@ -148,70 +148,70 @@ pub struct FrameOutput {
 }
 
 /// Neutral being accumulated from the first frames.
-#[derive(Debug)]
-struct Accumulator {
-    wanted: usize,
-    frames: usize,
-    first: Vec<Vec3>,
-    first_valid: Vec<bool>,
-    sum: Vec<Vec3>,
-    count: Vec<u32>,
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Accumulator {
+    pub(crate) wanted: usize,
+    pub(crate) frames: usize,
+    pub(crate) first: Vec<Vec3>,
+    pub(crate) first_valid: Vec<bool>,
+    pub(crate) sum: Vec<Vec3>,
+    pub(crate) count: Vec<u32>,
 }
 
 /// Ties a layout to a rig and turns landmark frames into deformed meshes.
 #[derive(Debug)]
 pub struct Retargeter {
-    layout: Layout,
-    settings: RetargetSettings,
-    basis: Arc<Basis>,
-    patch: MovingPatch,
-    rest: Vec<Vec3>,
-    triangles: Vec<[u32; 3]>,
-    target_controls: Vec<Vec3>,
+    pub(crate) layout: Layout,
+    pub(crate) settings: RetargetSettings,
+    pub(crate) basis: Arc<Basis>,
+    pub(crate) patch: MovingPatch,
+    pub(crate) rest: Vec<Vec3>,
+    pub(crate) triangles: Vec<[u32; 3]>,
+    pub(crate) target_controls: Vec<Vec3>,
     /// Layout control index of each rig control.
-    source_control: Vec<usize>,
+    pub(crate) source_control: Vec<usize>,
     // Neutral, once known.
-    neutral_points: Vec<Vec3>,
-    neutral_valid: Vec<bool>,
-    neutral_controls: Vec<Vec3>,
+    pub(crate) neutral_points: Vec<Vec3>,
+    pub(crate) neutral_valid: Vec<bool>,
+    pub(crate) neutral_controls: Vec<Vec3>,
     /// Target-space displacements longer than this (target units) are outliers.
-    outlier_limit: f32,
+    pub(crate) outlier_limit: f32,
     /// Inter-ocular distance of the target's controls (target units): the gate's length unit.
-    face_size: f32,
+    pub(crate) face_size: f32,
     /// Gate bound of each control's displacement, target units.
-    gate_bounds: Vec<f32>,
-    to_target: Option<SourceToTarget>,
-    accumulator: Option<Accumulator>,
+    pub(crate) gate_bounds: Vec<f32>,
+    pub(crate) to_target: Option<SourceToTarget>,
+    pub(crate) accumulator: Option<Accumulator>,
     // Per-frame state.
-    filters: Vec<[OneEuro; 3]>,
-    last_e: Vec<Vec3>,
-    frame_delta: Vec<Vec3>,
-    last_d: Vec<Vec3>,
-    last_pose: HeadPose,
-    last_time_us: Option<i64>,
-    lost_since_us: Option<i64>,
+    pub(crate) filters: Vec<[OneEuro; 3]>,
+    pub(crate) last_e: Vec<Vec3>,
+    pub(crate) frame_delta: Vec<Vec3>,
+    pub(crate) last_d: Vec<Vec3>,
+    pub(crate) last_pose: HeadPose,
+    pub(crate) last_time_us: Option<i64>,
+    pub(crate) lost_since_us: Option<i64>,
     // Gate state: the last frame it accepted (head rotation, time) and the hold clock.
-    accepted_rotation: Quat,
-    accepted_time_us: Option<i64>,
-    gated_since_us: Option<i64>,
-    gate_reading: GateReading,
+    pub(crate) accepted_rotation: Quat,
+    pub(crate) accepted_time_us: Option<i64>,
+    pub(crate) gated_since_us: Option<i64>,
+    pub(crate) gate_reading: GateReading,
     /// Output `d` and time of the previous frame, for the speed clamp and [`Stats::jumps`].
-    previous_out: Vec<Vec3>,
-    previous_time_us: Option<i64>,
+    pub(crate) previous_out: Vec<Vec3>,
+    pub(crate) previous_time_us: Option<i64>,
     /// The last intervals between frames (seconds, a ring; 0: not yet seen), whose median is the
     /// speed clamp's frame time, so that jittery timestamps (the GFE stamps fall on a 15.6 ms
     /// timer grid) and gaps (dropped frames) do not open it.
-    intervals: [f32; INTERVALS],
-    next_interval: usize,
-    raw_d: Vec<Vec3>,
-    raw_e: Vec<Vec3>,
+    pub(crate) intervals: [f32; INTERVALS],
+    pub(crate) next_interval: usize,
+    pub(crate) raw_d: Vec<Vec3>,
+    pub(crate) raw_e: Vec<Vec3>,
     // Scratch.
-    stable_src: Vec<Vec3>,
-    stable_dst: Vec<Vec3>,
-    stable_residual: Vec<f32>,
-    stable_sorted: Vec<f32>,
-    controls_now: Vec<Option<Vec3>>,
-    stats: Stats,
+    pub(crate) stable_src: Vec<Vec3>,
+    pub(crate) stable_dst: Vec<Vec3>,
+    pub(crate) stable_residual: Vec<f32>,
+    pub(crate) stable_sorted: Vec<f32>,
+    pub(crate) controls_now: Vec<Option<Vec3>>,
+    pub(crate) stats: Stats,
 }
 
 impl Retargeter {
@@ -830,7 +830,7 @@ impl Retargeter {
 }
 
 /// Frame intervals the speed clamp takes the median of.
-const INTERVALS: usize = 15;
+pub(crate) const INTERVALS: usize = 15;
 
 /// `x / limit`, 0 when `x` is 0, infinite past a zero limit; NaN stays NaN (and fails the gate).
 fn ratio(x: f32, limit: f32) -> f32 {

@@ -4,7 +4,7 @@ use glam::{Mat3, Quat, Vec3};
 use mimic_solve::kabsch::fit_similarity;
 
 /// Linear map taking a source displacement to a target displacement.
-#[derive(Clone, Copy, Debug, PartialEq)]
+#[derive(Clone, Copy, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct SourceToTarget {
     /// `S = diag(axis) * scale * rotation * mirror`.
     pub linear: Mat3,
