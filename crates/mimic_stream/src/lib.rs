@@ -19,6 +19,7 @@
 
 mod catalog;
 mod lines;
+pub mod placement;
 mod queue;
 mod record;
 mod server;

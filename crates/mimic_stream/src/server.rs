@@ -11,6 +11,7 @@ use std::sync::Arc;
 
 mod accept;
 mod admission;
+mod follow;
 mod intake;
 mod landmark;
 mod livelink;
@@ -37,6 +38,20 @@ impl Server {
     pub fn new(catalog: Arc<Catalog>, settings: ServerSettings) -> Self {
         Self {
             shared: Arc::new(Shared::new(catalog, settings)),
+        }
+    }
+
+    /// A server that hands its landmark sessions to `placement` to be stepped (a front door of
+    /// a cluster, docs/cluster.md) instead of stepping them itself.
+    pub fn with_placement(
+        catalog: Arc<Catalog>,
+        settings: ServerSettings,
+        placement: Arc<dyn crate::placement::Placement>,
+    ) -> Self {
+        let mut shared = Shared::new(catalog, settings);
+        shared.placement = Some(placement);
+        Self {
+            shared: Arc::new(shared),
         }
     }
 

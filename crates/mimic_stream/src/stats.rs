@@ -190,6 +190,10 @@ pub struct SessionSnapshot {
     pub viewer_frames_sent: u64,
     /// Frames dropped from its viewers' queues, over every viewer that ever watched.
     pub viewer_frames_dropped: u64,
+    /// Where it is stepped, when a placement (`mimic serve --nats`) steps it: the worker and
+    /// the frames sent, retargeted and lost (absent for a session stepped here).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cluster: Option<crate::placement::ClusterSnapshot>,
 }
 
 /// Counters of the whole server, as served by the stats request.

@@ -3,10 +3,12 @@
 //! broadcast and, when the server records, written to the session's recording.
 
 use super::admission::{Admission, Refusal, find_rig};
+use super::follow::read_result;
 use super::session::{LineOutcome, Protocol, Session, TrackerLine, future_line, is_blank};
 use super::state::{Shared, lock};
 use super::udp::Route;
 use crate::catalog::RigEntry;
+use crate::placement::{PlaceRequest, PlacedFrame, PlacementStatus, StepResult};
 use crate::record::{RecordCounters, Recorder, SessionLabel};
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
@@ -17,6 +19,7 @@ use mimic_retarget::{FrameOutput, FrameStatus, RetargetSettings, Retargeter};
 use mimic_types::LandmarkFrame;
 use mimic_wire::SessionRequest;
 use serde_json::{Map, Value, json};
+use std::collections::VecDeque;
 use std::hash::{BuildHasher, Hasher};
 use std::net::SocketAddr;
 use std::sync::Arc;
@@ -125,6 +128,84 @@ impl Recording {
     }
 }
 
+/// Frames handed to a placement whose arrival times are kept for the latency (older ones are
+/// forgotten; they are counted all the same).
+const PENDING_KEPT: usize = 4096;
+
+/// How long an ending placed session waits for each of its last answers (the placement closes
+/// the answers sooner; this only guards a hang).
+const FINISH_WAIT: std::time::Duration = std::time::Duration::from_secs(10);
+
+/// How long a new session waits for its first worker before it starts anyway (its frames are
+/// lost until a worker takes it).
+const PLACE_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
+
+/// A landmark session stepped by the server's placement (`mimic serve --nats`): accepted frames
+/// go out numbered, answers come back and are broadcast here.
+#[derive(Debug)]
+struct Remote {
+    frames: mpsc::Sender<PlacedFrame>,
+    results: mpsc::Receiver<StepResult>,
+    status: Arc<PlacementStatus>,
+    /// Frames handed over so far (the next frame's number).
+    next_n: u64,
+    /// The lowest frame number an answer may still have.
+    expected: u64,
+    /// Number, arrival time and transport (UDP) of frames not answered yet, oldest first.
+    pending: VecDeque<(u64, Instant, bool)>,
+}
+
+impl Remote {
+    /// Hands an accepted frame over (a full queue loses it: counted when answers pass it).
+    fn hand_over(&mut self, frame: &LandmarkFrame, arrival: Instant, udp: bool) {
+        let n = self.next_n;
+        self.next_n += 1;
+        self.status.sent.bump();
+        if self.pending.len() >= PENDING_KEPT {
+            self.pending.pop_front();
+        }
+        self.pending.push_back((n, arrival, udp));
+        let placed = PlacedFrame {
+            n,
+            frame: frame.clone(),
+        };
+        if self.frames.try_send(placed).is_err() {
+            tracing::debug!(n, "placement queue full: frame lost");
+        }
+    }
+
+    /// Takes answer `n` in order: frames it passed are counted lost; returns the frame's arrival
+    /// and transport, or `None` for a duplicate or an answer to no frame.
+    fn take(&mut self, n: u64) -> Option<(Instant, bool)> {
+        if n < self.expected || n >= self.next_n {
+            return None;
+        }
+        self.status.lost.add(n - self.expected);
+        self.status.retargeted.bump();
+        self.expected = n + 1;
+        let mut found = None;
+        while let Some(&(k, t, udp)) = self.pending.front() {
+            if k > n {
+                break;
+            }
+            self.pending.pop_front();
+            if k == n {
+                found = Some((t, udp));
+            }
+        }
+        Some(found.unwrap_or_else(|| (Instant::now(), false)))
+    }
+}
+
+/// An input of a landmark session besides its TCP lines.
+#[derive(Debug)]
+pub(crate) enum LandmarkEvent {
+    /// A UDP frame packet (arrival, frame).
+    Udp(Instant, LandmarkFrame),
+    /// A placement's answer.
+    Answer(StepResult),
+}
+
 /// A landmark session's frame path.
 #[derive(Debug)]
 pub(crate) struct Landmark {
@@ -141,6 +222,8 @@ pub(crate) struct Landmark {
     /// disk.
     durable: bool,
     udp: mpsc::Receiver<(Instant, LandmarkFrame)>,
+    /// Set when the server's placement steps this session.
+    remote: Option<Remote>,
 }
 
 impl Landmark {
@@ -155,6 +238,10 @@ impl Landmark {
     ) -> Outcome {
         if let Err(p) = s.check_time(&mut self.clock, frame.timestamp_us, arrival) {
             return Outcome::Refused(p);
+        }
+        if let Some(r) = &mut self.remote {
+            r.hand_over(frame, arrival, udp);
+            return Outcome::Accepted;
         }
         let before = self.retargeter.stats();
         let status = if self.retargeter.source_to_target().is_none() && self.multi_thread {
@@ -189,6 +276,45 @@ impl Landmark {
         let (rig, scratch) = (&s.rig, &mut self.scratch);
         s.broadcast(
             seq,
+            &self.out,
+            &mut self.positions,
+            |d, positions| rig.deform(d, scratch, positions),
+            arrival,
+        );
+    }
+
+    /// A placement's answer: counted as the local step counts it and broadcast with the frame's
+    /// number as its sequence number.
+    fn answer(&mut self, s: &Session, a: StepResult) {
+        let Some(remote) = self.remote.as_mut() else {
+            return;
+        };
+        let Some((arrival, udp)) = remote.take(a.n) else {
+            return;
+        };
+        let r = &s.record;
+        if !read_result(&a, &mut self.out) {
+            r.malformed.bump();
+            return;
+        }
+        r.gated.add(u64::from(a.gated));
+        r.jumps.add(u64::from(a.jump));
+        match self.out.status {
+            FrameStatus::Tracked => r.tracked.bump(),
+            FrameStatus::Calibrating => r.calibrating.bump(),
+            FrameStatus::Lost => r.lost.bump(),
+            FrameStatus::Rejected => {
+                r.malformed.bump();
+                return;
+            }
+        }
+        r.frames.bump();
+        if udp {
+            r.udp_frames.bump();
+        }
+        let (rig, scratch) = (&s.rig, &mut self.scratch);
+        s.broadcast(
+            a.n,
             &self.out,
             &mut self.positions,
             |d, positions| rig.deform(d, scratch, positions),
@@ -245,7 +371,7 @@ fn udp_key(shared: &Shared, id: u32) -> u32 {
 impl Protocol for Landmark {
     type Hello = LandmarkHello;
     type Admitted = Admitted;
-    type Event = (Instant, LandmarkFrame);
+    type Event = LandmarkEvent;
     const KIND: &'static str = "landmark";
 
     fn admit(shared: &Shared, hello: LandmarkHello) -> Result<Admission<Admitted>, Refusal> {
@@ -322,6 +448,33 @@ impl Protocol for Landmark {
             "max_message_bytes": settings.max_message_bytes,
         });
         tracing::info!(session = %s.name, id = s.id, rig = s.rig.name(), layout = %a.layout, "session started");
+        let remote = match &s.shared.placement {
+            Some(placement) => {
+                let placed = placement.place(PlaceRequest {
+                    session: s.name.clone(),
+                    id: s.id,
+                    rig: s.rig.name().to_string(),
+                    layout: a.layout.clone(),
+                    description: Self::describe(&a, &s.rig, &s.name, s.id),
+                });
+                *lock(&s.record.placement) = Some(placed.status.clone());
+                if !matches!(
+                    tokio::time::timeout(PLACE_WAIT, placed.ready).await,
+                    Ok(Ok(()))
+                ) {
+                    tracing::warn!(session = %s.name, "no worker took the session yet: its frames are lost until one does");
+                }
+                Some(Remote {
+                    frames: placed.frames,
+                    results: placed.results,
+                    status: placed.status,
+                    next_n: 0,
+                    expected: 0,
+                    pending: VecDeque::new(),
+                })
+            }
+            None => None,
+        };
         let landmark = Landmark {
             positions: s.rig.rig.mesh.positions.clone(),
             scratch: Vec::new(),
@@ -332,23 +485,37 @@ impl Protocol for Landmark {
             point_count: a.point_count,
             multi_thread: tokio::runtime::Handle::current().runtime_flavor()
                 == tokio::runtime::RuntimeFlavor::MultiThread,
-            durable: settings.record_sync && !matches!(recording, Recording::Off),
+            durable: settings.record_sync
+                && !matches!(recording, Recording::Off)
+                && remote.is_none(),
             recording,
             udp,
+            remote,
         };
         (landmark, welcome)
     }
 
-    async fn next_event(&mut self) -> (Instant, LandmarkFrame) {
-        match self.udp.recv().await {
-            Some(packet) => packet,
-            // The route holds the sender until the session ends.
-            None => std::future::pending().await,
+    async fn next_event(&mut self) -> LandmarkEvent {
+        let udp = &mut self.udp;
+        match &mut self.remote {
+            Some(remote) => tokio::select! {
+                Some((arrival, frame)) = udp.recv() => LandmarkEvent::Udp(arrival, frame),
+                Some(a) = remote.results.recv() => LandmarkEvent::Answer(a),
+                else => std::future::pending().await,
+            },
+            None => match udp.recv().await {
+                Some((arrival, frame)) => LandmarkEvent::Udp(arrival, frame),
+                // The route holds the sender until the session ends.
+                None => std::future::pending().await,
+            },
         }
     }
 
-    async fn on_event(&mut self, s: &Session, (arrival, frame): (Instant, LandmarkFrame)) {
-        self.accept_udp(s, frame, arrival).await;
+    async fn on_event(&mut self, s: &Session, event: LandmarkEvent) {
+        match event {
+            LandmarkEvent::Udp(arrival, frame) => self.accept_udp(s, frame, arrival).await,
+            LandmarkEvent::Answer(a) => self.answer(s, a),
+        }
     }
 
     async fn on_line(&mut self, s: &Session, line: TrackerLine<'_>) -> LineOutcome {
@@ -390,6 +557,25 @@ impl Protocol for Landmark {
         lock(&s.shared.routes).remove(&s.id);
         while let Ok((arrival, frame)) = self.udp.try_recv() {
             self.accept_udp(s, frame, arrival).await;
+        }
+        // A placed session: closing its frames ends it on the worker, whose last answers are
+        // broadcast; frames never answered are counted lost.
+        if let Some(remote) = self.remote.as_mut() {
+            let (closed, _) = mpsc::channel(1);
+            drop(std::mem::replace(&mut remote.frames, closed));
+        }
+        loop {
+            let Some(remote) = self.remote.as_mut() else {
+                break;
+            };
+            match tokio::time::timeout(FINISH_WAIT, remote.results.recv()).await {
+                Ok(Some(a)) => self.answer(s, a),
+                Ok(None) | Err(_) => break,
+            }
+        }
+        if let Some(remote) = self.remote.take() {
+            remote.status.lost.add(remote.next_n - remote.expected);
+            remote.status.end();
         }
         // Every accepted frame is in the recording (written, flushed, synced) before the session
         // is reported ended.

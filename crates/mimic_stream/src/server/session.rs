@@ -174,31 +174,7 @@ impl Session {
         fill: impl FnOnce(&[Vec3], &mut [Vec3]),
         arrival: Instant,
     ) {
-        let (want_d, want_positions) = {
-            let hubs = lock(&self.shared.hubs);
-            hubs.get(&self.name).map_or((false, false), |h| {
-                (
-                    h.viewers.iter().any(|v| !v.positions),
-                    h.viewers.iter().any(|v| v.positions),
-                )
-            })
-        };
-        let d_message = want_d.then(|| Arc::new(encode_frame(seq, out, None)));
-        let p_message = want_positions.then(|| {
-            fill(&out.displacements, positions);
-            Arc::new(encode_frame(seq, out, Some(positions)))
-        });
-        {
-            let hubs = lock(&self.shared.hubs);
-            if let Some(h) = hubs.get(&self.name) {
-                for v in &h.viewers {
-                    let m = if v.positions { &p_message } else { &d_message };
-                    if let Some(m) = m {
-                        v.queue.push_frame(m.clone());
-                    }
-                }
-            }
-        }
+        push_frame(&self.shared, &self.name, seq, out, positions, fill);
         let us = u64::try_from(arrival.elapsed().as_micros()).unwrap_or(u64::MAX);
         tracing::trace!(session = %self.name, seq, us, "broadcast");
         lock(&self.record.latency).record(us);
@@ -232,6 +208,41 @@ impl Session {
         let closing = format!("{errors_in_a_row} malformed messages in a row; closing");
         self.reply(error_line(ErrorCode::TooManyErrors, line_no, &closing));
         true
+    }
+}
+
+/// Pushes frame `seq` to the viewers of hub `name`: pose and `d` to those that asked for `d`, the
+/// full positions (filled by `fill` from `d`, only when some viewer wants them) to the others.
+pub(crate) fn push_frame(
+    shared: &Shared,
+    name: &str,
+    seq: u64,
+    out: &FrameOutput,
+    positions: &mut [Vec3],
+    fill: impl FnOnce(&[Vec3], &mut [Vec3]),
+) {
+    let (want_d, want_positions) = {
+        let hubs = lock(&shared.hubs);
+        hubs.get(name).map_or((false, false), |h| {
+            (
+                h.viewers.iter().any(|v| !v.positions),
+                h.viewers.iter().any(|v| v.positions),
+            )
+        })
+    };
+    let d_message = want_d.then(|| Arc::new(encode_frame(seq, out, None)));
+    let p_message = want_positions.then(|| {
+        fill(&out.displacements, positions);
+        Arc::new(encode_frame(seq, out, Some(positions)))
+    });
+    let hubs = lock(&shared.hubs);
+    if let Some(h) = hubs.get(name) {
+        for v in &h.viewers {
+            let m = if v.positions { &p_message } else { &d_message };
+            if let Some(m) = m {
+                v.queue.push_frame(m.clone());
+            }
+        }
     }
 }
 

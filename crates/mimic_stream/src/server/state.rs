@@ -4,6 +4,7 @@
 use super::udp::Route;
 use super::viewer::Viewer;
 use crate::catalog::Catalog;
+use crate::placement::{Placement, PlacementStatus};
 use crate::queue::Message;
 use crate::record::RecordCounters;
 use crate::settings::ServerSettings;
@@ -44,6 +45,8 @@ pub(crate) struct SessionRecord {
     pub(crate) recording: Mutex<Option<String>>,
     pub(crate) latency: Mutex<LatencyHistogram>,
     pub(crate) viewers: Mutex<ViewerLog>,
+    /// Where the session is stepped, when a [`Placement`] steps it.
+    pub(crate) placement: Mutex<Option<Arc<PlacementStatus>>>,
 }
 
 /// Departed viewers whose counters a session keeps one by one; older ones are only summed.
@@ -138,6 +141,7 @@ impl SessionRecord {
             recording: Mutex::new(None),
             latency: Mutex::new(LatencyHistogram::default()),
             viewers: Mutex::new(ViewerLog::default()),
+            placement: Mutex::new(None),
         }
     }
 
@@ -174,6 +178,7 @@ impl SessionRecord {
             viewers_total,
             viewer_frames_sent,
             viewer_frames_dropped,
+            cluster: lock(&self.placement).as_ref().map(|p| p.snapshot()),
         }
     }
 }
@@ -191,6 +196,10 @@ pub(crate) struct Live {
 pub(crate) struct Hub {
     pub(crate) viewers: Vec<Arc<Viewer>>,
     pub(crate) live: Option<Live>,
+    /// A session live on another front door that this hub follows: its SESSION and RIG messages.
+    pub(crate) remote: Option<(Message, Message)>,
+    /// The follower task of this hub (its number), when the server has a placement.
+    pub(crate) following: Option<u64>,
 }
 
 /// State shared by every task of a server.
@@ -214,6 +223,10 @@ pub(crate) struct Shared {
     pub(crate) udp_wrong_source: Counter,
     pub(crate) recordings_open: Arc<AtomicUsize>,
     pub(crate) keys: std::collections::hash_map::RandomState,
+    /// Where landmark sessions are stepped when not here (`None`: here, the default).
+    pub(crate) placement: Option<Arc<dyn Placement>>,
+    /// Numbers of follower tasks.
+    pub(crate) next_follower: AtomicU64,
 }
 
 impl Shared {
@@ -238,6 +251,8 @@ impl Shared {
             udp_wrong_source: Counter::default(),
             recordings_open: Arc::new(AtomicUsize::new(0)),
             keys: std::collections::hash_map::RandomState::new(),
+            placement: None,
+            next_follower: AtomicU64::new(1),
         }
     }
 

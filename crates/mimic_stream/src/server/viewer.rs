@@ -70,8 +70,13 @@ pub(crate) async fn viewer(
             v.queue.push_control(live.session_message.clone(), true);
             v.queue.push_control(live.rig_message.clone(), false);
             lock(&live.record.viewers).attach(v.clone());
+        } else if let Some((session_message, rig_message)) = &hub.remote {
+            v.queue.push_control(session_message.clone(), true);
+            v.queue.push_control(rig_message.clone(), false);
         }
         hub.viewers.push(v.clone());
+        // A session hosted by another front door of the cluster reaches this hub's viewers too.
+        super::follow::start_following(&shared, hub, &session);
     }
     tracing::info!(viewer = v.id, session = %session, positions, "viewer joined");
     // The viewer sends nothing after its hello; reading (and discarding, through the reader's
@@ -95,7 +100,7 @@ pub(crate) async fn viewer(
             Err(_) => {
                 let live = lock(&shared.hubs)
                     .get(&session)
-                    .is_some_and(|h| h.live.is_some());
+                    .is_some_and(|h| h.live.is_some() || h.remote.is_some());
                 if live {
                     continue;
                 }
