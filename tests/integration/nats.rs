@@ -62,7 +62,10 @@ fn start_nats(store: &Path) -> (Proc, String) {
     let addr = format!("127.0.0.1:{port}");
     let deadline = Instant::now() + Duration::from_secs(20);
     while std::net::TcpStream::connect(&addr).is_err() {
-        assert!(Instant::now() < deadline, "nats-server did not listen on {addr}");
+        assert!(
+            Instant::now() < deadline,
+            "nats-server did not listen on {addr}"
+        );
         std::thread::sleep(Duration::from_millis(20));
     }
     (proc, format!("nats://{addr}"))
@@ -209,8 +212,13 @@ fn a_killed_worker_s_session_fails_over_and_every_frame_is_counted() {
         c["lost"].as_u64().unwrap(),
     );
     assert_eq!(sent, retargeted + lost, "{s}\n{}", logs());
-    assert!(lost > 0, "a worker was killed mid-take, yet no frame was lost: {s}");
-    assert_eq!(c["placements"], 2, "{s}\n{}", logs());
+    assert!(
+        lost > 0,
+        "a worker was killed mid-take, yet no frame was lost: {s}"
+    );
+    // Placed, then placed again after the kill (a machine so loaded that a worker missed its
+    // renewals would add more placements, each counted the same way).
+    assert!(c["placements"].as_u64() >= Some(2), "{s}\n{}", logs());
     assert_ne!(c["worker"].as_str(), Some(holder.as_str()), "{s}");
     assert_eq!(s["frames"], retargeted, "{s}");
     assert!(bye.contains(&format!("\"frames\":{retargeted}")), "{bye}");
@@ -246,7 +254,11 @@ fn a_killed_worker_s_session_fails_over_and_every_frame_is_counted() {
         .take(5)
         .map(|f| f.2)
         .collect();
-    assert!(after.iter().all(|&st| st != 0), "after failover: {after:?}\n{}", logs());
+    assert!(
+        after.iter().all(|&st| st != 0),
+        "after failover: {after:?}\n{}",
+        logs()
+    );
     let waited = seen
         .iter()
         .find(|f| f.1 >= gap_at)

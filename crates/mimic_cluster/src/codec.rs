@@ -225,7 +225,10 @@ mod tests {
         let Some(In::Frame(n, g)) = decode_in(&b) else {
             panic!("not a frame")
         };
-        assert_eq!((n, g.timestamp_us, g.points), (42, f.timestamp_us, f.points));
+        assert_eq!(
+            (n, g.timestamp_us, g.points),
+            (42, f.timestamp_us, f.points)
+        );
         assert!(matches!(decode_in(&encode_in_end(3)), Some(In::End)));
         assert!(decode_in(&b[..5]).is_none());
     }

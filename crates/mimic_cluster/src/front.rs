@@ -2,12 +2,12 @@
 //! its frames, hands the answers back, places it again when its worker's answers stop and its
 //! lease has expired, and follows sessions of other front doors for this one's viewers.
 
+use crate::Cluster;
+use crate::codec::Lease;
 use crate::codec::{
     LiveNotice, OPEN, OpenReply, OpenRequest, Out, decode_out, encode_in_end, encode_in_frame,
     encode_live, encode_out_end, in_subject, info_subject, out_subject, token,
 };
-use crate::Cluster;
-use crate::codec::Lease;
 use futures_util::StreamExt;
 use mimic_stream::placement::{
     Followed, PlaceRequest, Placed, PlacedFrame, Placement, PlacementStatus, StepResult,
@@ -188,7 +188,11 @@ impl Host {
                         placed = self.place_once(self.status.placements.get() > 0).await;
                         if placed {
                             progress = Instant::now();
-                            let _ = client.publish(out_subj.clone(), live_bytes.clone().into()).await;
+                            // Followers learn of the session once; a failover changes nothing
+                            // they see but a gap.
+                            if self.status.placements.get() == 1 {
+                                let _ = client.publish(out_subj.clone(), live_bytes.clone().into()).await;
+                            }
                             if let Some(r) = ready.take() {
                                 let _ = r.send(());
                             }
@@ -206,9 +210,7 @@ impl Host {
             }
         }
         // The tracker is gone: tell the worker, then wait for its last answers.
-        let _ = client
-            .publish(in_subj, encode_in_end(sent).into())
-            .await;
+        let _ = client.publish(in_subj, encode_in_end(sent).into()).await;
         if placed {
             let deadline = Instant::now() + settings.finish_wait;
             loop {
@@ -257,7 +259,7 @@ async fn follow(cluster: Cluster, tok: String, tx: mpsc::Sender<Followed>) {
             m = out.next() => {
                 let Some(m) = m else { break };
                 match decode_out(&m.payload) {
-                    Some(Out::Live(n)) => {
+                    Some(Out::Live(n)) if !live => {
                         live = true;
                         let _ = tx.send(Followed::Live { description: n.description, rig: n.rig }).await;
                     }

@@ -73,7 +73,9 @@ pub enum ClusterError {
         message: String,
     },
     /// A JetStream bucket could not be opened or made (is the server started with `-js`?).
-    #[error("NATS JetStream bucket `{bucket}`: {message} (the server needs JetStream: nats-server -js)")]
+    #[error(
+        "NATS JetStream bucket `{bucket}`: {message} (the server needs JetStream: nats-server -js)"
+    )]
     Bucket {
         /// The bucket.
         bucket: String,

@@ -2,8 +2,8 @@
 //! its frames in order, publishes the answers and checkpoints the retargeter.
 
 use crate::codec::{
-    In, Lease, OPEN, OpenReply, OpenRequest, Saved, WORKERS, decode_in, encode_answer,
-    encode_done, in_subject, out_subject, token,
+    In, Lease, OPEN, OpenReply, OpenRequest, Saved, WORKERS, decode_in, encode_answer, encode_done,
+    in_subject, out_subject, token,
 };
 use crate::{Cluster, ClusterError};
 use bytes::Bytes;
@@ -190,11 +190,15 @@ impl Worker {
                             restored = true;
                             tracing::info!(session = %req.session, after = saved.n, "checkpoint restored");
                         }
-                        Err(e) => tracing::warn!(session = %req.session, "checkpoint not restored: {e}"),
+                        Err(e) => {
+                            tracing::warn!(session = %req.session, "checkpoint not restored: {e}")
+                        }
                     },
                     Err(e) => tracing::warn!(session = %req.session, "checkpoint unreadable: {e}"),
                 },
-                Ok(None) => tracing::info!(session = %req.session, "no checkpoint: starting afresh"),
+                Ok(None) => {
+                    tracing::info!(session = %req.session, "no checkpoint: starting afresh")
+                }
                 Err(e) => tracing::warn!(session = %req.session, "checkpoint not read: {e}"),
             }
         } else {
@@ -307,11 +311,7 @@ impl Held {
         drop(frames);
         match ending {
             Ending::Done => {
-                let _ = self
-                    .cluster
-                    .client
-                    .publish(out, encode_done().into())
-                    .await;
+                let _ = self.cluster.client.publish(out, encode_done().into()).await;
                 let _ = self.cluster.state.purge(&self.tok).await;
                 let _ = self.cluster.leases.purge(&self.tok).await;
                 tracing::info!(session = %self.session, "session done");
@@ -327,9 +327,7 @@ impl Held {
                 tracing::info!(session = %self.session, "session given up (worker stopping)");
             }
         }
-        self.counters
-            .sessions_active
-            .fetch_sub(1, Ordering::AcqRel);
+        self.counters.sessions_active.fetch_sub(1, Ordering::AcqRel);
     }
 
     /// Stores the retargeter's state after frame `n`.

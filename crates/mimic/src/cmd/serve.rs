@@ -207,11 +207,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let placement = match &args.nats {
             Some(url) => {
                 let cluster = mimic_cluster::Cluster::connect(url, Default::default()).await?;
-                Some(mimic_cluster::NatsPlacement::new(cluster, &format!("front-{tcp}")))
+                Some(mimic_cluster::NatsPlacement::new(
+                    cluster,
+                    &format!("front-{tcp}"),
+                ))
             }
             None => None,
         };
-        let nats = args.nats.as_ref().map(|u| format!(" nats {u}")).unwrap_or_default();
+        let nats = args
+            .nats
+            .as_ref()
+            .map(|u| format!(" nats {u}"))
+            .unwrap_or_default();
         println!(
             "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}{trackers}{nats}",
             catalog.rig_names()

@@ -48,7 +48,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             &name,
             args.max_sessions.max(1),
         );
-        println!("mimic worker: {name} nats {} max-sessions {}", args.nats, args.max_sessions);
+        println!(
+            "mimic worker: {name} nats {} max-sessions {}",
+            args.nats, args.max_sessions
+        );
         std::io::stdout().flush()?;
         let shutdown = async {
             let _ = tokio::signal::ctrl_c().await;
