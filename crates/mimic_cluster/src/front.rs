@@ -218,14 +218,13 @@ impl Host {
                     _ = tokio::time::sleep_until(deadline) => break,
                     m = out.next() => m,
                 };
-                match m.and_then(|m| decode_out(&m.payload)) {
-                    Some(Out::Answer(a)) => {
-                        if answers.send(a).await.is_err() {
-                            break;
-                        }
-                    }
-                    Some(Out::Done) => break,
-                    _ => {}
+                let gone = match m.and_then(|m| decode_out(&m.payload)) {
+                    Some(Out::Answer(a)) => answers.send(a).await.is_err(),
+                    Some(Out::Done) => true,
+                    _ => false,
+                };
+                if gone {
+                    break;
                 }
             }
         } else {

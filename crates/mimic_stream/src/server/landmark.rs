@@ -564,10 +564,7 @@ impl Protocol for Landmark {
             let (closed, _) = mpsc::channel(1);
             drop(std::mem::replace(&mut remote.frames, closed));
         }
-        loop {
-            let Some(remote) = self.remote.as_mut() else {
-                break;
-            };
+        while let Some(remote) = self.remote.as_mut() {
             match tokio::time::timeout(FINISH_WAIT, remote.results.recv()).await {
                 Ok(Some(a)) => self.answer(s, a),
                 Ok(None) | Err(_) => break,
