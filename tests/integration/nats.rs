@@ -105,7 +105,7 @@ fn a_killed_worker_s_session_fails_over_and_every_frame_is_counted() {
     let (_nats, url) = start_nats(&dir.path().join("js"));
     let wa = start_worker(&url, "wa", &dir.path().join("wa.log"));
     let wb = start_worker(&url, "wb", &dir.path().join("wb.log"));
-    let mut workers = vec![("wa", Some(wa)), ("wb", Some(wb))];
+    let mut workers = [("wa", Some(wa)), ("wb", Some(wb))];
     let front = Serve::start(&["--rig", "candide3", "--nats", &url, "--no-udp"]);
     let other = Serve::start(&[
         "--rig",
