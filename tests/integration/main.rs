@@ -23,6 +23,7 @@ mod mediapipe;
 mod morph;
 mod openseeface;
 mod protected;
+mod record_weights;
 mod regression;
 mod render;
 mod replay;

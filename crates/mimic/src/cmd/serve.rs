@@ -83,8 +83,11 @@ pub struct Args {
     /// between their arrivals; further ahead it is refused (`future_timestamp`).
     #[arg(long, default_value_t = ServerSettings::default().max_time_jump.as_secs_f64(), value_parser = parse_seconds)]
     pub max_time_jump: f64,
-    /// Record every landmark session's accepted frames in this folder (created if missing), one
-    /// v1 recording per session (`<session>-<id>-<peer>-<UTC time>.jsonl`), flushed per frame.
+    /// Record every session's accepted frames in this folder (created if missing), one file per
+    /// session, flushed per frame: a v1 recording for landmark sessions
+    /// (`<session>-<id>-<peer>-<UTC time>.jsonl`), a weights CSV (`t_us` and the rig's
+    /// morph-target weights, `...weights.csv`, which `mimic send --weights` reads) for weights and
+    /// Live Link sessions.
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,
     /// With --record: a frame reaches viewers (and the `frames` count) only after it is

@@ -7,7 +7,7 @@ use super::session::{LineOutcome, Protocol, Session, TrackerLine, future_line, i
 use super::state::{Shared, lock};
 use super::udp::Route;
 use crate::catalog::RigEntry;
-use crate::record::{RecordCounters, Recorder, SessionLabel};
+use crate::record::{Entry, RecordCounters, RecordKind, Recorder, SessionLabel};
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
 use crate::timing::{FrameClock, TimeProblem};
@@ -55,18 +55,22 @@ enum Outcome {
     Malformed,
 }
 
-/// A session's recording: off, on, or asked for but not started (its frames count as lost).
+/// A session's recording (landmark, weights and Live Link sessions): off, on, or asked for but
+/// not started (its frames count as lost).
 #[derive(Debug)]
-enum Recording {
+pub(crate) enum Recording {
+    /// The server does not record.
     Off,
+    /// Recording.
     On(Recorder),
+    /// Asked for, but the file could not be started.
     Failed(Arc<RecordCounters>),
 }
 
 impl Recording {
     /// Starts a session's recording when the server records; a failure is logged, and the
     /// session's accepted frames are then counted as `record_lost`.
-    async fn start(s: &Session, header: &RecordingHeader, peer: Option<SocketAddr>) -> Self {
+    pub(crate) async fn start(s: &Session, kind: RecordKind<'_>, peer: Option<SocketAddr>) -> Self {
         let settings = s.settings();
         let Some(dir) = settings.record_dir.as_ref() else {
             return Recording::Off;
@@ -79,7 +83,7 @@ impl Recording {
         };
         let started = Recorder::start(
             dir,
-            header,
+            kind,
             &who,
             settings.record_queue_frames,
             s.record.record.clone(),
@@ -99,9 +103,14 @@ impl Recording {
         }
     }
 
+    /// True when frames go (or were meant to go) to a file.
+    pub(crate) fn is_on(&self) -> bool {
+        !matches!(self, Recording::Off)
+    }
+
     /// `--record-sync`: writes an accepted frame and syncs it to the disk before returning;
     /// false when it could not be (then it is counted `record_lost` and must not be broadcast).
-    async fn frame_durable(&self, f: RecordedFrame) -> bool {
+    pub(crate) async fn frame_durable(&self, f: impl Into<Entry>) -> bool {
         match self {
             Recording::Off => true,
             Recording::On(r) => r.record_durable(f).await,
@@ -113,14 +122,18 @@ impl Recording {
     }
 
     /// Hands an accepted frame to the recording, if the server records.
-    async fn frame(&self, outcome: Outcome, f: RecordedFrame) {
-        if outcome != Outcome::Accepted {
-            return;
-        }
+    pub(crate) async fn frame(&self, f: impl Into<Entry>) {
         match self {
             Recording::Off => {}
             Recording::On(r) => r.record(f).await,
             Recording::Failed(c) => c.lost.bump(),
+        }
+    }
+
+    /// Waits until every queued frame is written, flushed and synced.
+    pub(crate) async fn finish(self) {
+        if let Recording::On(r) = self {
+            r.finish().await;
         }
     }
 }
@@ -210,8 +223,8 @@ impl Landmark {
             if self.recording.frame_durable(f).await {
                 self.publish(s, arrival, udp);
             }
-        } else {
-            self.recording.frame(outcome, f).await;
+        } else if outcome == Outcome::Accepted {
+            self.recording.frame(f).await;
         }
     }
 
@@ -303,7 +316,7 @@ impl Protocol for Landmark {
         let settings = s.settings();
         let mut recorded_header = (*a.header).clone();
         recorded_header.point_count = Some(a.point_count);
-        let recording = Recording::start(s, &recorded_header, a.peer).await;
+        let recording = Recording::start(s, RecordKind::Landmarks(&recorded_header), a.peer).await;
         let key = udp_key(&s.shared, s.id);
         let (udp_tx, udp) = mpsc::channel(settings.udp_queue_frames.max(1));
         lock(&s.shared.routes).insert(
@@ -393,9 +406,7 @@ impl Protocol for Landmark {
         }
         // Every accepted frame is in the recording (written, flushed, synced) before the session
         // is reported ended.
-        if let Recording::On(r) = self.recording {
-            r.finish().await;
-        }
+        self.recording.finish().await;
     }
 
     fn summary(settings: &ServerSettings, end: &SessionSnapshot, bye: bool) -> Map<String, Value> {

@@ -55,8 +55,8 @@ pub(crate) struct LiveLink {
 }
 
 impl LiveLink {
-    /// Maps, poses and broadcasts one packet.
-    fn accept(&mut self, s: &Session, p: &LiveLinkPacket, arrival: Instant) {
+    /// Maps, poses, broadcasts and records one packet.
+    async fn accept(&mut self, s: &Session, p: &LiveLinkPacket, arrival: Instant) {
         self.last_packet = arrival;
         let Some(morph) = s.rig.morph.as_ref() else {
             return;
@@ -87,7 +87,9 @@ impl LiveLink {
         } else {
             Quat::IDENTITY
         };
-        self.frame.send(s, morph, t_us, rotation, true, arrival);
+        self.frame
+            .keep(s, morph, t_us, rotation, true, arrival)
+            .await;
     }
 }
 
@@ -168,7 +170,7 @@ impl Protocol for LiveLink {
             namemap,
             routes,
             values: [0.0; BLENDSHAPES],
-            frame: MorphFrame::new(s),
+            frame: MorphFrame::start(s, Some(hello.peer)).await,
             clock: s.clock(),
             first_us: None,
             started: Instant::now(),
@@ -189,10 +191,12 @@ impl Protocol for LiveLink {
         format!("packet longer than {limit} bytes")
     }
 
-    async fn finish(self, _: &Session) {}
+    async fn finish(self, _: &Session) {
+        self.frame.finish().await;
+    }
 
-    fn summary(_: &ServerSettings, end: &SessionSnapshot, _bye: bool) -> Map<String, Value> {
-        weights_summary(end)
+    fn summary(settings: &ServerSettings, end: &SessionSnapshot, bye: bool) -> Map<String, Value> {
+        weights_summary(settings, end, bye)
     }
 }
 
@@ -236,7 +240,7 @@ async fn livelink_loop(
                 }
             }
         };
-        live.proto.accept(&live.session, &p, arrival);
+        live.proto.accept(&live.session, &p, arrival).await;
     }
     end_all(&mut subjects).await;
     drop(done);
