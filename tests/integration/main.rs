@@ -27,6 +27,7 @@ mod record_weights;
 mod regression;
 mod render;
 mod replay;
+mod replay_take;
 mod rig_new;
 mod seams;
 mod serve;

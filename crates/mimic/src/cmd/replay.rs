@@ -1,5 +1,9 @@
-//! `mimic replay`: a recorded performance onto a rig, written as OBJ frames, one binary file or
-//! one GLB (docs/gltf.md).
+//! `mimic replay`: a recorded performance (or a Live Link Face take, `replay/take.rs`) onto a
+//! rig, written as OBJ frames, one binary file or one GLB (docs/gltf.md); `--weights` writes the
+//! weights per frame (`replay/weights_out.rs`).
+
+mod take;
+mod weights_out;
 
 use crate::cmd::setup::{
     BlendshapeArgs, Mode, PipelineArgs, RigArgs, obj_frame_path, prepare_with,
@@ -23,6 +27,7 @@ use std::fs::File;
 use std::io::{BufWriter, IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use weights_out::{WeightsFormat, WeightsOut};
 
 /// Output file format.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -39,7 +44,8 @@ pub enum OutFormat {
 /// Arguments of `mimic replay`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Recording (v1 JSON Lines) to replay.
+    /// Recording (v1 JSON Lines) to replay, or a Live Link Face CSV take (its weights drive the
+    /// rig's morph targets through `--namemap`, at its `Timecode` pace).
     pub recording: PathBuf,
     #[command(flatten)]
     pub rig: RigArgs,
@@ -78,9 +84,26 @@ pub struct Args {
     /// Stop after this many frames.
     #[arg(long)]
     pub max_frames: Option<usize>,
+    /// Layout of `--weights`: mimic's (`frame,t_us,status,label,<targets>`) or a Live Link Face
+    /// take (`Timecode`, the 61 curves in the app's order; the rig's weights as ARKit curves).
+    #[arg(long, value_enum, default_value = "mimic")]
+    pub weights_format: WeightsFormat,
+    /// Name map between ARKit curves and the rig's morph targets, for Live Link takes and
+    /// `--weights-format livelink` (default: configs/namemaps/arkit.toml).
+    #[arg(long, value_name = "TOML")]
+    pub namemap: Option<PathBuf>,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
+}
+
+impl Args {
+    /// The `--namemap` file, or the shipped ARKit map.
+    fn namemap_path(&self) -> PathBuf {
+        self.namemap
+            .clone()
+            .unwrap_or_else(|| self.rig.config_dirs().root.join("namemaps/arkit.toml"))
+    }
 }
 
 /// Where deformed frames go.
@@ -135,6 +158,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if (args.no_pose || args.step_keys) && args.format != OutFormat::Glb {
         bail!("--no-pose and --step-keys are options of --format glb");
     }
+    if mimic_trackers::take::is_take_file(&args.recording)? {
+        return take::run(&args);
+    }
     let mut reader = RecordingReader::open(&args.recording, None)?;
     // Normals are written by the binary and OBJ formats (a GLB's targets carry none).
     let settings = mimic_retarget::RetargetSettings {
@@ -145,7 +171,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut prepared = prepare_with(&args.rig, settings, &reader.header().layout)?;
     let rig = &prepared.rig;
-    let mut blend = Blend::new(&args.blend, &args.rig.rig_path(), rig)?;
+    let mut blend = Blend::new(&args, rig)?;
     let options = ReplayOptions {
         pace: if args.realtime {
             Pace::Recorded { speed: args.speed }
@@ -528,13 +554,15 @@ struct Blend {
     fitter: BlendshapeFitter,
     /// The rig's morph targets (written into a GLB).
     targets: Vec<MorphTarget>,
-    csv: Option<(PathBuf, BufWriter<File>)>,
+    csv: Option<WeightsOut>,
     stats: WeightStats,
 }
 
 impl Blend {
-    /// The blendshape stage for `rig` (loaded from `rig_path`), or `None` in free-form mode.
-    fn new(args: &BlendshapeArgs, rig_path: &Path, rig: &Rig) -> anyhow::Result<Option<Self>> {
+    /// The blendshape stage for `rig` (of `--rig`), or `None` in free-form mode.
+    fn new(replay: &Args, rig: &Rig) -> anyhow::Result<Option<Self>> {
+        let args: &BlendshapeArgs = &replay.blend;
+        let rig_path: &Path = &replay.rig.rig_path();
         if args.mode == Mode::Freeform {
             if args.weights.is_some() {
                 bail!("--weights needs --mode blendshapes");
@@ -545,16 +573,12 @@ impl Blend {
         let fitter = BlendshapeFitter::new(rig, &targets, &args.settings())
             .with_context(|| format!("blendshapes of rig `{}`", rig.name))?;
         let csv = match &args.weights {
-            Some(p) => {
-                let mut w =
-                    BufWriter::new(File::create(p).with_context(|| p.display().to_string())?);
-                write!(w, "frame,t_us,status,label")?;
-                for name in fitter.names() {
-                    write!(w, ",{name}")?;
-                }
-                writeln!(w)?;
-                Some((p.clone(), w))
-            }
+            Some(p) => Some(WeightsOut::create(
+                p,
+                replay.weights_format,
+                fitter.names(),
+                &replay.namemap_path(),
+            )?),
             None => None,
         };
         let stats = WeightStats::new(fitter.target_count());
@@ -580,24 +604,23 @@ impl Blend {
         if tracked {
             self.stats.push(w, elapsed_ns(started));
         }
-        if let Some((path, csv)) = self.csv.as_mut() {
-            let label = label.map(|l| l.to_string()).unwrap_or_default();
-            write!(csv, "{index},{},{status_code},{label}", out.timestamp_us)
-                .with_context(|| path.display().to_string())?;
-            for x in w {
-                write!(csv, ",{x:.4}")?;
-            }
-            writeln!(csv)?;
+        if let Some(csv) = self.csv.as_mut() {
+            csv.row(
+                index,
+                out.timestamp_us,
+                status_code,
+                label,
+                w,
+                out.pose.rotation,
+            )?;
         }
         Ok(())
     }
 
     /// Flushes the CSV; returns the summary (per target: mean and max weight over tracked frames).
     fn finish(mut self) -> anyhow::Result<WeightSummary> {
-        if let Some((path, csv)) = self.csv {
-            csv.into_inner()
-                .map_err(|e| e.into_error())
-                .with_context(|| path.display().to_string())?;
+        if let Some(csv) = self.csv {
+            csv.finish()?;
         }
         Ok(self
             .stats
