@@ -13,6 +13,7 @@ mod depth;
 mod escape;
 mod faults;
 mod fit;
+mod forward;
 mod gltf;
 mod import;
 mod info;

@@ -18,6 +18,7 @@
 //! renderer.
 
 mod catalog;
+pub mod forward;
 mod lines;
 mod queue;
 mod record;

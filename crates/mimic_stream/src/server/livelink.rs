@@ -87,6 +87,9 @@ impl LiveLink {
         } else {
             Quat::IDENTITY
         };
+        if let Some(c) = self.frame.curves.as_mut() {
+            **c = p.curves;
+        }
         self.frame
             .keep(s, morph, t_us, rotation, true, arrival)
             .await;
@@ -164,13 +167,16 @@ impl Protocol for LiveLink {
                 s.rig.name(), lacking.len(), mapping.targets.len(), lacking.join(", "));
         }
         tracing::info!(session = %s.name, id = s.id, subject = %hello.subject, peer = %hello.peer, "livelink session started");
+        let mut frame = MorphFrame::start(s, Some(hello.peer), None).await;
+        // Forwarded as they came: every curve, also those the rig lacks.
+        frame.curves = Some(Box::new([0.0; mimic_trackers::livelink::CURVES]));
         let proto = LiveLink {
             mapped: vec![0.0; mapping.targets.len()],
             mapping,
             namemap,
             routes,
             values: [0.0; BLENDSHAPES],
-            frame: MorphFrame::start(s, Some(hello.peer)).await,
+            frame,
             clock: s.clock(),
             first_us: None,
             started: Instant::now(),

@@ -8,12 +8,14 @@ use super::landmark::Recording;
 use super::session::{LineOutcome, Protocol, Session, TrackerLine, future_line, is_blank};
 use super::state::Shared;
 use crate::catalog::{MorphSet, RigEntry};
+use crate::forward::{ForwardTarget, Forwarder, Sent};
 use crate::record::{Entry, RecordKind};
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
 use crate::timing::{FrameClock, TimeProblem};
 use glam::{Quat, Vec3};
 use mimic_retarget::{FrameOutput, FrameStatus};
+use mimic_trackers::livelink::CURVES;
 use mimic_types::HeadPose;
 use mimic_wire::{ErrorCode, WeightsHello, parse_weight_frame, warning_line};
 use serde_json::{Map, Value, json};
@@ -39,15 +41,53 @@ pub(crate) struct MorphFrame {
     /// `--record-sync` with a recording: a frame is broadcast (and counted) only once it is on
     /// disk.
     durable: bool,
+    /// Live out (`--forward`, a hello's `"forward"`).
+    forward: Option<Forwarder>,
+    /// The Live Link curves of this frame as they came (forwarded as they are), if any.
+    pub(crate) curves: Option<Box<[f32; CURVES]>>,
+}
+
+/// The forwarding of session `s` (the server's `--forward` targets and `own`, the tracker's),
+/// or `None` without targets; a socket that cannot be opened is logged and forwards nothing.
+pub(crate) fn start_forwarder(
+    s: &Session,
+    own: Option<ForwardTarget>,
+    rig_names: &[String],
+) -> Option<Forwarder> {
+    let settings = &s.settings().forward;
+    let targets: Vec<ForwardTarget> = settings.targets.iter().copied().chain(own).collect();
+    match Forwarder::new(settings, &targets, rig_names, &s.name) {
+        Ok(Some(f)) => {
+            let list: Vec<String> = f.targets().map(ToString::to_string).collect();
+            tracing::info!(session = %s.name, "forwarding to {}", list.join(", "));
+            Some(f)
+        }
+        Ok(None) => None,
+        Err(e) => {
+            tracing::error!(session = %s.name, "not forwarded: {e}");
+            None
+        }
+    }
+}
+
+/// Counts what a forward did in the session's `forwarded` and `forward_dropped`.
+pub(crate) fn count_forward(s: &Session, sent: Sent) {
+    s.record.forwarded.add(sent.sent);
+    s.record.forward_dropped.add(sent.dropped);
 }
 
 impl MorphFrame {
     /// All weights zero, the rig's rest positions, no head rotation; the recording started when
     /// the server records (one column per rig morph target).
-    pub(crate) async fn start(s: &Session, peer: Option<SocketAddr>) -> Self {
+    pub(crate) async fn start(
+        s: &Session,
+        peer: Option<SocketAddr>,
+        own_forward: Option<ForwardTarget>,
+    ) -> Self {
         let k = s.rig.morph.as_ref().map_or(0, MorphSet::len);
         let names = s.rig.morph.as_ref().map_or(&[][..], |m| &m.names[..]);
         let recording = Recording::start(s, RecordKind::Weights(names), peer).await;
+        let forward = start_forwarder(s, own_forward, names);
         Self {
             weights: vec![0.0; k],
             out: FrameOutput {
@@ -64,6 +104,28 @@ impl MorphFrame {
             positions: s.rig.rig.mesh.positions.clone(),
             durable: s.settings().record_sync && recording.is_on(),
             recording,
+            forward,
+            curves: None,
+        }
+    }
+
+    /// Broadcasts ([`Self::send`]) and forwards the current frame.
+    fn publish(
+        &mut self,
+        s: &Session,
+        morph: &MorphSet,
+        t_us: i64,
+        rotation: Quat,
+        udp: bool,
+        arrival: Instant,
+    ) {
+        self.send(s, morph, t_us, rotation, udp, arrival);
+        if let Some(f) = self.forward.as_mut() {
+            let sent = match &self.curves {
+                Some(c) => f.curves(t_us, c, rotation),
+                None => f.weights(t_us, &self.weights, rotation),
+            };
+            count_forward(s, sent);
         }
     }
 
@@ -80,7 +142,7 @@ impl MorphFrame {
         arrival: Instant,
     ) {
         if !self.recording.is_on() {
-            self.send(s, morph, t_us, rotation, udp, arrival);
+            self.publish(s, morph, t_us, rotation, udp, arrival);
             return;
         }
         let entry = Entry::Weights {
@@ -89,10 +151,10 @@ impl MorphFrame {
         };
         if self.durable {
             if self.recording.frame_durable(entry).await {
-                self.send(s, morph, t_us, rotation, udp, arrival);
+                self.publish(s, morph, t_us, rotation, udp, arrival);
             }
         } else {
-            self.send(s, morph, t_us, rotation, udp, arrival);
+            self.publish(s, morph, t_us, rotation, udp, arrival);
             self.recording.frame(entry).await;
         }
     }
@@ -276,7 +338,7 @@ impl Protocol for Weights {
         });
         tracing::info!(session = %s.name, id = s.id, rig = s.rig.name(), targets = k, "weights session started");
         let weights = Weights {
-            frame: MorphFrame::start(s, hello.peer).await,
+            frame: MorphFrame::start(s, hello.peer, None).await,
             scratch: vec![0.0; k],
             clock: s.clock(),
             reported: HashSet::new(),
