@@ -136,13 +136,10 @@ fn a_weights_session_forwards_every_frame_to_vmc_and_live_link() {
             let c = curve_index(name).unwrap();
             assert_eq!(p.curves[c], want, "frame {k}, {}", CURVE_NAMES[c]);
         }
-        // Live Link: the session's name as subject, 60 fps frame times from the session clock.
+        // Live Link: the session's name as subject, 60 fps frame times from the first frame's.
         assert_eq!(p.subject, "fw");
         let t = p.time_us().unwrap();
-        assert!(
-            (t - (1000 + 16_667 * k as i64)).abs() <= 1,
-            "frame {k}: {t}"
-        );
+        assert!((t - 16_667 * k as i64).abs() <= 1, "frame {k}: {t}");
         assert_eq!(&p.curves[HEAD_YAW..HEAD_YAW + 3], &[0.0, 0.0, 0.0]);
     }
     server.stop();
@@ -214,5 +211,91 @@ fn live_link_packets_are_forwarded_to_vmc_with_vrm_names() {
             assert!((g - w).abs() <= 1e-6, "frame {i}: {:?}", f.head);
         }
     }
+    server.stop();
+}
+
+#[test]
+fn a_landmark_session_forwards_its_blendshape_fit_where_its_hello_asks() {
+    let (ll, ll_addr) = receiver();
+    let server = Serve::start(&["--rig", "ict-face", "--no-udp"]);
+    let n = 100;
+    let rx = mimic_testkit::spawn("livelink-receiver", move || {
+        let mut buf = vec![0u8; 65_536];
+        (0..n)
+            .map(|_| {
+                let len = ll.recv(&mut buf).unwrap();
+                decode_packet(&buf[..len]).unwrap()
+            })
+            .collect::<Vec<_>>()
+    });
+    let n_text = n.to_string();
+    let o = crate::mimic(&[
+        "send",
+        "recordings/a_yn_question.jsonl",
+        "--to",
+        &server.tcp,
+        "--session",
+        "lm",
+        "--forward",
+        &format!("livelink:{ll_addr}"),
+        "--max-frames",
+        &n_text,
+        "--speed",
+        "4",
+    ]);
+    let (stdout, stderr) = crate::text(&o);
+    assert!(o.status.success(), "{stdout}{stderr}");
+    let got = rx.join().unwrap();
+    let x = server.wait_for_session("lm", "the end", |x| x["active"] == false);
+    assert_eq!(x["frames"], n as u64, "{x}");
+    assert_eq!(x["forwarded"], n as u64, "{x}");
+    // The same fit offline: `mimic replay --mode blendshapes --weights` (same pipeline and fit
+    // settings, 4 decimals).
+    let tmp = tempfile::tempdir().unwrap();
+    let csv = tmp.path().join("w.csv");
+    let summary = crate::replay::replay_json(&[
+        "recordings/a_yn_question.jsonl",
+        "--rig",
+        "ict-face",
+        "--mode",
+        "blendshapes",
+        "--max-frames",
+        &n_text,
+        "--weights",
+        csv.to_str().unwrap(),
+    ]);
+    assert_eq!(summary["rejected"], 0, "{summary}");
+    let table = mimic_capture::named_csv::read_named_csv(&csv).unwrap();
+    let col = |h: &str| table.header.iter().position(|c| c == h).unwrap();
+    let jaw = curve_index("JawOpen").unwrap();
+    let t0: i64 = table.rows[0].field(col("t_us")).parse().unwrap();
+    let mut opened = 0.0f32;
+    for (k, (p, row)) in got.iter().zip(&table.rows).enumerate() {
+        let want: f32 = row.field(col("jawOpen")).parse().unwrap();
+        assert!(
+            (p.curves[jaw] - want).abs() <= 0.5e-4 + f32::EPSILON,
+            "frame {k}"
+        );
+        // Frame times from the first forwarded frame, at 60 fps (to a microsecond).
+        let t: i64 = row.field(col("t_us")).parse().unwrap();
+        assert!((p.time_us().unwrap() - (t - t0)).abs() <= 1, "frame {k}");
+        opened = opened.max(p.curves[jaw]);
+    }
+    assert_eq!(got[0].subject, "lm");
+    assert!(opened > 0.0, "the fit moves: jawOpen max {opened}");
+    // A hello may not make the server an open relay: beyond loopback, refused.
+    let mut t = connect(&server.tcp);
+    let mut r = BufReader::new(t.try_clone().unwrap());
+    t.write_all(b"{\"mode\":\"weights\",\"forward\":\"vmc:192.0.2.1:39539\"}\n")
+        .unwrap();
+    let refusal = read_json_line(&mut r);
+    assert_eq!(refusal["code"], "bad_hello", "{refusal}");
+    assert!(
+        refusal["message"]
+            .as_str()
+            .unwrap()
+            .contains("--forward-allow"),
+        "{refusal}"
+    );
     server.stop();
 }

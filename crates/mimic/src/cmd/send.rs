@@ -63,6 +63,11 @@ pub struct Args {
     /// Stop after this many frames.
     #[arg(long)]
     pub max_frames: Option<usize>,
+    /// Ask the server to forward this session's frames too (`vmc:HOST:PORT` or
+    /// `livelink:HOST:PORT`; a loopback address unless the server's `--forward-allow` lists it):
+    /// the hello's `"forward"` (docs/protocol.md).
+    #[arg(long, value_name = "KIND:ADDR")]
+    pub forward: Option<mimic_stream::forward::ForwardTarget>,
 }
 
 /// Longest reply line read from the server (its replies are short JSON lines); a longer one is
@@ -131,6 +136,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(r) = &args.rig {
         header.extra.insert("rig".into(), Value::from(r.as_str()));
+    }
+    if let Some(f) = &args.forward {
+        header
+            .extra
+            .insert("forward".into(), Value::from(f.to_string()));
     }
     if let Some(t) = crate::cmd::setup::token_or_env(args.token.as_deref()) {
         header.extra.insert("token".into(), Value::from(t));
@@ -332,6 +342,9 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
     if let Some(r) = &args.rig {
         hello["rig"] = Value::from(r.as_str());
     }
+    if let Some(f) = &args.forward {
+        hello["forward"] = Value::from(f.to_string());
+    }
     if let Some(t) = crate::cmd::setup::token_or_env(args.token.as_deref()) {
         hello["token"] = Value::from(t);
     }
@@ -412,6 +425,9 @@ fn send_take(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
     }
     if let Some(r) = &args.rig {
         hello["rig"] = Value::from(r.as_str());
+    }
+    if let Some(f) = &args.forward {
+        hello["forward"] = Value::from(f.to_string());
     }
     if let Some(t) = crate::cmd::setup::token_or_env(args.token.as_deref()) {
         hello["token"] = Value::from(t);

@@ -137,6 +137,8 @@ pub struct Forwarder {
     curves: [f32; CURVES],
     subject: String,
     buf: Vec<u8>,
+    /// The first forwarded frame's time: Live Link frame times count from it.
+    first_us: Option<i64>,
 }
 
 /// A non-blocking UDP socket to send to `addr` from (loopback for a loopback receiver).
@@ -209,6 +211,7 @@ impl Forwarder {
             curves: [0.0; CURVES],
             subject: subject.to_string(),
             buf: Vec::new(),
+            first_us: None,
         }))
     }
 
@@ -250,8 +253,10 @@ impl Forwarder {
                     vmc::encode_frame(&self.vmc_names, &self.vmc_values, head, &mut self.buf);
                 }
                 ForwardKind::LiveLink => {
-                    // 60 fps frame times from the session's clock.
-                    let frames = t_us.max(0) as f64 * 60.0 / 1e6;
+                    // 60 fps frame times from the first forwarded frame (a recording's clock
+                    // may be Unix time, past an i32 of frames).
+                    let t0 = *self.first_us.get_or_insert(t_us);
+                    let frames = t_us.saturating_sub(t0).max(0) as f64 * 60.0 / 1e6;
                     self.buf = encode_packet(&LiveLinkPacket {
                         device_id: "00000000-0000-4000-8000-6d696d696373".into(),
                         subject: self.subject.clone(),

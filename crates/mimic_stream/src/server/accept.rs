@@ -211,7 +211,7 @@ async fn connection(
             session::run::<Landmark>(shared, lines, w, hello, stop).await;
         }
         Ok(Hello::Weights(hello)) => {
-            let hello = WeightsSession { hello, peer };
+            let hello = WeightsSession::new(hello, peer);
             session::run::<Weights>(shared, lines, w, hello, stop).await;
         }
     }

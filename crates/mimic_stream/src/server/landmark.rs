@@ -6,14 +6,18 @@ use super::admission::{Admission, Refusal, find_rig};
 use super::session::{LineOutcome, Protocol, Session, TrackerLine, future_line, is_blank};
 use super::state::{Shared, lock};
 use super::udp::Route;
+use super::weights::{count_forward, own_forward, start_forwarder};
 use crate::catalog::RigEntry;
+use crate::forward::{ForwardTarget, Forwarder};
 use crate::record::{Entry, RecordCounters, RecordKind, Recorder, SessionLabel};
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
 use crate::timing::{FrameClock, TimeProblem};
 use glam::Vec3;
 use mimic_capture::{FrameProblem, RecordedFrame, RecordingHeader, parse_frame_line};
-use mimic_retarget::{FrameOutput, FrameStatus, RetargetSettings, Retargeter};
+use mimic_retarget::{
+    BlendshapeFitter, BlendshapeSettings, FrameOutput, FrameStatus, RetargetSettings, Retargeter,
+};
 use mimic_types::LandmarkFrame;
 use mimic_wire::SessionRequest;
 use serde_json::{Map, Value, json};
@@ -42,6 +46,8 @@ pub(crate) struct Admitted {
     layout: String,
     point_count: usize,
     retargeter: Retargeter,
+    /// The header's `"forward"`, checked.
+    own_forward: Option<ForwardTarget>,
 }
 
 /// What became of a frame handed to a session.
@@ -154,6 +160,8 @@ pub(crate) struct Landmark {
     /// disk.
     durable: bool,
     udp: mpsc::Receiver<(Instant, LandmarkFrame)>,
+    /// Live out: the forwarding and the blendshape fit of the rig's morph targets it sends.
+    forward: Option<Box<(Forwarder, BlendshapeFitter)>>,
 }
 
 impl Landmark {
@@ -207,6 +215,12 @@ impl Landmark {
             |d, positions| rig.deform(d, scratch, positions),
             arrival,
         );
+        if let Some(f) = self.forward.as_mut() {
+            let (forwarder, fitter) = &mut **f;
+            let w = fitter.fit(&self.out.displacements, self.out.timestamp_us);
+            let sent = forwarder.weights(self.out.timestamp_us, w, self.out.pose.rotation);
+            count_forward(s, sent);
+        }
     }
 
     /// Records a frame [`Self::accept`] judged; under `--record-sync` an accepted frame is
@@ -255,6 +269,32 @@ fn udp_key(shared: &Shared, id: u32) -> u32 {
     h.finish() as u32
 }
 
+/// A landmark session's forwarding: the blendshape fit of the rig's morph targets to its
+/// controls (`mimic_retarget::BlendshapeFitter`, default settings) feeds the forwarder; a rig
+/// without morph targets forwards nothing (logged).
+fn landmark_forward(
+    s: &Session,
+    own: Option<ForwardTarget>,
+) -> Option<Box<(Forwarder, BlendshapeFitter)>> {
+    if s.settings().forward.targets.is_empty() && own.is_none() {
+        return None;
+    }
+    let Some(morph) = s.rig.morph.as_ref() else {
+        tracing::warn!(session = %s.name, rig = s.rig.name(), "not forwarded: the rig has no [[morph_targets]] to fit weights of");
+        return None;
+    };
+    let fitter =
+        match BlendshapeFitter::new(&s.rig.rig, morph.targets(), &BlendshapeSettings::default()) {
+            Ok(f) => f,
+            Err(e) => {
+                tracing::warn!(session = %s.name, "not forwarded: {e}");
+                return None;
+            }
+        };
+    let forwarder = start_forwarder(s, own, &morph.names)?;
+    Some(Box::new((forwarder, fitter)))
+}
+
 impl Protocol for Landmark {
     type Hello = LandmarkHello;
     type Admitted = Admitted;
@@ -289,6 +329,7 @@ impl Protocol for Landmark {
         };
         let retargeter = Retargeter::new(&entry.rig, layout, entry.basis.clone(), retarget)
             .map_err(|e| Refusal::LayoutUnusable(e.to_string()))?;
+        let own_forward = own_forward(shared, header.extra.get("forward").and_then(Value::as_str))?;
         Ok(Admission {
             session: request.session,
             rig_message: entry.message.clone(),
@@ -300,6 +341,7 @@ impl Protocol for Landmark {
                 layout: layout.name.clone(),
                 point_count: layout.point_count,
                 retargeter,
+                own_forward,
             },
         })
     }
@@ -335,6 +377,7 @@ impl Protocol for Landmark {
             "max_message_bytes": settings.max_message_bytes,
         });
         tracing::info!(session = %s.name, id = s.id, rig = s.rig.name(), layout = %a.layout, "session started");
+        let forward = landmark_forward(s, a.own_forward);
         let landmark = Landmark {
             positions: s.rig.rig.mesh.positions.clone(),
             scratch: Vec::new(),
@@ -348,6 +391,7 @@ impl Protocol for Landmark {
             durable: settings.record_sync && !matches!(recording, Recording::Off),
             recording,
             udp,
+            forward,
         };
         (landmark, welcome)
     }

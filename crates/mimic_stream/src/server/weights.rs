@@ -302,6 +302,29 @@ pub(crate) struct WeightsSession {
     pub(crate) hello: WeightsHello,
     /// The tracker's address.
     pub(crate) peer: Option<SocketAddr>,
+    /// The hello's `"forward"`, once admission checked it.
+    own_forward: Option<ForwardTarget>,
+}
+
+impl WeightsSession {
+    /// A hello from `peer`.
+    pub(crate) fn new(hello: WeightsHello, peer: Option<SocketAddr>) -> Self {
+        Self {
+            hello,
+            peer,
+            own_forward: None,
+        }
+    }
+}
+
+/// A hello's `"forward"` checked against the server's rules: loopback or `--forward-allow`.
+pub(crate) fn own_forward(
+    shared: &Shared,
+    text: Option<&str>,
+) -> Result<Option<ForwardTarget>, Refusal> {
+    text.map(|t| shared.settings.forward.check_session_target(t))
+        .transpose()
+        .map_err(|e| Refusal::Forward(e.to_string()))
 }
 
 impl Protocol for Weights {
@@ -310,9 +333,13 @@ impl Protocol for Weights {
     type Event = Infallible;
     const KIND: &'static str = "weights";
 
-    fn admit(shared: &Shared, hello: WeightsSession) -> Result<Admission<WeightsSession>, Refusal> {
+    fn admit(
+        shared: &Shared,
+        mut hello: WeightsSession,
+    ) -> Result<Admission<WeightsSession>, Refusal> {
         let rig = find_rig(shared, hello.hello.request.rig.clone())?;
         let morph = morph_targets(&rig)?;
+        hello.own_forward = own_forward(shared, hello.hello.forward.as_deref())?;
         Ok(Admission {
             session: hello.hello.request.session.clone(),
             rig_message: morph.message.clone(),
@@ -338,7 +365,7 @@ impl Protocol for Weights {
         });
         tracing::info!(session = %s.name, id = s.id, rig = s.rig.name(), targets = k, "weights session started");
         let weights = Weights {
-            frame: MorphFrame::start(s, hello.peer, None).await,
+            frame: MorphFrame::start(s, hello.peer, hello.own_forward).await,
             scratch: vec![0.0; k],
             clock: s.clock(),
             reported: HashSet::new(),
