@@ -2,27 +2,24 @@
 //! rig, written as OBJ frames, one binary file or one GLB (docs/gltf.md); `--weights` writes the
 //! weights per frame (`replay/weights_out.rs`).
 
+mod sink;
 mod take;
 mod weights_out;
 
-use crate::cmd::setup::{
-    BlendshapeArgs, Mode, PipelineArgs, RigArgs, obj_frame_path, prepare_with,
-};
+use crate::cmd::setup::{BlendshapeArgs, Mode, PipelineArgs, RigArgs, prepare_with};
 use anyhow::{Context, bail};
-use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
-use mimic_assets::{FramesWriter, ObjFrames, load_morph_targets};
+use mimic_assets::load_morph_targets;
 use mimic_capture::{FileSource, Pace, RecordingReader, Replay, ReplayOptions};
-use mimic_gltf::{
-    Interpolation, Take, basis_morphs, basis_weights, head_translation, target_morphs,
-};
+use mimic_gltf::{basis_morphs, basis_weights, head_translation, target_morphs};
 use mimic_retarget::frame_metrics::{max_vertex_motion, region_motion};
 use mimic_retarget::{
     BlendshapeFitter, FrameOutput, FrameStatus, StageSamples, WeightStats, WeightSummary,
     elapsed_ns,
 };
-use mimic_types::{Mesh, MorphTarget, Region, Rig};
+use mimic_types::{MorphTarget, Region, Rig};
 use serde_json::json;
+use sink::{Sink, write_frame};
 use std::fs::File;
 use std::io::{BufWriter, IsTerminal, Write};
 use std::path::{Path, PathBuf};
@@ -106,44 +103,6 @@ impl Args {
     }
 }
 
-/// Where deformed frames go.
-enum Sink {
-    None,
-    Obj {
-        dir: PathBuf,
-        frames: ObjFrames,
-    },
-    Bin {
-        writer: FramesWriter<BufWriter<File>>,
-        path: PathBuf,
-        written: usize,
-    },
-    Glb(Box<GlbSink>),
-}
-
-/// The keys of a GLB being collected.
-struct GlbSink {
-    path: PathBuf,
-    take: Take,
-    /// Metres per rig unit.
-    scale: f32,
-    /// This frame's weights.
-    weights: Vec<f32>,
-    /// The head's last translation (metres), held over frames without one.
-    translation: Vec3,
-}
-
-impl Sink {
-    fn written(&self) -> usize {
-        match self {
-            Sink::None => 0,
-            Sink::Obj { frames, .. } => frames.written(),
-            Sink::Bin { written, .. } => *written,
-            Sink::Glb(g) => g.take.len(),
-        }
-    }
-}
-
 fn status_code(s: FrameStatus) -> u32 {
     match s {
         FrameStatus::Calibrating => 0,
@@ -183,75 +142,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     reader.expect_points(prepared.layout.point_count)?;
     let mut replay = Replay::new(FileSource::from_reader(reader), options)?;
 
-    let mut sink = match (&args.out, args.format) {
-        (None, _) => Sink::None,
-        (Some(out), OutFormat::Glb) => {
-            let path = if out
-                .extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("glb"))
-            {
-                out.clone()
-            } else {
-                out.join("take.glb")
-            };
-            if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(dir)
-                    .with_context(|| format!("creating {}", dir.display()))?;
-            }
-            let scale = mimic_gltf::metres_per_unit(&rig.units).with_context(|| {
-                format!(
-                    "rig `{}`: units `{}` have no length in metres for glTF",
-                    rig.name, rig.units
-                )
-            })?;
-            let targets = match &blend {
-                Some(b) => b.fitter.target_count(),
-                None => 3 * rig.controls.len(),
-            };
-            let interpolation = if args.step_keys {
-                Interpolation::Step
-            } else {
-                Interpolation::Linear
-            };
-            Sink::Glb(Box::new(GlbSink {
-                path,
-                take: Take::new(targets, interpolation, !args.no_pose),
-                scale,
-                weights: vec![0.0; targets],
-                translation: Vec3::ZERO,
-            }))
-        }
-        (Some(dir), format) => {
-            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-            match format {
-                OutFormat::Obj => Sink::Obj {
-                    dir: dir.clone(),
-                    frames: ObjFrames::new(
-                        dir,
-                        &args.rig.rig_path(),
-                        &rig.name,
-                        rig.mesh.triangles.len(),
-                    )?,
-                },
-                OutFormat::Glb => unreachable!("matched above"),
-                OutFormat::Bin => {
-                    let path = dir.join("frames.bin");
-                    let file = File::create(&path).with_context(|| path.display().to_string())?;
-                    let writer = FramesWriter::new(
-                        BufWriter::new(file),
-                        rig.mesh.vertex_count(),
-                        &rig.mesh.triangles,
-                        true,
-                    )?;
-                    Sink::Bin {
-                        writer,
-                        path,
-                        written: 0,
-                    }
-                }
-            }
-        }
-    };
+    let mut sink = Sink::open(&args, rig, blend.as_ref().map(|b| b.fitter.target_count()))?;
     let mut metrics = match &args.metrics {
         Some(p) => {
             let mut w = BufWriter::new(File::create(p).with_context(|| p.display().to_string())?);
@@ -507,43 +398,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 out_bytes as f64 / 1e6,
                 dir.display()
             );
-        }
-    }
-    Ok(())
-}
-
-fn write_frame(
-    sink: &mut Sink,
-    index: usize,
-    out: &FrameOutput,
-    mesh: &Mesh,
-    rig: &str,
-) -> anyhow::Result<()> {
-    match sink {
-        Sink::None | Sink::Glb(_) => {}
-        Sink::Obj { dir, frames } => {
-            let header = format!(
-                "mimic replay onto rig {rig}: frame {index}, t = {} us",
-                out.timestamp_us
-            );
-            let path = obj_frame_path(dir, index);
-            frames.write(&path, &header, &out.positions, &out.normals, mesh)?;
-        }
-        Sink::Bin {
-            writer,
-            path,
-            written,
-        } => {
-            writer
-                .write_frame(
-                    out.timestamp_us,
-                    status_code(out.status),
-                    &out.pose,
-                    &out.positions,
-                    &out.normals,
-                )
-                .with_context(|| path.display().to_string())?;
-            *written += 1;
         }
     }
     Ok(())
