@@ -20,6 +20,7 @@
 mod catalog;
 pub mod forward;
 mod lines;
+pub mod pace;
 mod queue;
 mod record;
 mod server;
