@@ -39,9 +39,24 @@ pub struct Args {
     /// morph targets through `--namemap` (docs/trackers.md).
     #[arg(long, value_name = "ADDR")]
     pub livelink: Option<SocketAddr>,
-    /// Name map for Live Link curves (default: configs/namemaps/arkit.toml).
+    /// Name map for Live Link curves (default: configs/namemaps/arkit.toml); its inverse also
+    /// reads the rig's weights back as ARKit curves for `--forward`.
     #[arg(long, value_name = "TOML")]
     pub namemap: Option<PathBuf>,
+    /// Forward every session's frames (ARKit weights and head rotation) to a VMC receiver
+    /// (`vmc:HOST:PORT`, OSC over UDP, e.g. VSeeFace's 127.0.0.1:39539) or a Live Link Face
+    /// receiver (`livelink:HOST:PORT`, e.g. Unreal's 127.0.0.1:11111); repeatable. Any address
+    /// the operator names here is used (warned about beyond loopback); docs/protocol.md.
+    #[arg(long, value_name = "KIND:ADDR")]
+    pub forward: Vec<mimic_stream::forward::ForwardTarget>,
+    /// An address besides loopback that a tracker's own `"forward"` may name (repeatable);
+    /// without it trackers may forward only to loopback addresses.
+    #[arg(long, value_name = "IP")]
+    pub forward_allow: Vec<std::net::IpAddr>,
+    /// Name map from ARKit names to the names VMC receives (e.g.
+    /// configs/namemaps/vrm.toml for VRM presets); default: ARKit's names.
+    #[arg(long, value_name = "TOML")]
+    pub forward_vmc_names: Option<PathBuf>,
     /// Maximum tracker sessions at once.
     #[arg(long, default_value_t = ServerSettings::default().max_sessions)]
     pub max_sessions: usize,
@@ -83,8 +98,11 @@ pub struct Args {
     /// between their arrivals; further ahead it is refused (`future_timestamp`).
     #[arg(long, default_value_t = ServerSettings::default().max_time_jump.as_secs_f64(), value_parser = parse_seconds)]
     pub max_time_jump: f64,
-    /// Record every landmark session's accepted frames in this folder (created if missing), one
-    /// v1 recording per session (`<session>-<id>-<peer>-<UTC time>.jsonl`), flushed per frame.
+    /// Record every session's accepted frames in this folder (created if missing), one file per
+    /// session, flushed per frame: a v1 recording for landmark sessions
+    /// (`<session>-<id>-<peer>-<UTC time>.jsonl`), a weights CSV (`t_us` and the rig's
+    /// morph-target weights, `...weights.csv`, which `mimic send --weights` reads) for weights and
+    /// Live Link sessions.
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,
     /// With --record: a frame reaches viewers (and the `frames` count) only after it is
@@ -183,6 +201,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
             None => None,
         },
+        forward: forward_settings(&args, &dirs.root)?,
         ..ServerSettings::default()
     };
     if !args.listen.ip().is_loopback() {
@@ -251,6 +270,34 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
     }
     Ok(())
+}
+
+/// `--forward`, `--forward-allow` and the name maps forwarding reads.
+fn forward_settings(
+    args: &Args,
+    root: &std::path::Path,
+) -> anyhow::Result<mimic_stream::forward::ForwardSettings> {
+    use mimic_trackers::namemap::NameMap;
+    for t in &args.forward {
+        if !t.addr.ip().is_loopback() {
+            tracing::warn!(target = %t, "--forward beyond loopback, as asked");
+        }
+    }
+    let path = args
+        .namemap
+        .clone()
+        .unwrap_or_else(|| root.join("namemaps/arkit.toml"));
+    let namemap = Arc::new(NameMap::load(&path)?);
+    let vmc_names = match &args.forward_vmc_names {
+        Some(p) => Some(Arc::new(NameMap::load(p)?)),
+        None => None,
+    };
+    Ok(mimic_stream::forward::ForwardSettings {
+        targets: args.forward.clone(),
+        allow: args.forward_allow.clone(),
+        namemap,
+        vmc_names,
+    })
 }
 
 /// A tracker's UDP socket bound at `addr` (warned about beyond loopback), for the server.

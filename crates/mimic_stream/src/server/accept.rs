@@ -8,7 +8,7 @@ use super::slots::{Slot, Slots, general_slots, keepalive};
 use super::state::{Shared, lock};
 use super::udp::udp_loop;
 use super::viewer::viewer;
-use super::weights::Weights;
+use super::weights::{Weights, WeightsSession};
 use super::{HELLO_MAX_BYTES, Server};
 use crate::lines::{Line, LineReader};
 use crate::stats::ServerStats;
@@ -211,6 +211,7 @@ async fn connection(
             session::run::<Landmark>(shared, lines, w, hello, stop).await;
         }
         Ok(Hello::Weights(hello)) => {
+            let hello = WeightsSession::new(hello, peer);
             session::run::<Weights>(shared, lines, w, hello, stop).await;
         }
     }
