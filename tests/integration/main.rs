@@ -31,6 +31,7 @@ mod seams;
 mod serve;
 mod serve_weights;
 mod slots;
+mod textured;
 mod view;
 
 use std::path::PathBuf;

@@ -5,6 +5,7 @@
 use crate::ViewError;
 use crate::client::{Event, Live};
 use crate::keys::Action;
+use crate::look::{Look, LookFor, upload_with_look};
 use crate::orbit::Orbit;
 use crate::playback::Playback;
 use crate::readout::{Readout, Status, write_title};
@@ -15,18 +16,6 @@ use mimic_solve::{Basis, build_basis};
 use mimic_types::{LandmarkFrame, Layout, Rig, SolverKind, SolverSettings};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
-
-/// How a rig is drawn: per-vertex colours and vertex ranges whose triangles are left out.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Look {
-    /// One albedo per vertex (linear RGB), or `None` for skin everywhere.
-    pub colors: Option<Vec<[f32; 3]>>,
-    /// Inclusive vertex ranges not drawn (triangles touching them are dropped).
-    pub hidden: Vec<(u32, u32)>,
-}
-
-/// The look of a live rig, from its name and vertex count (e.g. from the local configs).
-pub type LookFor = Box<dyn FnMut(&str, usize) -> Look>;
 
 /// Options shared by both sources.
 #[derive(Clone, Copy, Debug, Default)]
@@ -127,7 +116,6 @@ struct Local {
     settings: RetargetSettings,
     frames: Vec<LandmarkFrame>,
     look: Look,
-    triangles: Vec<[u32; 3]>,
     slots: [Slot; 2],
     active: usize,
     clock: Playback,
@@ -178,17 +166,6 @@ pub struct Viewer {
     quit: bool,
     /// The shown data must be refreshed even if the frame did not change (solver switched).
     dirty: bool,
-}
-
-fn visible(triangles: &[[u32; 3]], hidden: &[(u32, u32)]) -> Vec<[u32; 3]> {
-    triangles
-        .iter()
-        .filter(|t| {
-            !t.iter()
-                .any(|v| hidden.iter().any(|(a, b)| (*a..=*b).contains(v)))
-        })
-        .copied()
-        .collect()
 }
 
 fn bounds_of(points: &[Vec3]) -> (Vec3, Vec3) {
@@ -243,12 +220,10 @@ impl Viewer {
         first.ready(retargeter, setup.frames.len());
         let times: Vec<i64> = setup.frames.iter().map(|f| f.timestamp_us).collect();
         let bounds = bounds_of(&setup.rig.mesh.positions);
-        let triangles = visible(&setup.rig.mesh.triangles, &setup.look.hidden);
         let local = Local {
             clock: Playback::new(&times),
             slots: [first, Slot::new(setup.other)],
             active: 0,
-            triangles,
             rig: setup.rig,
             layout: setup.layout,
             settings: setup.settings,
@@ -438,14 +413,13 @@ impl Viewer {
                 if slot.gpu.is_none()
                     && let Some(r) = &slot.retargeter
                 {
-                    let gpu = renderer.upload_rig(
+                    let gpu = upload_with_look(
+                        renderer,
                         &l.rig.mesh.positions,
-                        &l.triangles,
+                        &l.rig.mesh.triangles,
                         Some(r.basis()),
+                        &l.look,
                     )?;
-                    if let Some(c) = &l.look.colors {
-                        renderer.set_albedo(&gpu, c)?;
-                    }
                     slot.gpu = Some(gpu);
                 }
                 let started = Instant::now();
@@ -485,11 +459,13 @@ impl Viewer {
                             let basis = Basis::from_row_major(n, msg.controls, msg.basis)
                                 .ok_or_else(|| ViewError::BadRig(name.clone()))?;
                             let look = (s.look_for)(&name, n);
-                            let triangles = visible(&msg.triangles, &look.hidden);
-                            let gpu = renderer.upload_rig(&msg.rest, &triangles, Some(&basis))?;
-                            if let Some(c) = &look.colors {
-                                renderer.set_albedo(&gpu, c)?;
-                            }
+                            let gpu = upload_with_look(
+                                renderer,
+                                &msg.rest,
+                                &msg.triangles,
+                                Some(&basis),
+                                &look,
+                            )?;
                             let (lo, hi) = bounds_of(&msg.rest);
                             self.bounds = (lo, hi);
                             self.shown_d.clear();
@@ -615,11 +591,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn hidden_ranges_drop_the_triangles_that_touch_them() {
-        let tris = [[0, 1, 2], [2, 3, 4], [5, 6, 7]];
-        assert_eq!(visible(&tris, &[(3, 3)]), vec![[0, 1, 2], [5, 6, 7]]);
-        assert_eq!(visible(&tris, &[]), tris.to_vec());
-        assert_eq!(visible(&tris, &[(0, 100)]), Vec::<[u32; 3]>::new());
+    fn bounds_span_the_points() {
         let (lo, hi) = bounds_of(&[Vec3::new(1.0, -2.0, 0.0), Vec3::new(-1.0, 3.0, 5.0)]);
         assert_eq!(
             (lo, hi),
