@@ -17,6 +17,7 @@ mod gltf;
 mod import;
 mod info;
 mod livelink;
+mod look;
 mod loopback;
 mod lost;
 mod mediapipe;
@@ -31,7 +32,6 @@ mod seams;
 mod serve;
 mod serve_weights;
 mod slots;
-mod textured;
 mod view;
 
 use std::path::PathBuf;

@@ -9,6 +9,7 @@
 
 pub mod client;
 mod error;
+pub mod expressions;
 pub mod headless;
 pub mod keys;
 pub mod latest;

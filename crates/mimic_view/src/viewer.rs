@@ -4,6 +4,7 @@
 
 use crate::ViewError;
 use crate::client::{Event, Live};
+use crate::expressions::{Expressions, extend_basis};
 use crate::keys::Action;
 use crate::look::{Look, LookFor, upload_with_look};
 use crate::orbit::Orbit;
@@ -13,7 +14,7 @@ use glam::{Mat4, Quat, Vec3};
 use mimic_render::{Deform, Renderer, RigGpu, Shading, View};
 use mimic_retarget::{FrameOutput, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
-use mimic_types::{LandmarkFrame, Layout, Rig, SolverKind, SolverSettings};
+use mimic_types::{LandmarkFrame, Layout, MorphTarget, Rig, SolverKind, SolverSettings};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -46,6 +47,8 @@ pub struct LocalSetup {
     pub frames: Vec<LandmarkFrame>,
     /// Colours and hidden parts.
     pub look: Look,
+    /// The rig's morph targets: the first nine go on the number keys (may be empty).
+    pub expressions: Vec<MorphTarget>,
 }
 
 /// Name of a solver as the title shows it.
@@ -116,6 +119,8 @@ struct Local {
     settings: RetargetSettings,
     frames: Vec<LandmarkFrame>,
     look: Look,
+    /// The morph targets on the number keys (their deltas become extra basis columns).
+    targets: Vec<MorphTarget>,
     slots: [Slot; 2],
     active: usize,
     clock: Playback,
@@ -154,6 +159,9 @@ pub struct Viewer {
     playing: bool,
     bounds: (Vec3, Vec3),
     shown_d: Vec<Vec3>,
+    /// `shown_d` and three displacements per expression on a key: what the GPU morphs.
+    drawn_d: Vec<Vec3>,
+    expressions: Expressions,
     shown_rotation: Quat,
     shown_frame: u64,
     /// When the shown data became ready (stepped, or read off the socket), until presented.
@@ -195,6 +203,8 @@ impl Viewer {
             playing: true,
             bounds,
             shown_d: Vec::new(),
+            drawn_d: Vec::new(),
+            expressions: Expressions::default(),
             shown_rotation: Quat::IDENTITY,
             shown_frame: 0,
             fresh_since: None,
@@ -220,6 +230,11 @@ impl Viewer {
         first.ready(retargeter, setup.frames.len());
         let times: Vec<i64> = setup.frames.iter().map(|f| f.timestamp_us).collect();
         let bounds = bounds_of(&setup.rig.mesh.positions);
+        let n = setup.rig.mesh.vertex_count();
+        let mut setup = setup;
+        setup.expressions.retain(|t| t.vertex_count() == n);
+        setup.expressions.truncate(crate::expressions::MAX_KEYS);
+        let names: Vec<String> = setup.expressions.iter().map(|t| t.name.clone()).collect();
         let local = Local {
             clock: Playback::new(&times),
             slots: [first, Slot::new(setup.other)],
@@ -229,13 +244,12 @@ impl Viewer {
             settings: setup.settings,
             frames: setup.frames,
             look: setup.look,
+            targets: setup.expressions,
             blocking: options.blocking_builds,
         };
-        Ok(Self::with_source(
-            Source::Local(Box::new(local)),
-            bounds,
-            options,
-        ))
+        let mut viewer = Self::with_source(Source::Local(Box::new(local)), bounds, options);
+        viewer.expressions = Expressions::new(names);
+        Ok(viewer)
     }
 
     /// A live feed from [`crate::client::connect`].
@@ -322,6 +336,13 @@ impl Viewer {
             Action::ToggleHeat => self.heat = !self.heat,
             Action::TogglePose => self.pose = !self.pose,
             Action::ResetCamera => self.orbit = Orbit::default(),
+            Action::Expression(k) => {
+                if self.expressions.toggle(k) {
+                    self.dirty = true;
+                } else {
+                    self.note = format!("no morph target on key {}", k + 1);
+                }
+            }
             Action::Quit => self.quit = true,
         }
         Ok(())
@@ -413,11 +434,13 @@ impl Viewer {
                 if slot.gpu.is_none()
                     && let Some(r) = &slot.retargeter
                 {
+                    // The expressions on the number keys: three more columns each.
+                    let extended = extend_basis(r.basis(), &l.targets);
                     let gpu = upload_with_look(
                         renderer,
                         &l.rig.mesh.positions,
                         &l.rig.mesh.triangles,
-                        Some(r.basis()),
+                        Some(extended.as_ref().unwrap_or(r.basis())),
                         &l.look,
                     )?;
                     slot.gpu = Some(gpu);
@@ -428,7 +451,9 @@ impl Viewer {
                     .retargeter
                     .as_ref()
                     .map_or(0, |r| r.basis().control_count());
+                let eased = self.expressions.advance(dt.as_secs_f32());
                 let changed = stepped
+                    || eased
                     || frame as u64 != self.shown_frame
                     || self.shown_d.len() != m
                     || self.dirty;
@@ -442,6 +467,7 @@ impl Viewer {
                     self.dirty = false;
                 }
                 self.playing = l.clock.playing();
+                self.expressions.extend_d(&self.shown_d, &mut self.drawn_d);
             }
             Source::Live(s) => {
                 while let Ok(event) = s.live.events.try_recv() {
@@ -516,6 +542,7 @@ impl Viewer {
                         self.note.clear();
                     }
                 }
+                self.expressions.extend_d(&self.shown_d, &mut self.drawn_d);
             }
         }
         Ok(())
@@ -531,7 +558,7 @@ impl Viewer {
                 (&r.gpu, (r.lo, r.hi))
             }
         };
-        if self.shown_d.len() != gpu.control_count() {
+        if self.drawn_d.len() != gpu.control_count() {
             return None;
         }
         let mut camera = self.orbit.camera(lo, hi);
@@ -551,7 +578,7 @@ impl Viewer {
         } else {
             view.model = Mat4::IDENTITY;
         }
-        Some((gpu, Deform::Controls(&self.shown_d), view))
+        Some((gpu, Deform::Controls(&self.drawn_d), view))
     }
 
     /// Records a presented frame; returns the new window title when the readout refreshed.
@@ -582,6 +609,10 @@ impl Viewer {
             note: &self.note,
         };
         write_title(&mut self.title, &status, &self.readout.shown);
+        if !self.expressions.is_empty() {
+            self.title.push_str(" | ");
+            self.title.push_str(&self.expressions.label());
+        }
         &self.title
     }
 }

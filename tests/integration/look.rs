@@ -1,8 +1,9 @@
-//! The textured ICT rig (`configs/rigs/ict-face-textured.toml`, the skin of
-//! `configs/meshes/ict-facekit-textured/`): `mimic render` against a golden image, `mimic view`
-//! headless, and `mimic rig export` checked by the Khronos validator (tools/gltf-check).
+//! How rigs look: the textured ICT rig (`configs/rigs/ict-face-textured.toml`, the skin of
+//! `configs/meshes/ict-facekit-textured/`) in `mimic render` against a golden image, in `mimic
+//! view` headless, and in `mimic rig export` checked by the Khronos validator (tools/gltf-check);
+//! and `mimic view`'s number keys blending the rig's morph targets in.
 //!
-//! Re-bless the golden with `MIMIC_BLESS=1 cargo test -p mimic --test integration textured` and
+//! Re-bless the golden with `MIMIC_BLESS=1 cargo test -p mimic --test integration look` and
 //! look at the PNG. With no adapter the GPU tests fail with the renderer's message, unless
 //! MIMIC_SKIP_GPU_TESTS is set.
 
@@ -175,4 +176,47 @@ fn the_textured_rig_exports_a_glb_with_its_texture_that_validates() {
     if crate::gltf::node_ready() {
         crate::gltf::check(&glb, None);
     }
+}
+
+#[test]
+fn number_keys_blend_the_rigs_morph_targets_in() {
+    if skip() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    // Paused on frame 0 (space at image 2), then key 1 (image 3): ICT's first morph target,
+    // jawOpen, eases in over 0.25 s, 15 images at 60 per simulated second; 40 images leave it on.
+    let run = |keys: &str| {
+        let png = dir.path().join(format!("{}.png", keys.replace(',', "_")));
+        let o = mimic(&[
+            "view",
+            "recordings/a_yn_question.jsonl",
+            "--rig",
+            "ict-face",
+            "--size",
+            "96x96",
+            "--headless-frames",
+            "40",
+            "--headless-keys",
+            keys,
+            "--headless-out",
+            png.to_str().unwrap(),
+        ]);
+        let (stdout, stderr) = text(&o);
+        assert!(o.status.success(), "{stderr}");
+        (stdout, Image::load_png(&png).unwrap())
+    };
+    let (plain_out, plain) = run("space");
+    let (open_out, open) = run("space,1");
+    assert!(plain_out.contains("keys 1-8: expressions"), "{plain_out}");
+    assert!(open_out.contains("1 jawOpen 1.00"), "{open_out}");
+    // The open jaw changes the picture (the neutral and frame 300 differ by 0.72, render.rs).
+    let change = open.mean_abs_error(&plain).unwrap();
+    assert!(change > 2.0 * MEAN_ABS_BOUND, "jawOpen barely shows: {change}");
+    // Pressed again 20 images later (r, reset camera, changes nothing here), it eases back out
+    // within the 16 images left: the picture is the plain one again.
+    let again = format!("space,1,{}1", "r,".repeat(20));
+    let (_, back) = run(&again);
+    let diff = back.mean_abs_error(&plain).unwrap();
+    assert!(diff <= MEAN_ABS_BOUND, "jawOpen did not go back out: {diff}");
 }
