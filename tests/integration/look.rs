@@ -220,3 +220,42 @@ fn number_keys_blend_the_rigs_morph_targets_in() {
     let diff = back.mean_abs_error(&plain).unwrap();
     assert!(diff <= MEAN_ABS_BOUND, "jawOpen did not go back out: {diff}");
 }
+
+#[test]
+fn a_waiting_viewer_says_what_it_waits_for_and_when_the_server_goes_away() {
+    if skip() {
+        return;
+    }
+    let server = crate::loopback::Serve::start(&["--rig", "candide3"]);
+    let view = std::process::Command::new(env!("CARGO_BIN_EXE_mimic"))
+        .args([
+            "view",
+            "--connect",
+            &server.tcp,
+            "--session",
+            "nobody",
+            "--size",
+            "64x64",
+            "--headless-frames",
+            "1",
+            "--headless-timeout",
+            "120",
+        ])
+        .current_dir(repo())
+        .env_remove("RUST_LOG")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    server.wait_for("the viewer", |s| s["viewers_active"] == 1);
+    // No session comes; the server stops (Ctrl-C's path): the viewer ends, saying why.
+    let _ = server.stop();
+    let o = view.wait_with_output().unwrap();
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    assert!(stdout.contains("mimic view: 0 images, 0 new frames"), "{stdout}");
+    assert!(
+        stdout.contains("the server closed the connection") || stdout.contains("read error"),
+        "{stdout}"
+    );
+}

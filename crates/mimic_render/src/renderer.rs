@@ -673,6 +673,16 @@ impl Renderer {
         let (w, h) = images.iter().fold((width, height), |(w, h), i| {
             (w.max(i.width).min(max), h.max(i.height).min(max))
         });
+        for image in images {
+            let want = image.width as usize * image.height as usize * 4;
+            if image.rgba.len() != want || image.width == 0 || image.height == 0 {
+                return Err(RenderError::SizeMismatch {
+                    what: "texture bytes vs width x height x 4",
+                    got: image.rgba.len(),
+                    expected: want,
+                });
+            }
+        }
         let layers = images.len().max(1) as u32;
         if layers > self.device.limits().max_texture_array_layers {
             return Err(RenderError::SizeMismatch {
@@ -991,6 +1001,31 @@ impl Renderer {
         let mut encoder = self.device.create_command_encoder(&Default::default());
         self.deform_into(rig, deform, Some(view), &mut encoder)?;
         self.draw_pass(rig, view, target, &mut encoder);
+        self.queue.submit([encoder.finish()]);
+        Ok(())
+    }
+
+    /// Clears `target` (a view like [`Renderer::draw_to`]'s) to the lit view's background and
+    /// submits: what a window shows while it has nothing to draw.
+    pub fn clear_to(&self, target: &wgpu::TextureView) -> Result<(), RenderError> {
+        let [r, g, b, a] = View::lit(Camera::front(Vec3::ZERO, Vec3::ONE)).background;
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("clear"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: target,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
         self.queue.submit([encoder.finish()]);
         Ok(())
     }

@@ -270,6 +270,20 @@ impl Viewer {
         v
     }
 
+    /// The waiting note with the server's address: `waiting for session X on ADDR`.
+    pub fn with_address(mut self, addr: &str) -> Self {
+        if let Source::Live(s) = &self.source {
+            self.note = format!("waiting for session {} on {addr}", s.session);
+        }
+        self
+    }
+
+    /// True while there is nothing to draw: a live viewer before its session's rig came (or
+    /// after its connection closed). The window redraws slowly then.
+    pub fn idle(&self) -> bool {
+        matches!(&self.source, Source::Live(s) if s.rig.is_none() || s.closed)
+    }
+
     /// True once the user asked to quit.
     pub fn should_quit(&self) -> bool {
         self.quit

@@ -111,7 +111,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     _ => Look::default(),
                 }
             });
-            Viewer::live(live, &args.session, look_for, options)
+            Viewer::live(live, &args.session, look_for, options).with_address(addr)
         }
         None => {
             let Some(recording) = &args.recording else {
