@@ -4,11 +4,16 @@
 //! every node) is read with its node's world transform applied; vertices are numbered in that
 //! order (nodes in scene order, primitives in mesh order), which is what landmark files for a
 //! glTF mesh count. Data URIs are not read.
+//!
+//! [`load_gltf_look`] also reads what the look needs: `TEXCOORD_0` (as the mesh's UVs, OBJ
+//! convention), each primitive's material (`baseColorFactor`) and its `baseColorTexture` image
+//! (from a buffer view or a file beside the glTF), which [`write_obj_copy`] writes out as an OBJ
+//! with `vt`, an MTL with `Kd` and `map_Kd`, and the image files: the rig's mesh.
 
 use crate::RigNewError;
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 use mimic_types::{FileKind, Mesh};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Size cap of glTF and GLB files and of the buffers they name.
 pub const GLTF_FILE: FileKind = FileKind {
@@ -33,7 +38,7 @@ pub fn is_gltf(path: &Path) -> bool {
 /// One material of a glTF mesh, as the rig's MTL will hold it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct GltfLookMaterial {
-    /// Name (the glTF material's, or `material_K`; `default` for primitives without one).
+    /// Name: `material_K` for glTF material K, `default` for primitives without one.
     pub name: String,
     /// `baseColorFactor`'s RGB (linear).
     pub diffuse: [f32; 3],
@@ -168,13 +173,8 @@ pub fn load_gltf_look(path: &Path) -> Result<(Mesh, GltfLook), RigNewError> {
                         None => None,
                     };
                     let [r, g, b, _] = material.pbr_metallic_roughness().base_color_factor();
-                    let name = match (key, material.name()) {
-                        (None, _) => "default".to_string(),
-                        (Some(_), Some(n)) if !n.trim().is_empty() => {
-                            n.split_whitespace().collect::<Vec<_>>().join("_")
-                        }
-                        (Some(k), _) => format!("material_{k}"),
-                    };
+                    // The gltf crate reads names only with its `names` feature: by index.
+                    let name = key.map_or_else(|| "default".to_string(), |k| format!("material_{k}"));
                     look.materials.push(GltfLookMaterial {
                         name,
                         diffuse: [r, g, b],
@@ -446,7 +446,7 @@ mod tests {
         std::fs::write(&glb, bytes).unwrap();
         let (mesh, look) = load_gltf_look(&glb).unwrap();
         assert_eq!(look.materials.len(), 1);
-        assert_eq!(look.materials[0].name, "Skin_Mat");
+        assert_eq!(look.materials[0].name, "material_0");
         assert_eq!(look.materials[0].diffuse, [1.0, 0.5, 0.25]);
         assert_eq!(look.images, vec![("texture0.png".to_string(), png.clone())]);
         let obj = write_obj_copy(d, "quad", &mesh, &look, "test").unwrap();

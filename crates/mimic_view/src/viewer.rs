@@ -219,7 +219,7 @@ impl Viewer {
     }
 
     /// A local replay of `setup.frames` at their recorded pace.
-    pub fn local(setup: LocalSetup, options: Options) -> Result<Self, ViewError> {
+    pub fn local(mut setup: LocalSetup, options: Options) -> Result<Self, ViewError> {
         if setup.frames.is_empty() {
             return Err(ViewError::NoFrames);
         }
@@ -231,7 +231,6 @@ impl Viewer {
         let times: Vec<i64> = setup.frames.iter().map(|f| f.timestamp_us).collect();
         let bounds = bounds_of(&setup.rig.mesh.positions);
         let n = setup.rig.mesh.vertex_count();
-        let mut setup = setup;
         setup.expressions.retain(|t| t.vertex_count() == n);
         setup.expressions.truncate(crate::expressions::MAX_KEYS);
         let names: Vec<String> = setup.expressions.iter().map(|t| t.name.clone()).collect();
