@@ -68,9 +68,15 @@ fn the_textured_rig_renders_its_skin_and_matches_the_golden_image() {
     // bound, and the lips are coloured (the untextured head has none of their colour).
     let plain = render_neutral("ict-face");
     let change = textured.mean_abs_error(&plain).unwrap();
-    assert!(change > 2.0 * MEAN_ABS_BOUND, "texture barely shows: {change}");
+    assert!(
+        change > 2.0 * MEAN_ABS_BOUND,
+        "texture barely shows: {change}"
+    );
     let (lips, none) = (lip_pixels(&textured), lip_pixels(&plain));
-    assert!(lips > 100 && none < lips / 10, "lip pixels {lips} vs {none}");
+    assert!(
+        lips > 100 && none < lips / 10,
+        "lip pixels {lips} vs {none}"
+    );
 }
 
 #[test]
@@ -123,7 +129,10 @@ fn the_textured_rig_is_the_ict_rig_but_for_its_name_and_texture() {
     let mut look = look;
     look.remove("textures");
     b.insert("look".into(), toml::Value::Table(look));
-    assert_eq!(a, b, "ict-face-textured.toml must stay a copy of ict-face.toml");
+    assert_eq!(
+        a, b,
+        "ict-face-textured.toml must stay a copy of ict-face.toml"
+    );
     // The shipped texture is small.
     let png = repo().join("configs/meshes/ict-facekit-textured/skin.png");
     assert!(std::fs::metadata(png).unwrap().len() <= 256 * 1024);
@@ -164,7 +173,10 @@ fn the_textured_rig_exports_a_glb_with_its_texture_that_validates() {
         view["byteLength"].as_u64().unwrap() as usize,
     );
     let png = std::fs::read(repo().join("configs/meshes/ict-facekit-textured/skin.png")).unwrap();
-    assert!(bin[off..off + len] == png[..], "the embedded image is not skin.png");
+    assert!(
+        bin[off..off + len] == png[..],
+        "the embedded image is not skin.png"
+    );
     // Untextured materials have no texture.
     let teeth = json["materials"]
         .as_array()
@@ -212,13 +224,19 @@ fn number_keys_blend_the_rigs_morph_targets_in() {
     assert!(open_out.contains("1 jawOpen 1.00"), "{open_out}");
     // The open jaw changes the picture (the neutral and frame 300 differ by 0.72, render.rs).
     let change = open.mean_abs_error(&plain).unwrap();
-    assert!(change > 2.0 * MEAN_ABS_BOUND, "jawOpen barely shows: {change}");
+    assert!(
+        change > 2.0 * MEAN_ABS_BOUND,
+        "jawOpen barely shows: {change}"
+    );
     // Pressed again 20 images later (r, reset camera, changes nothing here), it eases back out
     // within the 16 images left: the picture is the plain one again.
     let again = format!("space,1,{}1", "r,".repeat(20));
     let (_, back) = run(&again);
     let diff = back.mean_abs_error(&plain).unwrap();
-    assert!(diff <= MEAN_ABS_BOUND, "jawOpen did not go back out: {diff}");
+    assert!(
+        diff <= MEAN_ABS_BOUND,
+        "jawOpen did not go back out: {diff}"
+    );
 }
 
 #[test]
@@ -253,7 +271,10 @@ fn a_waiting_viewer_says_what_it_waits_for_and_when_the_server_goes_away() {
     let o = view.wait_with_output().unwrap();
     let (stdout, stderr) = text(&o);
     assert!(o.status.success(), "{stderr}");
-    assert!(stdout.contains("mimic view: 0 images, 0 new frames"), "{stdout}");
+    assert!(
+        stdout.contains("mimic view: 0 images, 0 new frames"),
+        "{stdout}"
+    );
     assert!(
         stdout.contains("the server closed the connection") || stdout.contains("read error"),
         "{stdout}"

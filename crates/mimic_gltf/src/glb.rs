@@ -285,7 +285,10 @@ pub fn write_glb(scene: &Scene<'_>, w: &mut impl Write) -> Result<GlbSummary, Gl
                 v["alphaMode"] = json!("BLEND");
             }
             // A texture needs texture coordinates: without them the material keeps its colour.
-            if let Some(t) = m.texture.filter(|t| *t < mesh.textures.len() && !split.uvs.is_empty()) {
+            if let Some(t) = m
+                .texture
+                .filter(|t| *t < mesh.textures.len() && !split.uvs.is_empty())
+            {
                 v["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": t, "texCoord": 0});
             }
             v

@@ -2,9 +2,9 @@
 
 use crate::texture::Level;
 use crate::{Camera, Image, RenderError};
-use mimic_types::{MeshTextures, TextureImage};
 use glam::{Mat4, Quat, Vec3};
 use mimic_solve::Basis;
+use mimic_types::{MeshTextures, TextureImage};
 use std::sync::mpsc;
 use wgpu::util::DeviceExt;
 

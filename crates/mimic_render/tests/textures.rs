@@ -136,7 +136,11 @@ fn a_textured_square_shows_its_quadrants_upright() {
     {
         let got = at(fx, fy);
         for (g, w) in got.iter().zip(QUADRANTS[q]) {
-            assert!(g.abs_diff(w) <= 1, "quadrant {q}: got {got:?}, want {:?}", QUADRANTS[q]);
+            assert!(
+                g.abs_diff(w) <= 1,
+                "quadrant {q}: got {got:?}, want {:?}",
+                QUADRANTS[q]
+            );
         }
     }
 
@@ -158,10 +162,21 @@ fn a_textured_square_shows_its_quadrants_upright() {
     let k = (((y0 + (y1 - y0) / 10) * size + x0 + (x1 - x0) * 9 / 10) * 4) as usize;
     let skin: Vec<u8> = mimic_render::SKIN_ALBEDO
         .iter()
-        .map(|c| (if *c <= 0.003_130_8 { c * 12.92 } else { 1.055 * c.powf(1.0 / 2.4) - 0.055 } * 255.0).round() as u8)
+        .map(|c| {
+            (if *c <= 0.003_130_8 {
+                c * 12.92
+            } else {
+                1.055 * c.powf(1.0 / 2.4) - 0.055
+            } * 255.0)
+                .round() as u8
+        })
         .collect();
     for (g, w) in img.rgba[k..k + 3].iter().zip(&skin) {
-        assert!(g.abs_diff(*w) <= 1, "untextured corner: {:?} vs skin {skin:?}", &img.rgba[k..k + 3]);
+        assert!(
+            g.abs_diff(*w) <= 1,
+            "untextured corner: {:?} vs skin {skin:?}",
+            &img.rgba[k..k + 3]
+        );
     }
 
     // Wrong sizes are refused.

@@ -174,7 +174,8 @@ pub fn load_gltf_look(path: &Path) -> Result<(Mesh, GltfLook), RigNewError> {
                     };
                     let [r, g, b, _] = material.pbr_metallic_roughness().base_color_factor();
                     // The gltf crate reads names only with its `names` feature: by index.
-                    let name = key.map_or_else(|| "default".to_string(), |k| format!("material_{k}"));
+                    let name =
+                        key.map_or_else(|| "default".to_string(), |k| format!("material_{k}"));
                     look.materials.push(GltfLookMaterial {
                         name,
                         diffuse: [r, g, b],
@@ -461,13 +462,17 @@ mod tests {
         )
         .unwrap();
         let back = mimic_assets::load_obj(&obj).unwrap();
-        let tex = mimic_assets::load_rig_textures(&rig, &back).unwrap().unwrap();
+        let tex = mimic_assets::load_rig_textures(&rig, &back)
+            .unwrap()
+            .unwrap();
         assert_eq!(tex.textures[0].encoded, png);
         for (t, uvt) in uv_triangles.iter().enumerate() {
             let got = tex.triangles[t].unwrap().uv;
             for k in 0..3 {
                 let want = uvs[uvt[k] as usize];
-                assert!((got[k][0] - want.x).abs() < 1e-6 && (got[k][1] - (1.0 - want.y)).abs() < 1e-6);
+                assert!(
+                    (got[k][0] - want.x).abs() < 1e-6 && (got[k][1] - (1.0 - want.y)).abs() < 1e-6
+                );
             }
         }
     }

@@ -84,7 +84,11 @@ impl Expressions {
         out.extend_from_slice(d);
         for k in 0..self.len() {
             let w = self.eased(k);
-            out.extend([Vec3::new(w, 0.0, 0.0), Vec3::new(0.0, w, 0.0), Vec3::new(0.0, 0.0, w)]);
+            out.extend([
+                Vec3::new(w, 0.0, 0.0),
+                Vec3::new(0.0, w, 0.0),
+                Vec3::new(0.0, 0.0, w),
+            ]);
         }
     }
 
