@@ -18,6 +18,7 @@ mod gltf;
 mod import;
 mod info;
 mod livelink;
+mod look;
 mod loopback;
 mod lost;
 mod mediapipe;

@@ -16,6 +16,7 @@ mod camera;
 mod error;
 mod image;
 mod renderer;
+mod texture;
 
 pub use camera::Camera;
 pub use error::RenderError;

@@ -22,7 +22,9 @@ pub use fdp::{Fdp, FdpError};
 pub use frame::LandmarkFrame;
 pub use layout::{Layout, LayoutControl, LayoutError};
 pub use limits::{FileKind, ReadError, SettingError};
-pub use look::{Eyeball, RigLook};
+pub use look::{
+    Eyeball, MAX_TEXTURE_SIDE, MeshTextures, RigLook, TEXTURE_FILE, TextureImage, TriangleTexture,
+};
 pub use mesh::{Mesh, MeshError};
 pub use morph::MorphTarget;
 pub use pose::HeadPose;

@@ -70,20 +70,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .output
             .file_stem()
             .map_or_else(|| "rig".into(), |s| s.to_string_lossy().into_owned());
-        let obj = out_dir.join(format!("{stem}.mesh.obj"));
-        let mut w = std::io::BufWriter::new(
-            std::fs::File::create(&obj).with_context(|| obj.display().to_string())?,
-        );
-        mimic_assets::write_obj(
-            &mut w,
-            &format!("from {} by mimic rig new", args.mesh.display()),
-            &mesh.positions,
-            None,
-            &mesh.triangles,
-        )
-        .with_context(|| obj.display().to_string())?;
-        std::io::Write::flush(&mut w).with_context(|| obj.display().to_string())?;
-        obj
+        // The OBJ copy keeps the glTF's UVs, materials and base colour textures (MTL map_Kd).
+        let (_, look) = mimic_rig::gltf_mesh::load_gltf_look(&args.mesh)?;
+        let header = format!("from {} by mimic rig new", args.mesh.display());
+        mimic_rig::gltf_mesh::write_obj_copy(&out_dir, &stem, &mesh, &look, &header)
+            .with_context(|| format!("writing {stem}.mesh.obj in {}", out_dir.display()))?
     } else {
         args.mesh.clone()
     };

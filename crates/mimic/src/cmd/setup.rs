@@ -494,7 +494,7 @@ pub fn parse_hidden(
     }
 }
 
-/// Colours and hidden parts of the rig `rig_args` names, as its `[look]` says (`hide` and
+/// Colours, textures and hidden parts of the rig `rig_args` names, as its `[look]` says (`hide` and
 /// `materials` as `--hide` and not `--no-materials` give them).
 pub fn rig_look(
     rig_args: &RigArgs,
@@ -504,15 +504,19 @@ pub fn rig_look(
 ) -> anyhow::Result<mimic_view::Look> {
     let path = rig_args.rig_path();
     let look = mimic_assets::load_rig_look(&path)?;
-    let colors = if materials {
+    let (colors, textures) = if materials {
         let (p, t) = (&rig.mesh.positions, &rig.mesh.triangles);
-        mimic_assets::look_colors(&path, &look, p, t, mimic_render::SKIN_ALBEDO)?
+        (
+            mimic_assets::look_colors(&path, &look, p, t, mimic_render::SKIN_ALBEDO)?,
+            mimic_assets::load_rig_textures(&path, &rig.mesh)?,
+        )
     } else {
-        None
+        (None, None)
     };
     Ok(mimic_view::Look {
         colors,
         hidden: parse_hidden(hide, &look)?,
+        textures,
     })
 }
 
