@@ -30,6 +30,6 @@ mod timing;
 pub use mimic_wire as wire;
 
 pub use catalog::{Catalog, CatalogError, MorphSet, RigEntry};
-pub use server::{HELLO_MAX_BYTES, Server};
+pub use server::{HELLO_MAX_BYTES, HttpSettings, Server};
 pub use settings::{BindError, DEFAULT_LISTEN, LiveLinkIntake, ServerSettings, check_bind};
 pub use stats::{LatencyHistogram, LatencySummary, ServerStats, SessionSnapshot, ViewerSnapshot};
