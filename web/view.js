@@ -29,6 +29,7 @@ const state = {
   mode: null,
   framesReceived: 0,
   framesShown: 0,
+  pending: false,
   lastSeq: -1,
   missed: 0,
   status: '-',
@@ -97,6 +98,22 @@ function frame(box) {
   camera.updateProjectionMatrix();
 }
 
+/**
+ * The box of the rest mesh, every vertex (as `mimic render` frames the rig's whole mesh). Not
+ * `Box3.setFromObject`: three.js grows a geometry's box by its morph targets' full deltas, and
+ * a basis column's deltas are weights per metre of control motion, not positions.
+ */
+function restBox(root) {
+  const box = new THREE.Box3();
+  const p = new THREE.Vector3();
+  root.traverse((o) => {
+    const pos = o.isMesh ? o.geometry.attributes.position : null;
+    if (!pos) return;
+    for (let i = 0; i < pos.count; i++) box.expandByPoint(p.fromBufferAttribute(pos, i).applyMatrix4(o.matrixWorld));
+  });
+  return box;
+}
+
 let model = null; // { root, head, meshes, key }
 let pending = null; // the newest frame not yet shown
 let loading = null;
@@ -116,12 +133,20 @@ async function loadRig(info) {
   const root = gltf.scene;
   const meshes = [];
   root.traverse((o) => {
-    if (o.isMesh && o.morphTargetInfluences) meshes.push(o);
+    if (!o.isMesh) return;
+    // Parts the rig's look hides are written fully transparent: not drawn at all (each drawn
+    // primitive holds its own copy of the morph targets on the GPU).
+    const mats = Array.isArray(o.material) ? o.material : [o.material];
+    if (mats.every((m) => m.transparent && m.opacity === 0)) {
+      o.visible = false;
+      return;
+    }
+    if (o.morphTargetInfluences) meshes.push(o);
   });
   const head = root.getObjectByName('head') ?? root;
   scene.add(root);
   root.updateMatrixWorld(true);
-  frame(new THREE.Box3().setFromObject(root));
+  frame(restBox(root));
   model = { root, head, meshes, key };
   message.textContent = '';
 }
@@ -171,6 +196,7 @@ function onFrame(buf) {
   state.gated = f.gated;
   state.lastSeq = f.seq;
   pending = f; // only the newest frame is kept
+  state.pending = true;
 }
 
 // Clock offset (server - browser), NTP-style from the clock replies: the sample with the
@@ -266,6 +292,7 @@ function tick() {
   renderer.render(scene, camera);
   if (shown) {
     pending = null;
+    state.pending = false;
     state.framesShown++;
     // Tracker arrival (server clock) to this render (browser clock, moved onto the server's).
     if (state.clockOffsetMs !== null) {

@@ -85,7 +85,7 @@ fn http_request(addr: &str, request: &str) -> (u16, Vec<u8>) {
             break;
         }
         all.extend_from_slice(&buf[..n]);
-        if all.starts_with(b"HTTP/1.1 101") && all.windows(4).any(|w| w == b"\r\n\r\n") {
+        if complete(&all) {
             break;
         }
     }
@@ -100,6 +100,22 @@ fn http_request(addr: &str, request: &str) -> (u16, Vec<u8>) {
         body = unchunk(&body);
     }
     (status, body)
+}
+
+/// Whether `all` holds a whole response: a 101 head (the connection stays open), or a head
+/// with a `Content-Length` and that many body bytes (a kept-alive connection does not close).
+fn complete(all: &[u8]) -> bool {
+    let Some(end) = all.windows(4).position(|w| w == b"\r\n\r\n") else {
+        return false;
+    };
+    if all.starts_with(b"HTTP/1.1 101") {
+        return true;
+    }
+    let head = String::from_utf8_lossy(&all[..end]).to_ascii_lowercase();
+    head.lines()
+        .find_map(|l| l.strip_prefix("content-length:"))
+        .and_then(|v| v.trim().parse::<usize>().ok())
+        .is_some_and(|len| all.len() >= end + 4 + len)
 }
 
 /// A chunked body, joined.

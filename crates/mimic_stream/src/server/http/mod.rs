@@ -18,6 +18,7 @@ use super::state::{Shared, lock};
 use axum::Router;
 use axum::body::Bytes;
 use axum::extract::ws::WebSocketUpgrade;
+use axum::extract::ws::rejection::WebSocketUpgradeRejection;
 use axum::extract::{Path, RawQuery, State};
 use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
@@ -269,12 +270,17 @@ async fn ws_upgrade(
     State(app): AppState,
     Path(session): Path<String>,
     RawQuery(q): RawQuery,
-    upgrade: WebSocketUpgrade,
+    upgrade: Result<WebSocketUpgrade, WebSocketUpgradeRejection>,
 ) -> Response {
+    // The token first: a request without it learns nothing else.
     if !authorized(&app, q.as_deref()) {
         app.shared.refused.bump();
         return unauthorized();
     }
+    let upgrade = match upgrade {
+        Ok(u) => u,
+        Err(rejection) => return rejection.into_response(),
+    };
     if !mimic_wire::valid_session_name(&session) {
         return text(
             StatusCode::NOT_FOUND,
