@@ -23,7 +23,14 @@ struct WebServe {
 impl WebServe {
     fn start(args: &[&str]) -> WebServe {
         let mut child = Command::new(env!("CARGO_BIN_EXE_mimic"))
-            .args(["serve", "--rig", "ict-face", "--listen", "127.0.0.1:0", "--no-udp"])
+            .args([
+                "serve",
+                "--rig",
+                "ict-face",
+                "--listen",
+                "127.0.0.1:0",
+                "--no-udp",
+            ])
             .args(["--http", "127.0.0.1:0"])
             .args(args)
             .current_dir(repo())
@@ -69,7 +76,10 @@ impl Drop for WebServe {
 /// One HTTP/1.1 GET with `Connection: close`: (status, body). Generous timeouts: they only
 /// guard hangs.
 fn http_get(addr: &str, path: &str) -> (u16, Vec<u8>) {
-    http_request(addr, &format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"))
+    http_request(
+        addr,
+        &format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"),
+    )
 }
 
 fn http_request(addr: &str, request: &str) -> (u16, Vec<u8>) {
@@ -96,7 +106,10 @@ fn http_request(addr: &str, request: &str) -> (u16, Vec<u8>) {
     let head = String::from_utf8_lossy(&all[..head_end]).into_owned();
     let status: u16 = head.split_whitespace().nth(1).unwrap().parse().unwrap();
     let mut body = all[head_end + 4..].to_vec();
-    if head.to_ascii_lowercase().contains("transfer-encoding: chunked") {
+    if head
+        .to_ascii_lowercase()
+        .contains("transfer-encoding: chunked")
+    {
         body = unchunk(&body);
     }
     (status, body)
@@ -122,7 +135,8 @@ fn complete(all: &[u8]) -> bool {
 fn unchunk(mut b: &[u8]) -> Vec<u8> {
     let mut out = Vec::new();
     while let Some(eol) = b.windows(2).position(|w| w == b"\r\n") {
-        let size = usize::from_str_radix(std::str::from_utf8(&b[..eol]).unwrap().trim(), 16).unwrap();
+        let size =
+            usize::from_str_radix(std::str::from_utf8(&b[..eol]).unwrap().trim(), 16).unwrap();
         if size == 0 {
             break;
         }
@@ -173,7 +187,10 @@ fn wait_live(serve: &WebServe, name: &str, query: &str) -> Value {
         if let Some(s) = s {
             return s;
         }
-        assert!(Instant::now() < deadline, "session {name} never went live: {v}");
+        assert!(
+            Instant::now() < deadline,
+            "session {name} never went live: {v}"
+        );
         std::thread::sleep(Duration::from_millis(50));
     }
 }
@@ -182,7 +199,9 @@ fn wait_live(serve: &WebServe, name: &str, query: &str) -> Value {
 fn chromium_ready() -> bool {
     let chromium = std::env::var("MIMIC_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
     if !Path::new(&chromium).exists() {
-        println!("SKIPPED: no Chromium at {chromium} (Debian: apt-get install chromium chromium-driver)");
+        println!(
+            "SKIPPED: no Chromium at {chromium} (Debian: apt-get install chromium chromium-driver)"
+        );
         return false;
     }
     match Command::new("node").arg("--version").output() {
@@ -199,7 +218,11 @@ fn chromium_ready() -> bool {
             .current_dir(&tools)
             .output()
             .expect("run npm ci in tools/browser-check");
-        assert!(o.status.success(), "npm ci in tools/browser-check failed: {:?}", text(&o));
+        assert!(
+            o.status.success(),
+            "npm ci in tools/browser-check failed: {:?}",
+            text(&o)
+        );
     }
     true
 }
@@ -210,7 +233,12 @@ fn the_page_draws_the_live_face_and_it_moves() {
         return;
     }
     let serve = WebServe::start(&[]);
-    let _send = Sender::start("recordings/a_yn_question.kinect121.jsonl", &serve.tcp, "web", &["--loop"]);
+    let _send = Sender::start(
+        "recordings/a_yn_question.kinect121.jsonl",
+        &serve.tcp,
+        "web",
+        &["--loop"],
+    );
     wait_live(&serve, "web", "");
     let out = tempfile::tempdir().unwrap();
     let url = format!("http://{}/view/web", serve.http);
@@ -239,7 +267,12 @@ fn the_page_draws_the_live_face_and_it_moves() {
     assert_eq!(state["errors"], serde_json::json!([]), "{state}");
     let readout = report["readout"].as_str().unwrap();
     let frames_line = readout.lines().find(|l| l.starts_with("frames ")).unwrap();
-    let shown: u64 = frames_line.split_whitespace().nth(1).unwrap().parse().unwrap();
+    let shown: u64 = frames_line
+        .split_whitespace()
+        .nth(1)
+        .unwrap()
+        .parse()
+        .unwrap();
     assert!(shown > 0, "{readout}");
 
     // The face is drawn: the head framed by the page's camera fills a good part of the picture
@@ -249,7 +282,11 @@ fn the_page_draws_the_live_face_and_it_moves() {
     let n = px["pixels"].as_f64().unwrap();
     for drawn in px["drawn"].as_array().unwrap() {
         let share = drawn.as_f64().unwrap() / n;
-        assert!(share > 0.05, "only {:.1}% of the pixels differ from the background: {px}", share * 100.0);
+        assert!(
+            share > 0.05,
+            "only {:.1}% of the pixels differ from the background: {px}",
+            share * 100.0
+        );
     }
     // It moves: the shots are 20 or more frames apart (2/3 s of a yes/no question, head nods and
     // brows). SwiftShader draws the same scene to the same pixels, so a still face would change
@@ -264,7 +301,10 @@ fn the_page_draws_the_live_face_and_it_moves() {
     assert!(seqs[1] >= seqs[0] + 20, "{seqs:?}");
     let face = px["drawn"][0].as_f64().unwrap();
     let changed = px["changed"].as_f64().unwrap();
-    assert!(changed > 0.001 * face, "only {changed} pixels changed between the shots: {px}");
+    assert!(
+        changed > 0.001 * face,
+        "only {changed} pixels changed between the shots: {px}"
+    );
 
     // The WebSocket viewer was counted in the stats like a TCP viewer.
     let (status, body) = serve.get("/stats");
@@ -292,7 +332,14 @@ fn http_routes_serve_the_page_the_glb_and_want_the_token() {
     );
     wait_live(&serve, "tok", q);
     // Without the token (or with another) every route but /static/ answers 401.
-    for path in ["/", "/sessions", "/view/tok", "/rig/tok.glb", "/stats", "/ws/tok"] {
+    for path in [
+        "/",
+        "/sessions",
+        "/view/tok",
+        "/rig/tok.glb",
+        "/stats",
+        "/ws/tok",
+    ] {
         assert_eq!(serve.get(path).0, 401, "{path}");
         assert_eq!(serve.get(&format!("{path}?token=s3cret")).0, 401, "{path}");
     }
@@ -310,7 +357,9 @@ fn http_routes_serve_the_page_the_glb_and_want_the_token() {
     assert_eq!(total, glb.len());
     let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
     let gltf: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
-    let names = gltf["meshes"][0]["extras"]["targetNames"].as_array().unwrap();
+    let names = gltf["meshes"][0]["extras"]["targetNames"]
+        .as_array()
+        .unwrap();
     assert_eq!(names.len(), 114);
     assert_eq!(serve.get(&format!("/rig/nosuch.glb{q}")).0, 404);
     // The WebSocket handshake with the token switches protocols.

@@ -190,7 +190,9 @@ impl Session {
             // Weights sessions (TCP and Live Link) carry the layout `weights`.
             let weights = self.record.layout == "weights";
             let gated = self.record.gated.get();
-            Arc::new(super::http::encode_web_frame(seq, out, arrival, gated, weights))
+            Arc::new(super::http::encode_web_frame(
+                seq, out, arrival, gated, weights,
+            ))
         });
         let p_message = want_positions.then(|| {
             fill(&out.displacements, positions);

@@ -21,7 +21,11 @@ const FILES: &[(&str, &str, &[u8])] = &[
         JS,
         web!("vendor/three/three.module.js"),
     ),
-    ("three/three.core.js", JS, web!("vendor/three/three.core.js")),
+    (
+        "three/three.core.js",
+        JS,
+        web!("vendor/three/three.core.js"),
+    ),
     (
         "three/addons/loaders/GLTFLoader.js",
         JS,
@@ -64,9 +68,16 @@ mod tests {
         let page = std::str::from_utf8(page).unwrap();
         // The import map points `three` at the embedded module, which imports the core by a
         // relative path that is embedded too.
-        assert!(page.contains("\"three\": \"/static/three/three.module.js\""), "{page}");
+        assert!(
+            page.contains("\"three\": \"/static/three/three.module.js\""),
+            "{page}"
+        );
         let (_, module) = asset("three/three.module.js").unwrap();
-        assert!(std::str::from_utf8(module).unwrap().contains("from './three.core.js'"));
+        assert!(
+            std::str::from_utf8(module)
+                .unwrap()
+                .contains("from './three.core.js'")
+        );
         assert!(asset("three/three.core.js").is_some());
         assert!(asset("../Cargo.toml").is_none());
     }

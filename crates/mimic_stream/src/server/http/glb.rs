@@ -51,7 +51,12 @@ impl GlbCache {
                     .unwrap_or_else(|e| Err(format!("building the GLB failed: {e}")));
                 if let Ok(b) = &r {
                     let ms = started.elapsed().as_secs_f64() * 1e3;
-                    tracing::info!(bytes = b.len(), ms, weights, "GLB built for the browser viewer");
+                    tracing::info!(
+                        bytes = b.len(),
+                        ms,
+                        weights,
+                        "GLB built for the browser viewer"
+                    );
                 }
                 r
             })

@@ -80,25 +80,21 @@ impl Server {
 /// The `token` parameter of a query string, percent-decoded (`+` as a space).
 fn query_token(query: Option<&str>) -> Option<String> {
     let q = query?;
-    let raw = q
-        .split('&')
-        .find_map(|kv| kv.strip_prefix("token="))?;
+    let raw = q.split('&').find_map(|kv| kv.strip_prefix("token="))?;
     let b = raw.as_bytes();
     let mut out = Vec::with_capacity(b.len());
     let mut k = 0;
     while k < b.len() {
         let hex = |c: u8| (c as char).to_digit(16);
         match b[k] {
-            b'%' if k + 2 < b.len() => {
-                match (hex(b[k + 1]), hex(b[k + 2])) {
-                    (Some(h), Some(l)) => {
-                        out.push((h * 16 + l) as u8);
-                        k += 3;
-                        continue;
-                    }
-                    _ => out.push(b'%'),
+            b'%' if k + 2 < b.len() => match (hex(b[k + 1]), hex(b[k + 2])) {
+                (Some(h), Some(l)) => {
+                    out.push((h * 16 + l) as u8);
+                    k += 3;
+                    continue;
                 }
-            }
+                _ => out.push(b'%'),
+            },
             b'+' => out.push(b' '),
             c => out.push(c),
         }
@@ -121,7 +117,12 @@ fn unauthorized() -> Response {
 
 /// A plain-text error answer.
 fn text(status: StatusCode, msg: String) -> Response {
-    (status, [(header::CONTENT_TYPE, "text/plain; charset=utf-8")], msg).into_response()
+    (
+        status,
+        [(header::CONTENT_TYPE, "text/plain; charset=utf-8")],
+        msg,
+    )
+        .into_response()
 }
 
 /// An embedded file as a response.
@@ -232,7 +233,10 @@ async fn rig_glb(
         return unauthorized();
     }
     let Some(session) = file.strip_suffix(".glb") else {
-        return text(StatusCode::NOT_FOUND, "rigs are at /rig/SESSION.glb\n".into());
+        return text(
+            StatusCode::NOT_FOUND,
+            "rigs are at /rig/SESSION.glb\n".into(),
+        );
     };
     let Some((rig, weights)) = session_rig(&app.shared, session) else {
         let msg = format!("no session `{}` (live or recent)\n", escape(session));
@@ -242,7 +246,10 @@ async fn rig_glb(
         Ok(bytes) => glb_response(bytes),
         Err(e) => {
             tracing::error!(rig = %rig, "GLB for the browser viewer: {e}");
-            text(StatusCode::INTERNAL_SERVER_ERROR, format!("rig `{rig}`: {e}\n"))
+            text(
+                StatusCode::INTERNAL_SERVER_ERROR,
+                format!("rig `{rig}`: {e}\n"),
+            )
         }
     }
 }

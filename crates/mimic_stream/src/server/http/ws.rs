@@ -159,7 +159,11 @@ pub(super) async fn run(shared: Arc<Shared>, mut socket: WebSocket, session: Str
         Err(refusal) => {
             let mut e = refusal.json();
             e["type"] = "error".into();
-            let _ = timeout(write_timeout, socket.send(Message::Text(e.to_string().into()))).await;
+            let _ = timeout(
+                write_timeout,
+                socket.send(Message::Text(e.to_string().into())),
+            )
+            .await;
             let _ = timeout(write_timeout, socket.send(Message::Close(None))).await;
             return;
         }
@@ -167,9 +171,12 @@ pub(super) async fn run(shared: Arc<Shared>, mut socket: WebSocket, session: Str
     tracing::info!(viewer = v.id, session = %session, "browser viewer joined");
     let hello = json!({"type": "hello", "session": session, "viewer": v.id,
         "live": is_live(&shared, &session), "server_us": unix_now_us()});
-    let mut ok = timeout(write_timeout, socket.send(Message::Text(hello.to_string().into())))
-        .await
-        .is_ok_and(|r| r.is_ok());
+    let mut ok = timeout(
+        write_timeout,
+        socket.send(Message::Text(hello.to_string().into())),
+    )
+    .await
+    .is_ok_and(|r| r.is_ok());
     // At least 10 ms, so that a 0 never spins this loop while a silent tracker is live.
     let idle = settings
         .viewer_idle_timeout
@@ -204,7 +211,8 @@ pub(super) async fn run(shared: Arc<Shared>, mut socket: WebSocket, session: Str
                 }
                 let secs = settings.viewer_idle_timeout.as_secs_f64();
                 let why = format!("session `{session}` has had no tracker for {secs} s");
-                let e = json!({"type": "error", "code": ErrorCode::IdleTimeout.name(), "message": why});
+                let e =
+                    json!({"type": "error", "code": ErrorCode::IdleTimeout.name(), "message": why});
                 (Message::Text(e.to_string().into()), true)
             }
         };
@@ -254,7 +262,10 @@ mod tests {
         let after = unix_now_us();
         let (m, k) = (3usize, 1usize);
         assert_eq!(b.len(), 5 + WEB_FRAME_FIXED_BYTES + 12 * m + 4 * k);
-        assert_eq!(u32::from_le_bytes(b[0..4].try_into().unwrap()) as usize, b.len() - 4);
+        assert_eq!(
+            u32::from_le_bytes(b[0..4].try_into().unwrap()) as usize,
+            b.len() - 4
+        );
         assert_eq!(b[4], KIND_FRAME);
         let p = &b[5..];
         let i64_at = |o: usize| i64::from_le_bytes(p[o..o + 8].try_into().unwrap());
@@ -262,7 +273,11 @@ mod tests {
         let f32_at = |o: usize| f32::from_le_bytes(p[o..o + 4].try_into().unwrap());
         assert_eq!(u64::from_le_bytes(p[0..8].try_into().unwrap()), 42);
         assert_eq!(i64_at(8), -7);
-        assert!((before..=after).contains(&i64_at(16)), "arrival {}", i64_at(16));
+        assert!(
+            (before..=after).contains(&i64_at(16)),
+            "arrival {}",
+            i64_at(16)
+        );
         assert_eq!(i64_at(24), 0);
         assert_eq!((p[32], p[33]), (2, 1));
         assert_eq!((u32_at(36), u32_at(40), u32_at(44)), (3, 1, 5));
@@ -270,7 +285,10 @@ mod tests {
         for (a, want) in r.iter().enumerate() {
             assert_eq!(f32_at(48 + 4 * a), *want);
         }
-        assert_eq!((f32_at(64), f32_at(68), f32_at(72), f32_at(76)), (1.0, 2.0, 3.0, 1.0));
+        assert_eq!(
+            (f32_at(64), f32_at(68), f32_at(72), f32_at(76)),
+            (1.0, 2.0, 3.0, 1.0)
+        );
         assert_eq!(f32_at(80 + 12 + 4), 1.0, "d[1].y");
         assert_eq!(f32_at(80 + 36), 0.25, "the weight is d[0].x");
         // The send time is filled when the frame leaves.
