@@ -14,6 +14,7 @@
 //! viewer) so a slow viewer never slows a session. With a record folder, every accepted frame of
 //! a landmark session is also written, flushed per frame, to that session's v1 recording. Wire
 //! encoding lives in the `mimic_wire` crate (re-exported as [`wire`]).
+//! With `Server::serve_http` it also serves the browser viewer (axum, docs/browser.md).
 //! Depends on mimic_types, mimic_solve, mimic_retarget, mimic_capture, mimic_wire and tokio; no
 //! renderer.
 
