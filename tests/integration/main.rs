@@ -5,6 +5,7 @@
     reason = "a test: a failed unwrap is the failure report"
 )]
 
+mod browser;
 mod churn;
 mod clock;
 mod config_limits;

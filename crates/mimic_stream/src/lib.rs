@@ -16,6 +16,7 @@
 //! weights CSV for weights and Live Link sessions); with forward targets ([`forward`]) it is
 //! also sent on to VMC and Live Link receivers. Wire
 //! encoding lives in the `mimic_wire` crate (re-exported as [`wire`]).
+//! With `Server::serve_http` it also serves the browser viewer (axum, docs/browser.md).
 //! Depends on mimic_types, mimic_solve, mimic_retarget, mimic_capture, mimic_wire and tokio; no
 //! renderer.
 
@@ -34,6 +35,6 @@ mod timing;
 pub use mimic_wire as wire;
 
 pub use catalog::{Catalog, CatalogError, MorphSet, RigEntry};
-pub use server::{HELLO_MAX_BYTES, Server};
+pub use server::{HELLO_MAX_BYTES, HttpSettings, Server};
 pub use settings::{BindError, DEFAULT_LISTEN, LiveLinkIntake, ServerSettings, check_bind};
 pub use stats::{LatencyHistogram, LatencySummary, ServerStats, SessionSnapshot, ViewerSnapshot};

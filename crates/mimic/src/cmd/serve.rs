@@ -39,6 +39,12 @@ pub struct Args {
     /// morph targets through `--namemap` (docs/trackers.md).
     #[arg(long, value_name = "ADDR")]
     pub livelink: Option<SocketAddr>,
+    /// Also serve the browser viewer on this address (`PORT` alone means 127.0.0.1:PORT): the
+    /// sessions at `/`, a session in 3D at `/view/SESSION` (three.js, shipped in the binary),
+    /// its rig at `/rig/SESSION.glb`, frames over the WebSocket `/ws/SESSION` (docs/browser.md).
+    /// Off without this flag; beyond loopback it needs `--token` like every listener.
+    #[arg(long, value_name = "ADDR", value_parser = parse_http_addr)]
+    pub http: Option<SocketAddr>,
     /// Name map for Live Link curves (default: configs/namemaps/arkit.toml); its inverse also
     /// reads the rig's weights back as ARKit curves for `--forward`.
     #[arg(long, value_name = "TOML")]
@@ -147,11 +153,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(addr) = args.livelink {
         check_bind("Live Link Face UDP", addr, token.as_deref())?;
     }
+    if let Some(addr) = args.http {
+        check_bind("HTTP", addr, token.as_deref())?;
+    }
     let dirs = args.rig.config_dirs();
     let mut entries = Vec::new();
+    let mut web = mimic_stream::HttpSettings {
+        skin: mimic_render::SKIN_ALBEDO,
+        ..Default::default()
+    };
     for name in std::iter::once(&args.rig.rig).chain(&args.also_rig) {
         let rig_path = dirs.rig_path(name);
         let rig = load_rig(&rig_path)?;
+        web.rig_paths.insert(rig.name.clone(), rig_path.clone());
         let (basis, _, took) = args.rig.build_basis(&rig)?;
         tracing::info!(rig = %rig.name, ms = took.as_secs_f64() * 1e3, "basis built");
         // Morph targets (for weights sessions), when the rig lists `[[morph_targets]]`.
@@ -229,6 +243,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Some(u) => u.local_addr()?.to_string(),
             None => "off".to_string(),
         };
+        let http = match args.http {
+            Some(addr) => Some(
+                tokio::net::TcpListener::bind(addr)
+                    .await
+                    .with_context(|| format!("--http: binding {addr}"))?,
+            ),
+            None => None,
+        };
+        let http_addr = match &http {
+            Some(l) => format!(" http {}", l.local_addr()?),
+            None => String::new(),
+        };
         // The first stdout line says where to connect (tests and scripts read it).
         let livelink = settings.livelink.as_ref().map(|l| l.socket.clone());
         let trackers: String = [
@@ -239,7 +265,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .filter_map(|(name, s)| Some(format!(" {name} {}", s.as_ref()?.local_addr().ok()?)))
         .collect();
         println!(
-            "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}{trackers}",
+            "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}{trackers}{http_addr}",
             catalog.rig_names()
         );
         std::io::stdout().flush()?;
@@ -247,7 +273,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let shutdown = async {
             let _ = tokio::signal::ctrl_c().await;
         };
-        anyhow::Ok(server.run(listener, udp, shutdown).await)
+        let web_task = http.map(|listener| {
+            let server = server.clone();
+            let stop = async {
+                let _ = tokio::signal::ctrl_c().await;
+            };
+            tokio::spawn(async move { server.serve_http(listener, web, stop).await })
+        });
+        let stats = server.run(listener, udp, shutdown).await;
+        if let Some(task) = web_task {
+            // Browser viewers end with the server's viewer queues; give them a moment.
+            let abort = task.abort_handle();
+            match tokio::time::timeout(Duration::from_secs(2), task).await {
+                Ok(Ok(Err(e))) => tracing::warn!("HTTP server: {e}"),
+                Err(_) => abort.abort(),
+                _ => {}
+            }
+        }
+        anyhow::Ok(stats)
     })?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&stats)?);
@@ -298,6 +341,15 @@ fn forward_settings(
         namemap,
         vmc_names,
     })
+}
+
+/// `--http`: an address, or a port alone for loopback (`8080` is `127.0.0.1:8080`).
+fn parse_http_addr(s: &str) -> Result<SocketAddr, String> {
+    if let Ok(port) = s.parse::<u16>() {
+        return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
+    }
+    s.parse()
+        .map_err(|_| format!("`{s}` is neither a port nor an address like 127.0.0.1:8080"))
 }
 
 /// A tracker's UDP socket bound at `addr` (warned about beyond loopback), for the server.

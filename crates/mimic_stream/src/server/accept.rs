@@ -219,7 +219,7 @@ async fn connection(
 
 /// Whether a hello's token is the server's (always, when the server has none); compared
 /// without an early exit.
-fn token_ok(server: Option<&str>, presented: Option<&str>) -> bool {
+pub(crate) fn token_ok(server: Option<&str>, presented: Option<&str>) -> bool {
     let Some(want) = server else { return true };
     let got = presented.unwrap_or_default().as_bytes();
     let want = want.as_bytes();

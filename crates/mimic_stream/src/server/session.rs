@@ -174,16 +174,26 @@ impl Session {
         fill: impl FnOnce(&[Vec3], &mut [Vec3]),
         arrival: Instant,
     ) {
-        let (want_d, want_positions) = {
+        let (want_d, want_positions, want_web) = {
             let hubs = lock(&self.shared.hubs);
-            hubs.get(&self.name).map_or((false, false), |h| {
+            hubs.get(&self.name).map_or((false, false, false), |h| {
                 (
-                    h.viewers.iter().any(|v| !v.positions),
+                    h.viewers.iter().any(|v| !v.positions && !v.web),
                     h.viewers.iter().any(|v| v.positions),
+                    h.viewers.iter().any(|v| v.web),
                 )
             })
         };
         let d_message = want_d.then(|| Arc::new(encode_frame(seq, out, None)));
+        // Browser viewers (`server/http`): their own layout, with the arrival time.
+        let web_message = want_web.then(|| {
+            // Weights sessions (TCP and Live Link) carry the layout `weights`.
+            let weights = self.record.layout == "weights";
+            let gated = self.record.gated.get();
+            Arc::new(super::http::encode_web_frame(
+                seq, out, arrival, gated, weights,
+            ))
+        });
         let p_message = want_positions.then(|| {
             fill(&out.displacements, positions);
             Arc::new(encode_frame(seq, out, Some(positions)))
@@ -192,7 +202,13 @@ impl Session {
             let hubs = lock(&self.shared.hubs);
             if let Some(h) = hubs.get(&self.name) {
                 for v in &h.viewers {
-                    let m = if v.positions { &p_message } else { &d_message };
+                    let m = if v.web {
+                        &web_message
+                    } else if v.positions {
+                        &p_message
+                    } else {
+                        &d_message
+                    };
                     if let Some(m) = m {
                         v.queue.push_frame(m.clone());
                     }
