@@ -14,6 +14,7 @@ mod escape;
 mod faults;
 mod fit;
 mod gltf;
+mod gpu_bench;
 mod import;
 mod info;
 mod livelink;
