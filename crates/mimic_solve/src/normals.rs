@@ -37,20 +37,6 @@ pub fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]], out: &mut [Vec
 /// Vertices gathered together by [`VertexFans`]: one AVX register of f32 lanes.
 const GROUP: usize = 8;
 
-/// How the vectorised fan pass fetches a step's 8 neighbours: variants kept for the benchmarks'
-/// A/B rows (docs/performance.md), all loading the same values into the same lanes, so the same
-/// normals bit for bit.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FanFetch {
-    /// 8 neighbour indices read one by one, 8 position loads and a transpose.
-    Loads,
-    /// The indices read two at a time (one 64-bit load split in registers), 8 position loads and
-    /// a transpose: 12 loads a step instead of 16.
-    PairedIndices,
-    /// One AVX2 gather per axis.
-    Gathers,
-}
-
 /// Triangle fans around the first `count` vertices of a mesh, for gathering their area-weighted
 /// normals vertex by vertex (the same normals as [`vertex_normals`], up to f32 rounding).
 ///
@@ -143,21 +129,7 @@ impl VertexFans {
     ///
     /// # Panics
     /// If `positions.len() < position_count()`.
-    pub fn normals(&self, positions: &[Vec3A], write: impl FnMut(usize, Vec3)) {
-        self.normals_fetch(positions, FanFetch::Loads, write);
-    }
-
-    /// [`VertexFans::normals`] with the neighbours fetched as `fetch` says (A/B variants, the
-    /// same normals bit for bit).
-    ///
-    /// # Panics
-    /// As [`VertexFans::normals`].
-    pub fn normals_fetch(
-        &self,
-        positions: &[Vec3A],
-        fetch: FanFetch,
-        mut write: impl FnMut(usize, Vec3),
-    ) {
+    pub fn normals(&self, positions: &[Vec3A], mut write: impl FnMut(usize, Vec3)) {
         assert!(
             positions.len() >= self.position_count,
             "VertexFans::normals: {} positions, fans name {}",
@@ -166,35 +138,24 @@ impl VertexFans {
         );
         #[cfg(target_arch = "x86_64")]
         if crate::basis::avx2_fma() {
-            let p = positions.as_ptr().cast::<f32>();
             // SAFETY: AVX2 and FMA are checked just above; every centre and entry is below
             // position_count <= positions.len() (asserted), each a 16-byte Vec3A at 4 floats a
             // vertex, and each group's entries lie in `entries` by construction.
-            unsafe {
-                match fetch {
-                    FanFetch::Loads => self.normals_avx2::<false, 4, false>(p, &mut write),
-                    FanFetch::PairedIndices => self.normals_avx2::<false, 4, true>(p, &mut write),
-                    FanFetch::Gathers => self.normals_avx2::<true, 4, false>(p, &mut write),
-                }
-            }
+            unsafe { self.normals_avx2::<false, 4>(positions.as_ptr().cast(), &mut write) };
             return;
         }
         self.normals_portable(positions, &mut write);
     }
 
     /// [`VertexFans::normals`] on positions packed 3 floats a vertex (`positions[3 v..3 v + 3]`,
-    /// one float of padding after the last), the neighbours fetched as `fetch` says (gathers are
-    /// not offered here: [`FanFetch::Gathers`] reads as [`FanFetch::Loads`]). The same normals
-    /// bit for bit as [`VertexFans::normals`] on the same positions.
+    /// one float of padding after the last), as [`crate::deform::MovingDeform::deform_packed`]
+    /// writes them: the same loads (the fourth float of each, the next vertex's x, is dropped by
+    /// the transpose) on a quarter less memory, so the same normals bit for bit as
+    /// [`VertexFans::normals`] on the same positions.
     ///
     /// # Panics
     /// If `positions.len() < 3 * position_count() + 1`.
-    pub fn normals_packed(
-        &self,
-        positions: &[f32],
-        fetch: FanFetch,
-        mut write: impl FnMut(usize, Vec3),
-    ) {
+    pub fn normals_packed(&self, positions: &[f32], mut write: impl FnMut(usize, Vec3)) {
         assert!(
             positions.len() > 3 * self.position_count,
             "VertexFans::normals_packed: {} floats, fans name {} positions (3 floats each and 1 of padding)",
@@ -207,14 +168,14 @@ impl VertexFans {
             // SAFETY: AVX2 and FMA are checked just above; every centre and entry v is below
             // position_count, and the 4 floats at 3 v lie within positions (asserted: 3
             // position_count + 1 floats); each group's entries lie in `entries` by construction.
-            unsafe {
-                match fetch {
-                    FanFetch::PairedIndices => self.normals_avx2::<false, 3, true>(p, &mut write),
-                    _ => self.normals_avx2::<false, 3, false>(p, &mut write),
-                }
-            }
+            unsafe { self.normals_avx2::<false, 3>(p, &mut write) };
             return;
         }
+        self.normals_packed_portable(positions, &mut write);
+    }
+
+    /// [`VertexFans::normals_packed`] one fan at a time, on any CPU.
+    fn normals_packed_portable(&self, positions: &[f32], write: &mut impl FnMut(usize, Vec3)) {
         for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
             let entries = &self.entries[first as usize..][..steps as usize * GROUP];
             let at = |v: usize| Vec3A::from_slice(&positions[3 * v..3 * v + 3]);
@@ -232,8 +193,20 @@ impl VertexFans {
     ///
     /// # Panics
     /// As [`VertexFans::normals`].
-    pub fn normals_gather(&self, positions: &[Vec3A], write: impl FnMut(usize, Vec3)) {
-        self.normals_fetch(positions, FanFetch::Gathers, write);
+    pub fn normals_gather(&self, positions: &[Vec3A], mut write: impl FnMut(usize, Vec3)) {
+        assert!(
+            positions.len() >= self.position_count,
+            "VertexFans::normals_gather: {} positions, fans name {}",
+            positions.len(),
+            self.position_count
+        );
+        #[cfg(target_arch = "x86_64")]
+        if crate::basis::avx2_fma() {
+            // SAFETY: as in `normals`.
+            unsafe { self.normals_avx2::<true, 4>(positions.as_ptr().cast(), &mut write) };
+            return;
+        }
+        self.normals_portable(positions, &mut write);
     }
 
     /// [`VertexFans::normals`] one fan at a time, on any CPU.
@@ -253,15 +226,15 @@ impl VertexFans {
     /// 8 neighbour loads transposed to x, y, z registers, 8 cross products, one vector square root
     /// and division per group for the normalisation.
     ///
-    /// `STRIDE` floats a vertex (4: `Vec3A`, 3: packed), x, y, z first; `PAIRED` reads the
-    /// indices two at a time; `GATHER` fetches by AVX2 gathers (`STRIDE` 4 only).
+    /// `STRIDE` floats a vertex (4: `Vec3A`, 3: packed), x, y, z first; `GATHER` fetches by AVX2
+    /// gathers (`STRIDE` 4 only).
     ///
     /// # Safety
     /// The CPU must support AVX2 and FMA, and `base` must be valid for reading 4 floats at
     /// `STRIDE * v` for every `v < self.position_count`.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn normals_avx2<const GATHER: bool, const STRIDE: usize, const PAIRED: bool>(
+    unsafe fn normals_avx2<const GATHER: bool, const STRIDE: usize>(
         &self,
         base: *const f32,
         write: &mut impl FnMut(usize, Vec3),
@@ -284,16 +257,7 @@ impl VertexFans {
                 };
             }
             unsafe {
-                let i: [u32; 8] = if PAIRED {
-                    // Two indices per 64-bit load, split in registers (little endian: the
-                    // first index is the low half).
-                    let q = idx.as_ptr().cast::<u64>();
-                    let [a, b, c, d] = [0, 1, 2, 3].map(|k| q.add(k).read_unaligned());
-                    [a, a >> 32, b, b >> 32, c, c >> 32, d, d >> 32].map(|x| x as u32)
-                } else {
-                    [idx[0], idx[1], idx[2], idx[3], idx[4], idx[5], idx[6], idx[7]]
-                };
-                let at = |k: usize| base.add(i[k] as usize * STRIDE);
+                let at = |k: usize| base.add(idx[k] as usize * STRIDE);
                 let r0 = _mm256_loadu2_m128(at(4), at(0));
                 let r1 = _mm256_loadu2_m128(at(5), at(1));
                 let r2 = _mm256_loadu2_m128(at(6), at(2));
@@ -533,25 +497,19 @@ mod tests {
         // The gather variant loads the same values into the same lanes: the same sums.
         let mut gathered = vec![Vec3::NAN; count];
         fans.normals_gather(&pa, |v, n| gathered[v] = n);
-        // So do the paired index reads and the packed positions (3 floats a vertex, 1 of padding).
-        let mut paired = vec![Vec3::NAN; count];
-        fans.normals_fetch(&pa, FanFetch::PairedIndices, |v, n| paired[v] = n);
+        // So do the packed positions (3 floats a vertex, 1 of padding, NaN here: never used).
         let mut packed: Vec<f32> = positions.iter().flat_map(|p| p.to_array()).collect();
         packed.push(f32::NAN);
-        let mut from_packed = [vec![Vec3::NAN; count], vec![Vec3::NAN; count]];
-        for (out, fetch) in from_packed
-            .iter_mut()
-            .zip([FanFetch::Loads, FanFetch::PairedIndices])
-        {
-            fans.normals_packed(&packed, fetch, |v, n| out[v] = n);
+        let mut from_packed = vec![Vec3::NAN; count];
+        fans.normals_packed(&packed, |v, n| from_packed[v] = n);
+        let mut packed_portable = vec![Vec3::NAN; count];
+        fans.normals_packed_portable(&packed, &mut |v, n| packed_portable[v] = n);
+        for v in 0..count {
+            let (a, b) = (packed_portable[v], portable[v]);
+            assert!(a == b || (a.is_nan() && b.is_nan()), "packed portable v={v}: {a} vs {b}");
         }
         for v in 0..count {
-            for (what, other) in [
-                ("gather", gathered[v]),
-                ("paired", paired[v]),
-                ("packed", from_packed[0][v]),
-                ("packed paired", from_packed[1][v]),
-            ] {
+            for (what, other) in [("gather", gathered[v]), ("packed", from_packed[v])] {
                 assert!(
                     other == fast[v] || (other.is_nan() && fast[v].is_nan()),
                     "{what} v={v}: {other} vs {}",

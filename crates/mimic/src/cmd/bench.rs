@@ -169,7 +169,7 @@ fn bench_gpu(args: &Args, rigs: &[String]) -> anyhow::Result<()> {
                     format!(" (morph {:.1} us, normals {:.1} us)", g.morph_us, g.normals_us)
                 });
                 println!(
-                    "  {} session(s), {moving} moving rows, {normal} normals: {:.1} us a dispatch{parts}, by {}; wall {:.1} us; {:.0} sessions per frame at 60 fps",
+                    "  {} session(s), {moving} moving rows, {normal} normals: {:.1} us a dispatch{parts}, by {}; wall {:.1} us; {:.1} sessions per frame at 60 fps",
                     t.sessions,
                     t.per_dispatch_us(),
                     if *stamps { "GPU timestamps" } else { "wall clock" },
@@ -300,10 +300,9 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
     let deform = mimic_solve::deform::MovingDeform::new(basis, &p.rig.mesh.positions);
     let floor_buf = vec![1f32; deform.bytes_read() / 4];
     let baseline_steps = (args.steps / 4).max(50);
-    let mut base: [Vec<u32>; 12] = Default::default();
+    let mut base: [Vec<u32>; 10] = Default::default();
     let mut u_packed = vec![0f32; 3 * n + 1];
     let mut local_packed = vec![0f32; 3 * moving.rows.len()];
-    use mimic_solve::normals::FanFetch;
     let ns = elapsed_ns;
     for _ in 0..baseline_steps {
         let t = Instant::now();
@@ -322,19 +321,13 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         let t = Instant::now();
         fans.normals_gather(&u_a, |v, nv| normals[v] = nv);
         base[7].push(ns(t));
-        let t = Instant::now();
-        fans.normals_fetch(&u_a, FanFetch::PairedIndices, |v, nv| normals[v] = nv);
-        base[8].push(ns(t));
         u_packed
             .chunks_exact_mut(3)
             .zip(&u)
             .for_each(|(a, b)| a.copy_from_slice(&b.to_array()));
         let t = Instant::now();
-        fans.normals_packed(&u_packed, FanFetch::Loads, |v, nv| normals[v] = nv);
-        base[9].push(ns(t));
-        let t = Instant::now();
-        fans.normals_packed(&u_packed, FanFetch::PairedIndices, |v, nv| normals[v] = nv);
-        base[10].push(ns(t));
+        fans.normals_packed(&u_packed, |v, nv| normals[v] = nv);
+        base[8].push(ns(t));
         let t = Instant::now();
         moving.basis.apply(&d, &mut u_rows);
         let moved = moving.rows.iter().zip(&u_rows).zip(&rest_rows);
@@ -349,7 +342,7 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         base[5].push(ns(t));
         let t = Instant::now();
         deform.deform_packed(&d, &mut local_packed, &mut positions);
-        base[11].push(ns(t));
+        base[9].push(ns(t));
         let t = Instant::now();
         std::hint::black_box(read_all(std::hint::black_box(&floor_buf)));
         base[6].push(ns(t));
@@ -364,9 +357,7 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         deform_alone,
         floor,
         bn_gather,
-        bn_paired,
         bn_packed,
-        bn_packed_paired,
         deform_packed,
     ] = base.map(|mut v| median_p99_us(&mut v).0);
     let numpy = if args.numpy {
@@ -406,9 +397,7 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
             "deform_speedup": if deform_m > 0.0 { ba / deform_m } else { 0.0 },
             "normals_speedup": if normals_m > 0.0 { bn / normals_m } else { 0.0 },
             "normals_fans_gather_median_us": bn_gather,
-            "normals_fans_paired_indices_median_us": bn_paired,
             "normals_fans_packed_median_us": bn_packed,
-            "normals_fans_packed_paired_median_us": bn_packed_paired,
             "deform_packed_kernel_median_us": deform_packed,
             "previous_deform_median_us": prev_deform,
             "deform_kernel_median_us": deform_alone,
@@ -443,7 +432,7 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
             "  baseline, every vertex: apply {ba:.1} us (previous row-pair kernel {ba_pairs:.1} us), normals by fans {bn_fans:.1} us (by gathers {bn_gather:.1} us; face scatter {bn:.1} us)"
         );
         println!(
-            "  fans A/B, every vertex: 16-byte positions {bn_fans:.1} us, paired index reads {bn_paired:.1} us; packed 12-byte positions {bn_packed:.1} us, packed and paired {bn_packed_paired:.1} us; deform kernel with a packed copy {deform_packed:.1} us"
+            "  A/B: normals by fans on packed 12-byte positions {bn_packed:.1} us (16-byte {bn_fans:.1} us); deform kernel with a packed copy {deform_packed:.1} us (16-byte copy: below)"
         );
         println!(
             "  deform: previous (blocked product in index order, then add and scatter) {prev_deform:.1} us, current kernel alone {deform_alone:.1} us; floor (one read of its {} kB) {floor:.1} us",
