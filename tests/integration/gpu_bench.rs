@@ -36,7 +36,11 @@ fn bench_gpu_reports_dispatch_time_and_sessions_at_60fps() {
     assert_eq!(runs.len(), 2, "{rig}");
     for (run, sessions) in runs.iter().zip([1u64, 3]) {
         assert_eq!(run["sessions"].as_u64(), Some(sessions));
-        assert_eq!(run["moving_rows"].as_u64(), Some(3000), "every vertex moves");
+        assert_eq!(
+            run["moving_rows"].as_u64(),
+            Some(3000),
+            "every vertex moves"
+        );
         let per = run["per_dispatch_us"].as_f64().unwrap();
         assert!(per > 0.0 && per.is_finite(), "{run}");
         // sessions x 16 667 us / the per-dispatch time.

@@ -22,12 +22,18 @@ fn bench(c: &mut Criterion) {
     let rig = mimic_assets::load_rig(&path).expect("ict-face-3k rig");
     let basis = mimic_solve::build_basis(&rig, &rig.solver).expect("ict-face-3k basis");
     let m = basis.control_count();
-    let sessions_list: &[usize] = if cfg!(debug_assertions) { &[1, 4] } else { &[1, 64] };
+    let sessions_list: &[usize] = if cfg!(debug_assertions) {
+        &[1, 4]
+    } else {
+        &[1, 64]
+    };
     for &sessions in sessions_list {
         let mut batch =
             match BatchMorph::new(&basis, &rig.mesh.positions, &rig.mesh.triangles, sessions) {
                 Ok(b) => b,
-                Err(BatchError::Render(e @ (RenderError::NoAdapter(_) | RenderError::NoDevice(_)))) => {
+                Err(BatchError::Render(
+                    e @ (RenderError::NoAdapter(_) | RenderError::NoDevice(_)),
+                )) => {
                     eprintln!("batch bench: {e}; nothing timed");
                     return;
                 }

@@ -102,7 +102,10 @@ fn every_session_equals_the_cpu_deform_and_normals() {
                 want[i]
             );
             if basis.row(i).iter().all(|w| *w == 0.0) {
-                assert_eq!(got[i], mesh.positions[i], "frozen vertex {i} keeps its rest");
+                assert_eq!(
+                    got[i], mesh.positions[i],
+                    "frozen vertex {i} keeps its rest"
+                );
             }
         }
 

@@ -120,12 +120,16 @@ fn ab(name: &str, rig: &mimic_types::Rig, basis: &mimic_solve::Basis, steps: usi
             f();
             t[k].push(s.elapsed().as_secs_f64() * 1e6);
         };
-        time(0, &mut || deform.deform(black_box(&d), &mut compact, &mut positions));
+        time(0, &mut || {
+            deform.deform(black_box(&d), &mut compact, &mut positions)
+        });
         time(1, &mut || {
             deform.deform_packed(black_box(&d), &mut packed_rows, &mut positions)
         });
         time(2, &mut || fans.normals(&wide, |v, x| normals[v] = x));
-        time(3, &mut || fans.normals_packed(&packed, |v, x| normals[v] = x));
+        time(3, &mut || {
+            fans.normals_packed(&packed, |v, x| normals[v] = x)
+        });
     }
     black_box((&normals, &positions, &compact, &packed_rows));
     eprintln!(

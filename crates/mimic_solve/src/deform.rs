@@ -491,7 +491,10 @@ mod tests {
             let mut positions_p = vec![Vec3::NAN; n];
             deform.deform_packed(&d, &mut packed, &mut positions_p);
             for (k, &i) in deform.rows().iter().enumerate() {
-                assert_eq!(positions_p[i as usize], positions[i as usize], "packed row {i}");
+                assert_eq!(
+                    positions_p[i as usize], positions[i as usize],
+                    "packed row {i}"
+                );
                 assert_eq!(&packed[3 * k..3 * k + 3], &positions[i as usize].to_array());
             }
             // Frozen rows are left alone.

@@ -506,7 +506,10 @@ mod tests {
         fans.normals_packed_portable(&packed, &mut |v, n| packed_portable[v] = n);
         for v in 0..count {
             let (a, b) = (packed_portable[v], portable[v]);
-            assert!(a == b || (a.is_nan() && b.is_nan()), "packed portable v={v}: {a} vs {b}");
+            assert!(
+                a == b || (a.is_nan() && b.is_nan()),
+                "packed portable v={v}: {a} vs {b}"
+            );
         }
         for v in 0..count {
             for (what, other) in [("gather", gathered[v]), ("packed", from_packed[v])] {

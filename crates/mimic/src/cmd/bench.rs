@@ -118,8 +118,9 @@ fn bench_gpu(args: &Args, rigs: &[String]) -> anyhow::Result<()> {
             "{}: no tracked frames",
             args.recording.display()
         );
-        let weights =
-            |count: usize| -> Vec<Vec3> { (0..count).flat_map(|s| ds[s % ds.len()].clone()).collect() };
+        let weights = |count: usize| -> Vec<Vec3> {
+            (0..count).flat_map(|s| ds[s % ds.len()].clone()).collect()
+        };
         let basis = p.retargeter.basis();
         let mut runs = Vec::new();
         let mut adapter = String::new();
@@ -127,7 +128,9 @@ fn bench_gpu(args: &Args, rigs: &[String]) -> anyhow::Result<()> {
             let mut batch =
                 match BatchMorph::new(basis, &p.rig.mesh.positions, &p.rig.mesh.triangles, count) {
                     Ok(b) => b,
-                    Err(BatchError::Render(e @ (RenderError::NoAdapter(_) | RenderError::NoDevice(_)))) => {
+                    Err(BatchError::Render(
+                        e @ (RenderError::NoAdapter(_) | RenderError::NoDevice(_)),
+                    )) => {
                         println!("mimic bench --gpu: {e}; no GPU to time, nothing measured");
                         return Ok(());
                     }
@@ -135,7 +138,12 @@ fn bench_gpu(args: &Args, rigs: &[String]) -> anyhow::Result<()> {
                 };
             adapter = batch.adapter().to_string();
             let t = batch.time(&weights(count), args.gpu_dispatches)?;
-            runs.push((batch.moving_count(), batch.normal_count(), batch.has_timestamps(), t));
+            runs.push((
+                batch.moving_count(),
+                batch.normal_count(),
+                batch.has_timestamps(),
+                t,
+            ));
         }
         let load = load_average();
         let report = json!({
@@ -166,13 +174,20 @@ fn bench_gpu(args: &Args, rigs: &[String]) -> anyhow::Result<()> {
             );
             for (moving, normal, stamps, t) in &runs {
                 let parts = t.gpu.map_or(String::new(), |g| {
-                    format!(" (morph {:.1} us, normals {:.1} us)", g.morph_us, g.normals_us)
+                    format!(
+                        " (morph {:.1} us, normals {:.1} us)",
+                        g.morph_us, g.normals_us
+                    )
                 });
                 println!(
                     "  {} session(s), {moving} moving rows, {normal} normals: {:.1} us a dispatch{parts}, by {}; wall {:.1} us; {:.1} sessions per frame at 60 fps",
                     t.sessions,
                     t.per_dispatch_us(),
-                    if *stamps { "GPU timestamps" } else { "wall clock" },
+                    if *stamps {
+                        "GPU timestamps"
+                    } else {
+                        "wall clock"
+                    },
                     t.wall_us,
                     t.sessions_at_60fps()
                 );

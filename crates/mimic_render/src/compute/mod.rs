@@ -147,12 +147,11 @@ impl BatchMorph {
     ) -> Result<Self, BatchError> {
         let instance =
             wgpu::Instance::new(wgpu::InstanceDescriptor::new_without_display_handle_from_env());
-        let adapter =
-            pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
-                power_preference: wgpu::PowerPreference::HighPerformance,
-                ..Default::default()
-            }))
-            .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
+        let adapter = pollster::block_on(instance.request_adapter(&wgpu::RequestAdapterOptions {
+            power_preference: wgpu::PowerPreference::HighPerformance,
+            ..Default::default()
+        }))
+        .map_err(|e| RenderError::NoAdapter(e.to_string()))?;
         Self::on_adapter(&adapter, basis, positions, triangles, sessions)
     }
 
@@ -183,7 +182,9 @@ impl BatchMorph {
             });
         }
         let bytes = (sessions * n.max(1) * 16) as u64;
-        let max = have.max_storage_buffer_binding_size.min(have.max_buffer_size);
+        let max = have
+            .max_storage_buffer_binding_size
+            .min(have.max_buffer_size);
         if bytes > max {
             return Err(BatchError::TooLarge {
                 sessions,
@@ -547,7 +548,8 @@ impl BatchMorph {
                 let ticks: &[u64] = bytemuck::try_cast_slice(&bytes)
                     .map_err(|e| RenderError::Readback(e.to_string()))?;
                 if let [a, b, c, e] = ticks {
-                    let us = |from: u64, to: u64| to.saturating_sub(from) as f64 * ts.period_ns / 1e3;
+                    let us =
+                        |from: u64, to: u64| to.saturating_sub(from) as f64 * ts.period_ns / 1e3;
                     gpu.push([us(*a, *b), us(*c, *e), us(*a, *e)]);
                 }
             }
