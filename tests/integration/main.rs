@@ -16,6 +16,7 @@ mod faults;
 mod fit;
 mod forward;
 mod gltf;
+mod gpu_bench;
 mod import;
 mod info;
 mod livelink;

@@ -13,6 +13,7 @@
 //! Runs on any Vulkan adapter, including Mesa's software lavapipe. No tokio.
 
 mod camera;
+pub mod compute;
 mod error;
 mod image;
 mod renderer;
