@@ -187,6 +187,8 @@ pub enum SolverKind {
     Rbf,
     /// Laplacian surface editing with soft control constraints.
     Laplacian,
+    /// Thin shell: `ks u'Lu + u'L M^-1 L u` (cotangent `L`, lumped mass `M`), controls hard.
+    Shell,
 }
 
 /// Radial kernel of the RBF solver; `r` is a distance in rig units.
@@ -317,6 +319,133 @@ pub struct SolverSettings {
     /// RBF with regions: split the top region into lids (below) and brows (above); `None` keeps
     /// one top solve. The Laplacian ignores it.
     pub top_split: Option<TopSplit>,
+    /// Settings of the thin-shell solver (the others ignore them).
+    pub shell: ShellSettings,
+}
+
+/// How the thin-shell solve treats the socket vertices ([`ShellSettings::socket_vertices`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum SocketMode {
+    /// Part of the one shell solve, like any free vertex.
+    Free,
+    /// Held still (`u = 0`), a boundary of the face's solve.
+    Frozen,
+    /// Left out of the face's solve (the rims become free borders), then filled by their own
+    /// screened membrane solve `(L + M / l^2) u = 0` from the rim, `l` =
+    /// [`ShellSettings::socket_decay`]: the rim's motion fades over about `l` into the head.
+    #[default]
+    Decay,
+}
+
+/// Largest number of vertex ranges [`VertexRanges`] holds.
+pub const MAX_VERTEX_RANGES: usize = 8;
+
+/// Up to [`MAX_VERTEX_RANGES`] inclusive vertex index ranges (`[[11248, 14061]]` in a rig file).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(try_from = "Vec<[u32; 2]>", into = "Vec<[u32; 2]>")]
+pub struct VertexRanges {
+    /// Ranges in use.
+    len: u8,
+    /// Storage; entries past `len` are unused.
+    ranges: [[u32; 2]; MAX_VERTEX_RANGES],
+}
+
+impl VertexRanges {
+    /// The ranges in use.
+    pub fn as_slice(&self) -> &[[u32; 2]] {
+        &self.ranges[..usize::from(self.len)]
+    }
+
+    /// Whether vertex `i` lies in a range.
+    pub fn contains(&self, i: u32) -> bool {
+        self.as_slice().iter().any(|&[a, b]| (a..=b).contains(&i))
+    }
+
+    /// Whether no range is set.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+}
+
+impl TryFrom<Vec<[u32; 2]>> for VertexRanges {
+    type Error = String;
+
+    fn try_from(v: Vec<[u32; 2]>) -> Result<Self, Self::Error> {
+        if v.len() > MAX_VERTEX_RANGES {
+            return Err(format!(
+                "{} vertex ranges, at most {MAX_VERTEX_RANGES} are allowed",
+                v.len()
+            ));
+        }
+        let mut out = VertexRanges::default();
+        for (slot, r) in out.ranges.iter_mut().zip(&v) {
+            if r[0] > r[1] {
+                return Err(format!("vertex range [{}, {}] runs backwards", r[0], r[1]));
+            }
+            *slot = *r;
+        }
+        out.len = v.len() as u8;
+        Ok(out)
+    }
+}
+
+impl From<VertexRanges> for Vec<[u32; 2]> {
+    fn from(r: VertexRanges) -> Self {
+        r.as_slice().to_vec()
+    }
+}
+
+/// Settings of the thin-shell solver (`[solver.shell]` in a rig file).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct ShellSettings {
+    /// `ks`, the weight of the membrane term `u'Lu` against the bending term `u'L M^-1 L u`, in
+    /// rig units^-2 (0: pure bending, thin-plate-like; large: a membrane, the cotangent Laplacian).
+    pub stiffness: f64,
+    /// Vertices of the mouth and eye sockets, the inside of the head behind the lips and lids.
+    pub socket_vertices: VertexRanges,
+    /// How the sockets move.
+    pub sockets: SocketMode,
+    /// Decay length (rig units) of [`SocketMode::Decay`].
+    pub socket_decay: f64,
+}
+
+impl Default for ShellSettings {
+    fn default() -> Self {
+        Self {
+            stiffness: 0.0,
+            socket_vertices: VertexRanges::default(),
+            sockets: SocketMode::Decay,
+            socket_decay: 1.0,
+        }
+    }
+}
+
+impl ShellSettings {
+    /// Largest membrane weight a rig may set.
+    pub const MAX_STIFFNESS: f64 = 1e6;
+
+    /// Range checks: stiffness in [0, 1e6], decay length finite and > 0.
+    pub fn validate(&self) -> Result<(), crate::SettingError> {
+        let ks = self.stiffness;
+        if !(ks.is_finite() && (0.0..=Self::MAX_STIFFNESS).contains(&ks)) {
+            return Err(crate::SettingError::new(
+                "solver.shell.stiffness",
+                ks,
+                format!("must be finite, >= 0 and <= {:e}", Self::MAX_STIFFNESS),
+            ));
+        }
+        let l = self.socket_decay;
+        if !(l.is_finite() && l > 0.0) {
+            return Err(crate::SettingError::new(
+                "solver.shell.socket_decay",
+                l,
+                "must be finite and > 0",
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// Splits the top region's RBF in two at a height: the top controls at or above `at` (brows)
@@ -359,6 +488,7 @@ impl SolverSettings {
                 ),
             ));
         }
+        self.shell.validate()?;
         if let Some(split) = &self.top_split {
             if !split.at.is_finite() {
                 return Err(SettingError::new(
@@ -407,6 +537,7 @@ impl Default for SolverSettings {
             constraint_weight: 10.0,
             regions: true,
             top_split: None,
+            shell: ShellSettings::default(),
         }
     }
 }

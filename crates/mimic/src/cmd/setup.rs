@@ -23,6 +23,8 @@ pub enum SolverChoice {
     Rbf,
     /// Laplacian surface editing.
     Laplacian,
+    /// Thin shell: cotangent membrane + bending energy, controls hard (docs/quality.md).
+    Shell,
     /// Weights of the rig's morph targets fitted to the controls (`P0 + sum w dP`); `mimic eval`
     /// only (a replay takes `--mode blendshapes`).
     Blendshapes,
@@ -80,6 +82,7 @@ impl RigArgs {
             s.kind = match k {
                 SolverChoice::Rbf => SolverKind::Rbf,
                 SolverChoice::Laplacian => SolverKind::Laplacian,
+                SolverChoice::Shell => SolverKind::Shell,
                 SolverChoice::Blendshapes => s.kind,
             };
         }
