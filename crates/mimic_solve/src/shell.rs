@@ -17,13 +17,13 @@
 //!   not see their translation), with a `tracing::warn`, as the Laplacian does.
 //! - One sparse Cholesky factorisation of `Q_FF` (faer, supernodal), one solve with one
 //!   right-hand side per distinct control vertex; nothing dense is n x n.
-//! - Sockets ([`ShellSettings::socket_vertices`], [`SocketMode`]): the bending energy carries a
+//! - Sockets ([`ShellSettings::sockets`], [`SocketMode`]): the bending energy carries a
 //!   lip's or lid's motion round the rim and deep into the mouth or eye socket behind it. `Free`
 //!   keeps them in the solve; `Frozen` holds them still; `Decay` leaves them out of the face's
 //!   solve (their triangles removed, so the lips and lids have free borders there) and fills them
-//!   afterwards by a screened membrane solve `(L + M / l^2) u_S = -L_SR u_R` on the socket (R:
-//!   the vertices next to it, with the face's solution), a second, small SPD factorisation; the
-//!   rim's motion then fades over about `l` into the socket.
+//!   afterwards by a screened membrane solve `(L + M / l^2) u_S = -L_SR u_R` on the sockets (R:
+//!   the vertices next to them, with the face's solution; `l` per socket), a second, small SPD
+//!   factorisation; the rim's motion then fades over about `l` into the socket.
 
 #![allow(
     clippy::needless_range_loop,
@@ -74,11 +74,11 @@ pub fn shell_columns(inp: &ShellInputs<'_>) -> Result<Vec<f64>, SolveError> {
     for &c in inp.controls {
         is_control[c] = true;
     }
-    let mode = inp.settings.sockets;
+    let mode = inp.settings.socket_mode;
     let socket: Vec<bool> = (0..n)
         .map(|i| {
             mode != SocketMode::Free
-                && inp.settings.socket_vertices.contains(i as u32)
+                && inp.settings.sockets.decay_of(i as u32).is_some()
                 && !frozen(i)
                 && !is_control[i]
         })
@@ -306,7 +306,6 @@ fn fill_sockets(
     let n = inp.positions.len();
     let l = cotangent_laplacian(inp.positions, inp.triangles);
     let mass = lumped_mass(inp.positions, inp.triangles);
-    let inv_l2 = 1.0 / (inp.settings.socket_decay * inp.settings.socket_decay);
     let mut index = vec![usize::MAX; n];
     let mut ns = 0;
     for i in 0..n {
@@ -322,7 +321,8 @@ fn fill_sockets(
         if p == usize::MAX {
             continue;
         }
-        triplets.push(Triplet::new(p, p, l.diag[i] + mass[i] * inv_l2));
+        let decay = inp.settings.sockets.decay_of(i as u32).unwrap_or(1.0);
+        triplets.push(Triplet::new(p, p, l.diag[i] + mass[i] / (decay * decay)));
         for (j, v) in l.row(i) {
             let q = index[j];
             if q == usize::MAX {
@@ -542,12 +542,14 @@ mod tests {
         let l = 0.15;
         let first = (nx / 2 + 1) as u32;
         let mut s = settings(0.0);
-        s.sockets = SocketMode::Decay;
-        s.socket_decay = l;
-        let ranges: Vec<[u32; 2]> = (0..ny as u32)
-            .map(|j| [j * nx as u32 + first, j * nx as u32 + nx as u32 - 1])
+        s.socket_mode = SocketMode::Decay;
+        let rows: Vec<mimic_types::Socket> = (0..ny as u32)
+            .map(|j| mimic_types::Socket {
+                vertices: [j * nx as u32 + first, j * nx as u32 + nx as u32 - 1],
+                decay: l,
+            })
             .collect();
-        s.socket_vertices = mimic_types::VertexRanges::try_from(ranges).unwrap();
+        s.sockets = mimic_types::Sockets::try_from(rows).unwrap();
         let controls: Vec<usize> = (0..ny).map(|j| j * nx).collect();
         let u = field(&columns(&mesh, &[], &controls, &s), &vec![1.0; ny]);
         for v in 0..nx * ny {
@@ -565,7 +567,7 @@ mod tests {
         }
         // Free sockets: the same strip moves rigidly by 1 everywhere; frozen ones not at all.
         for (mode, inside) in [(SocketMode::Free, 1.0), (SocketMode::Frozen, 0.0)] {
-            s.sockets = mode;
+            s.socket_mode = mode;
             let u = field(&columns(&mesh, &[], &controls, &s), &vec![1.0; ny]);
             assert!((u[nx - 1] - inside).abs() < 1e-9, "{mode:?}: {}", u[nx - 1]);
         }

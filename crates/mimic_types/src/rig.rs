@@ -323,7 +323,7 @@ pub struct SolverSettings {
     pub shell: ShellSettings,
 }
 
-/// How the thin-shell solve treats the socket vertices ([`ShellSettings::socket_vertices`]).
+/// How the thin-shell solve treats the socket vertices ([`ShellSettings::sockets`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum SocketMode {
@@ -332,92 +332,110 @@ pub enum SocketMode {
     /// Held still (`u = 0`), a boundary of the face's solve.
     Frozen,
     /// Left out of the face's solve (the rims become free borders), then filled by their own
-    /// screened membrane solve `(L + M / l^2) u = 0` from the rim, `l` =
-    /// [`ShellSettings::socket_decay`]: the rim's motion fades over about `l` into the head.
+    /// screened membrane solve `(L + M / l^2) u = 0` from the rim, `l` = each socket's
+    /// [`Socket::decay`]: the rim's motion fades over about `l` into the head.
     #[default]
     Decay,
 }
 
-/// Largest number of vertex ranges [`VertexRanges`] holds.
-pub const MAX_VERTEX_RANGES: usize = 8;
+/// Largest number of sockets [`Sockets`] holds.
+pub const MAX_SOCKETS: usize = 8;
 
-/// Up to [`MAX_VERTEX_RANGES`] inclusive vertex index ranges (`[[11248, 14061]]` in a rig file).
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Default, Serialize, Deserialize)]
-#[serde(try_from = "Vec<[u32; 2]>", into = "Vec<[u32; 2]>")]
-pub struct VertexRanges {
-    /// Ranges in use.
-    len: u8,
-    /// Storage; entries past `len` are unused.
-    ranges: [[u32; 2]; MAX_VERTEX_RANGES],
+/// One socket of a rig: an inclusive vertex range inside the head, and its decay length.
+#[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Socket {
+    /// First and last vertex (inclusive).
+    pub vertices: [u32; 2],
+    /// Decay length of [`SocketMode::Decay`], rig units.
+    pub decay: f64,
 }
 
-impl VertexRanges {
-    /// The ranges in use.
-    pub fn as_slice(&self) -> &[[u32; 2]] {
-        &self.ranges[..usize::from(self.len)]
+/// Up to [`MAX_SOCKETS`] sockets (`[{ vertices = [11248, 13293], decay = 3.0 }, ...]`).
+#[derive(Clone, Copy, Debug, PartialEq, Default, Serialize, Deserialize)]
+#[serde(try_from = "Vec<Socket>", into = "Vec<Socket>")]
+pub struct Sockets {
+    /// Sockets in use.
+    len: u8,
+    /// Storage; entries past `len` are unused.
+    items: [Socket; MAX_SOCKETS],
+}
+
+impl Sockets {
+    /// The sockets in use.
+    pub fn as_slice(&self) -> &[Socket] {
+        &self.items[..usize::from(self.len)]
     }
 
-    /// Whether vertex `i` lies in a range.
-    pub fn contains(&self, i: u32) -> bool {
-        self.as_slice().iter().any(|&[a, b]| (a..=b).contains(&i))
+    /// Mutable access to the sockets in use.
+    pub fn as_mut_slice(&mut self) -> &mut [Socket] {
+        &mut self.items[..usize::from(self.len)]
     }
 
-    /// Whether no range is set.
+    /// The decay length of the first socket holding vertex `i`, if any does.
+    pub fn decay_of(&self, i: u32) -> Option<f64> {
+        self.as_slice()
+            .iter()
+            .find(|s| (s.vertices[0]..=s.vertices[1]).contains(&i))
+            .map(|s| s.decay)
+    }
+
+    /// Whether no socket is set.
     pub fn is_empty(&self) -> bool {
         self.len == 0
     }
 }
 
-impl TryFrom<Vec<[u32; 2]>> for VertexRanges {
+impl TryFrom<Vec<Socket>> for Sockets {
     type Error = String;
 
-    fn try_from(v: Vec<[u32; 2]>) -> Result<Self, Self::Error> {
-        if v.len() > MAX_VERTEX_RANGES {
+    fn try_from(v: Vec<Socket>) -> Result<Self, Self::Error> {
+        if v.len() > MAX_SOCKETS {
             return Err(format!(
-                "{} vertex ranges, at most {MAX_VERTEX_RANGES} are allowed",
+                "{} sockets, at most {MAX_SOCKETS} are allowed",
                 v.len()
             ));
         }
-        let mut out = VertexRanges::default();
-        for (slot, r) in out.ranges.iter_mut().zip(&v) {
-            if r[0] > r[1] {
-                return Err(format!("vertex range [{}, {}] runs backwards", r[0], r[1]));
+        let mut out = Sockets::default();
+        for (slot, s) in out.items.iter_mut().zip(&v) {
+            if s.vertices[0] > s.vertices[1] {
+                return Err(format!(
+                    "socket vertices [{}, {}] run backwards",
+                    s.vertices[0], s.vertices[1]
+                ));
             }
-            *slot = *r;
+            *slot = *s;
         }
         out.len = v.len() as u8;
         Ok(out)
     }
 }
 
-impl From<VertexRanges> for Vec<[u32; 2]> {
-    fn from(r: VertexRanges) -> Self {
-        r.as_slice().to_vec()
+impl From<Sockets> for Vec<Socket> {
+    fn from(s: Sockets) -> Self {
+        s.as_slice().to_vec()
     }
 }
 
-/// Settings of the thin-shell solver (`[solver.shell]` in a rig file).
+/// Settings of the thin-shell solver (`shell = { ... }` in a rig's `[solver]`).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct ShellSettings {
     /// `ks`, the weight of the membrane term `u'Lu` against the bending term `u'L M^-1 L u`, in
     /// rig units^-2 (0: pure bending, thin-plate-like; large: a membrane, the cotangent Laplacian).
     pub stiffness: f64,
-    /// Vertices of the mouth and eye sockets, the inside of the head behind the lips and lids.
-    pub socket_vertices: VertexRanges,
     /// How the sockets move.
-    pub sockets: SocketMode,
-    /// Decay length (rig units) of [`SocketMode::Decay`].
-    pub socket_decay: f64,
+    pub socket_mode: SocketMode,
+    /// The mouth and eye sockets, the inside of the head behind the lips and lids.
+    pub sockets: Sockets,
 }
 
 impl Default for ShellSettings {
     fn default() -> Self {
         Self {
             stiffness: 0.0,
-            socket_vertices: VertexRanges::default(),
-            sockets: SocketMode::Decay,
-            socket_decay: 1.0,
+            socket_mode: SocketMode::Decay,
+            sockets: Sockets::default(),
         }
     }
 }
@@ -426,7 +444,7 @@ impl ShellSettings {
     /// Largest membrane weight a rig may set.
     pub const MAX_STIFFNESS: f64 = 1e6;
 
-    /// Range checks: stiffness in [0, 1e6], decay length finite and > 0.
+    /// Range checks: stiffness in [0, 1e6], every decay length finite and > 0.
     pub fn validate(&self) -> Result<(), crate::SettingError> {
         let ks = self.stiffness;
         if !(ks.is_finite() && (0.0..=Self::MAX_STIFFNESS).contains(&ks)) {
@@ -436,13 +454,14 @@ impl ShellSettings {
                 format!("must be finite, >= 0 and <= {:e}", Self::MAX_STIFFNESS),
             ));
         }
-        let l = self.socket_decay;
-        if !(l.is_finite() && l > 0.0) {
-            return Err(crate::SettingError::new(
-                "solver.shell.socket_decay",
-                l,
-                "must be finite and > 0",
-            ));
+        for s in self.sockets.as_slice() {
+            if !(s.decay.is_finite() && s.decay > 0.0) {
+                return Err(crate::SettingError::new(
+                    "solver.shell.sockets.decay",
+                    s.decay,
+                    "must be finite and > 0",
+                ));
+            }
         }
         Ok(())
     }
