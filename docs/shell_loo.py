@@ -24,7 +24,7 @@ GRID = {
     # (11248-13293) and the eyes (13294-14061).
     "sockets": [("free",), ("frozen",), ("decay", "1,0.3"), ("decay", "2,0.3"), ("decay", "3,0.3"),
                 ("decay", "2,0.1"), ("decay", "2,1")],
-    "--regions": ["on", "off"],
+    "--shell-regions": ["on", "off"],
 }
 
 
@@ -38,7 +38,7 @@ def run(args):
 def main():
     rows = []
     for ks, sock, reg in itertools.product(*GRID.values()):
-        args = ["--shell-stiffness", ks, "--sockets", sock[0], "--regions", reg]
+        args = ["--shell-stiffness", ks, "--sockets", sock[0], "--shell-regions", reg]
         if len(sock) > 1:
             args += ["--socket-decay", sock[1]]
         ratios, gain, setup = run(args)

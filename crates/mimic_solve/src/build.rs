@@ -52,7 +52,12 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
     let split = settings
         .top_split
         .filter(|_| settings.kind == SolverKind::Rbf);
-    let parts = regions::Part::all(settings.regions, split);
+    let use_regions = if settings.kind == SolverKind::Shell {
+        settings.shell.regions
+    } else {
+        settings.regions
+    };
+    let parts = regions::Part::all(use_regions, split);
     let groups: Vec<(regions::Part, Vec<usize>)> = parts
         .into_iter()
         .map(|p| {

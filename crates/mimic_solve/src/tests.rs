@@ -17,7 +17,10 @@ fn settings(kind: SolverKind, regions: bool) -> SolverSettings {
         constraint_weight: 10.0,
         regions,
         top_split: None,
-        shell: mimic_types::ShellSettings::default(),
+        shell: mimic_types::ShellSettings {
+            regions,
+            ..mimic_types::ShellSettings::default()
+        },
     }
 }
 

@@ -314,7 +314,8 @@ pub struct SolverSettings {
     pub weights: LaplacianWeights,
     /// Weight of the soft control constraints of the Laplacian solve.
     pub constraint_weight: f64,
-    /// Solve top / middle / bottom separately and blend them.
+    /// Solve top / middle / bottom separately and blend them (RBF, Laplacian; the thin shell has
+    /// its own [`ShellSettings::regions`]).
     pub regions: bool,
     /// RBF with regions: split the top region into lids (below) and brows (above); `None` keeps
     /// one top solve. The Laplacian ignores it.
@@ -428,6 +429,11 @@ pub struct ShellSettings {
     pub socket_mode: SocketMode,
     /// The mouth and eye sockets, the inside of the head behind the lips and lids.
     pub sockets: Sockets,
+    /// Cut the one solve's columns by region, as the Laplacian does (the shell's own switch: the
+    /// solver-wide [`SolverSettings::regions`] is for the RBF and the Laplacian). Off by default:
+    /// each column is already 0 at every other control, and the cut measured worse on the
+    /// median (docs/quality.md, "Thin shell").
+    pub regions: bool,
 }
 
 impl Default for ShellSettings {
@@ -436,6 +442,7 @@ impl Default for ShellSettings {
             stiffness: 0.0,
             socket_mode: SocketMode::Decay,
             sockets: Sockets::default(),
+            regions: false,
         }
     }
 }

@@ -303,6 +303,9 @@ pub struct SolverTuningArgs {
     /// Thin shell: membrane weight `ks` in rig units^-2 (default: the rig's).
     #[arg(long)]
     pub shell_stiffness: Option<f64>,
+    /// Thin shell: cut its columns by region (default: the rig's `solver.shell.regions`).
+    #[arg(long, value_enum)]
+    pub shell_regions: Option<Switch>,
     /// Thin shell: how the socket vertices move (default: the rig's).
     #[arg(long, value_enum)]
     pub sockets: Option<SocketArg>,
@@ -379,6 +382,9 @@ impl SolverTuningArgs {
         }
         if let Some(ks) = self.shell_stiffness {
             s.shell.stiffness = ks;
+        }
+        if let Some(r) = self.shell_regions {
+            s.shell.regions = r == Switch::On;
         }
         if let Some(m) = self.sockets {
             s.shell.socket_mode = match m {
