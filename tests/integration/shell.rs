@@ -132,6 +132,9 @@ fn replay_with_the_shell_solver_stays_finite_and_bounded() {
     assert!(shell["tracked"].as_u64().unwrap() > 1000, "{shell}");
     assert_eq!(shell_max.len(), rbf_max.len());
     for (i, (s, r)) in shell_max.iter().zip(&rbf_max).enumerate() {
-        assert!(s.is_finite() && *s <= 1.25 * r + 1e-3, "frame {i}: shell {s} vs rbf {r}");
+        assert!(
+            s.is_finite() && *s <= 1.25 * r + 1e-3,
+            "frame {i}: shell {s} vs rbf {r}"
+        );
     }
 }

@@ -244,7 +244,10 @@ mod tests {
             .collect();
         let energy: f64 = f.iter().zip(l.mul(&f)).map(|(a, b)| a * b).sum();
         // |a|^2 = 4.25; tolerance: f32 positions, relative 1e-5.
-        assert!((energy - 4.25 * area).abs() < 1e-5 * 4.25 * area, "{energy} vs {area}");
+        assert!(
+            (energy - 4.25 * area).abs() < 1e-5 * 4.25 * area,
+            "{energy} vs {area}"
+        );
     }
 
     #[test]
@@ -292,7 +295,9 @@ mod tests {
         // PSD: x'Lx >= 0 for random x (graph Laplacian with non-negative weights).
         let mut s = 11;
         for _ in 0..20 {
-            let x: Vec<f64> = (0..7).map(|_| f64::from(crate::test_meshes::lcg(&mut s))).collect();
+            let x: Vec<f64> = (0..7)
+                .map(|_| f64::from(crate::test_meshes::lcg(&mut s)))
+                .collect();
             let e: f64 = x.iter().zip(l.mul(&x)).map(|(a, b)| a * b).sum();
             assert!(e >= -1e-12, "{e}");
         }

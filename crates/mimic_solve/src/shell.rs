@@ -92,10 +92,7 @@ pub fn shell_columns(inp: &ShellInputs<'_>) -> Result<Vec<f64>, SolveError> {
     let face_triangles: Vec<[u32; 3]> = if decay {
         inp.triangles
             .iter()
-            .filter(|t| {
-                t.iter()
-                    .all(|&v| (v as usize) < n && !socket[v as usize])
-            })
+            .filter(|t| t.iter().all(|&v| (v as usize) < n && !socket[v as usize]))
             .copied()
             .collect()
     } else {
@@ -439,7 +436,11 @@ mod tests {
             let u = field(&columns(&mesh, &[], &controls, &settings(ks)), &d);
             for (v, uv) in u.iter().enumerate() {
                 // |f| <= 15, solve round-off ~1e-12 times the condition: 1e-7 relative.
-                assert!((uv - f(v)).abs() < 1e-7 * 15.0, "ks {ks} vertex {v}: {uv} vs {}", f(v));
+                assert!(
+                    (uv - f(v)).abs() < 1e-7 * 15.0,
+                    "ks {ks} vertex {v}: {uv} vs {}",
+                    f(v)
+                );
             }
         }
     }
@@ -461,11 +462,18 @@ mod tests {
         let fmax = (0..nx * ny).map(f).fold(0f64, f64::max);
         let u = field(&columns(&mesh, &[], &controls, &settings(0.0)), &d);
         // f32 lattice positions (relative error 6e-8) perturb L and M: 1e-5 of max |f|.
-        let worst = (0..nx * ny).map(|v| (u[v] - f(v)).abs()).fold(0f64, f64::max);
+        let worst = (0..nx * ny)
+            .map(|v| (u[v] - f(v)).abs())
+            .fold(0f64, f64::max);
         assert!(worst < 1e-5 * fmax, "bending: {worst} vs max {fmax}");
         let stiff = field(&columns(&mesh, &[], &controls, &settings(1.0)), &d);
-        let off = (0..nx * ny).map(|v| (stiff[v] - f(v)).abs()).fold(0f64, f64::max);
-        assert!(off > 1e-2, "with a membrane term the quadratic is not the minimiser: {off}");
+        let off = (0..nx * ny)
+            .map(|v| (stiff[v] - f(v)).abs())
+            .fold(0f64, f64::max);
+        assert!(
+            off > 1e-2,
+            "with a membrane term the quadratic is not the minimiser: {off}"
+        );
     }
 
     #[test]
@@ -492,14 +500,20 @@ mod tests {
             .filter(|i| !frozen[*i] && !controls.contains(i))
             .collect();
         let qff = Mat::<f64>::from_fn(free.len(), free.len(), |a, b| q[(free[a], free[b])]);
-        let rhs = Mat::<f64>::from_fn(free.len(), controls.len(), |a, c| -q[(free[a], controls[c])]);
+        let rhs = Mat::<f64>::from_fn(free.len(), controls.len(), |a, c| {
+            -q[(free[a], controls[c])]
+        });
         let x = qff.partial_piv_lu().solve(&rhs);
         let scale = cols.iter().fold(0f64, |a, v| a.max(v.abs()));
         for (a, &i) in free.iter().enumerate() {
             for c in 0..controls.len() {
                 let s = cols[i * controls.len() + c];
                 // Two backward-stable solves of one system (condition ~1e5 here): 1e-9 max |B|.
-                assert!((s - x[(a, c)]).abs() <= 1e-9 * scale, "{i} {c}: {s} vs {}", x[(a, c)]);
+                assert!(
+                    (s - x[(a, c)]).abs() <= 1e-9 * scale,
+                    "{i} {c}: {s} vs {}",
+                    x[(a, c)]
+                );
             }
         }
     }

@@ -8,8 +8,8 @@ use mimic_fit::capture::{CaptureFit, CaptureFrame, fit_capture};
 use mimic_retarget::{BlendshapeSettings, Neutral, OneEuroSettings, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
 use mimic_types::{
-    LaplacianWeights, Layout, MorphTarget, RbfDistance, RbfKernel, Rig, Socket, SocketMode, Sockets,
-    SolverKind, SolverSettings, TopSplit,
+    LaplacianWeights, Layout, MorphTarget, RbfDistance, RbfKernel, Rig, Socket, SocketMode,
+    Sockets, SolverKind, SolverSettings, TopSplit,
 };
 use std::fs::File;
 use std::io::{BufWriter, Write};
