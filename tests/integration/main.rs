@@ -36,6 +36,7 @@ mod rig_new;
 mod seams;
 mod serve;
 mod serve_weights;
+mod shell;
 mod slots;
 mod view;
 

@@ -30,8 +30,8 @@ pub use morph::MorphTarget;
 pub use pose::HeadPose;
 pub use region::{Region, RegionBands};
 pub use rig::{
-    LaplacianWeights, RbfDistance, RbfKernel, Rig, RigControl, RigError, SolverKind,
-    SolverSettings, TopSplit,
+    LaplacianWeights, RbfDistance, RbfKernel, Rig, RigControl, RigError, ShellSettings, Socket,
+    SocketMode, Sockets, SolverKind, SolverSettings, TopSplit,
 };
 
 /// Nominal number of MPEG-4 control points mimic drives a face with.

@@ -56,6 +56,7 @@ fn solver_label(s: &SolverSettings) -> &'static str {
     match s.kind {
         SolverKind::Rbf => "rbf",
         SolverKind::Laplacian => "laplacian",
+        SolverKind::Shell => "shell",
     }
 }
 

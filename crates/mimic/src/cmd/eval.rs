@@ -62,7 +62,7 @@ fn parse_vertices(text: &str) -> Result<Ranges, String> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut rig = args.rig.load_rig()?;
     args.tuning.apply_to_rig(&mut rig);
-    let settings = args.tuning.solver_settings(&args.rig, &rig);
+    let settings = args.tuning.solver_settings(&args.rig, &rig)?;
     let (basis, took) = timed_basis(&rig, &settings)?;
     let setup_ms = took.as_secs_f64() * 1e3;
     let noise_gain = noise_gain(&basis);
@@ -136,7 +136,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "rig {} ({}), solver {:?}, regions {}, top split {:?}, kernel {:?}, affine {}, distance {:?}, weights {:?}, constraint weight {}, band {}; setup {:.0} ms",
+        "rig {} ({}), solver {:?}, regions {}, top split {:?}, kernel {:?}, affine {}, distance {:?}, weights {:?}, constraint weight {}, shell {:?}, band {}; setup {:.0} ms",
         args.rig.rig,
         rig.units,
         settings.kind,
@@ -147,6 +147,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         settings.distance,
         settings.weights,
         settings.constraint_weight,
+        settings.shell,
         rig.regions.band,
         setup_ms
     );

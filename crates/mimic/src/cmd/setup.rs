@@ -8,8 +8,8 @@ use mimic_fit::capture::{CaptureFit, CaptureFrame, fit_capture};
 use mimic_retarget::{BlendshapeSettings, Neutral, OneEuroSettings, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
 use mimic_types::{
-    LaplacianWeights, Layout, MorphTarget, RbfDistance, RbfKernel, Rig, SolverKind, SolverSettings,
-    TopSplit,
+    LaplacianWeights, Layout, MorphTarget, RbfDistance, RbfKernel, Rig, Socket, SocketMode,
+    Sockets, SolverKind, SolverSettings, TopSplit,
 };
 use std::fs::File;
 use std::io::{BufWriter, Write};
@@ -23,6 +23,8 @@ pub enum SolverChoice {
     Rbf,
     /// Laplacian surface editing.
     Laplacian,
+    /// Thin shell: cotangent membrane + bending energy, controls hard (docs/quality.md).
+    Shell,
     /// Weights of the rig's morph targets fitted to the controls (`P0 + sum w dP`); `mimic eval`
     /// only (a replay takes `--mode blendshapes`).
     Blendshapes,
@@ -80,6 +82,7 @@ impl RigArgs {
             s.kind = match k {
                 SolverChoice::Rbf => SolverKind::Rbf,
                 SolverChoice::Laplacian => SolverKind::Laplacian,
+                SolverChoice::Shell => SolverKind::Shell,
                 SolverChoice::Blendshapes => s.kind,
             };
         }
@@ -153,6 +156,50 @@ pub enum WeightsArg {
     MeanValue,
     /// Cotangent.
     Cotangent,
+}
+
+/// Socket handling of the thin-shell solver, on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum SocketArg {
+    /// In the one shell solve.
+    Free,
+    /// Held still.
+    Frozen,
+    /// Their own screened solve from the rim (`--socket-decay`).
+    Decay,
+}
+
+/// Socket vertex ranges from the command line.
+#[derive(Clone, Debug)]
+pub struct SocketRanges(Vec<[u32; 2]>);
+
+/// Decay lengths from the command line.
+#[derive(Clone, Debug)]
+pub struct Decays(Vec<f64>);
+
+/// Parses socket vertex ranges (`11248-13293,13294-14061`), or `none`.
+fn parse_socket_vertices(text: &str) -> Result<SocketRanges, String> {
+    if text == "none" {
+        return Ok(SocketRanges(Vec::new()));
+    }
+    Ok(SocketRanges(
+        parse_ranges(text, false)?
+            .into_iter()
+            .map(|(a, b)| [a, b])
+            .collect(),
+    ))
+}
+
+/// Parses decay lengths, one for every socket or one per socket (`3,0.3`).
+fn parse_decays(text: &str) -> Result<Decays, String> {
+    text.split(',')
+        .map(|t| {
+            t.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("`{t}` is not a decay length"))
+        })
+        .collect::<Result<_, _>>()
+        .map(Decays)
 }
 
 /// The longest duration an option takes: 10^6 s (about 11.6 days). Longer ones would overflow
@@ -253,6 +300,23 @@ pub struct SolverTuningArgs {
     /// Kernel of the lower (lid) half of the top split, as `--upper-kernel` (default: the rig's).
     #[arg(long, value_parser = parse_kernel)]
     pub lower_kernel: Option<KernelChoice>,
+    /// Thin shell: membrane weight `ks` in rig units^-2 (default: the rig's).
+    #[arg(long)]
+    pub shell_stiffness: Option<f64>,
+    /// Thin shell: cut its columns by region (default: the rig's `solver.shell.regions`).
+    #[arg(long, value_enum)]
+    pub shell_regions: Option<Switch>,
+    /// Thin shell: how the socket vertices move (default: the rig's).
+    #[arg(long, value_enum)]
+    pub sockets: Option<SocketArg>,
+    /// Thin shell: decay length of `--sockets decay` in rig units, one for all sockets or one per
+    /// socket (`3,0.3`) (default: the rig's).
+    #[arg(long, value_parser = parse_decays)]
+    pub socket_decay: Option<Decays>,
+    /// Thin shell: the sockets as vertex ranges (`11248-13293,13294-14061`), or `none`; decay 1
+    /// unless `--socket-decay` says (default: the rig's).
+    #[arg(long, value_parser = parse_socket_vertices)]
+    pub socket_vertices: Option<SocketRanges>,
 }
 
 impl SolverTuningArgs {
@@ -264,7 +328,7 @@ impl SolverTuningArgs {
     }
 
     /// `rig_args`' settings for `rig` with these options applied on top.
-    pub fn solver_settings(&self, rig_args: &RigArgs, rig: &Rig) -> SolverSettings {
+    pub fn solver_settings(&self, rig_args: &RigArgs, rig: &Rig) -> anyhow::Result<SolverSettings> {
         let mut s = rig_args.solver_settings(rig);
         if let Some(k) = self.kernel {
             let radius = rig_args.radius.or(s.kernel.radius()).unwrap_or(1.0);
@@ -316,7 +380,43 @@ impl SolverTuningArgs {
         if let Some(w) = self.constraint_weight {
             s.constraint_weight = w;
         }
-        s
+        if let Some(ks) = self.shell_stiffness {
+            s.shell.stiffness = ks;
+        }
+        if let Some(r) = self.shell_regions {
+            s.shell.regions = r == Switch::On;
+        }
+        if let Some(m) = self.sockets {
+            s.shell.socket_mode = match m {
+                SocketArg::Free => SocketMode::Free,
+                SocketArg::Frozen => SocketMode::Frozen,
+                SocketArg::Decay => SocketMode::Decay,
+            };
+        }
+        if let Some(SocketRanges(v)) = &self.socket_vertices {
+            let list: Vec<Socket> = v
+                .iter()
+                .map(|&vertices| Socket {
+                    vertices,
+                    decay: 1.0,
+                })
+                .collect();
+            s.shell.sockets = Sockets::try_from(list).map_err(anyhow::Error::msg)?;
+        }
+        if let Some(Decays(l)) = &self.socket_decay {
+            let sockets = s.shell.sockets.as_mut_slice();
+            if l.len() != 1 && l.len() != sockets.len() {
+                bail!(
+                    "--socket-decay: {} lengths for {} sockets (give one, or one per socket)",
+                    l.len(),
+                    sockets.len()
+                );
+            }
+            for (i, sock) in sockets.iter_mut().enumerate() {
+                sock.decay = l[i.min(l.len() - 1)];
+            }
+        }
+        Ok(s)
     }
 }
 

@@ -127,7 +127,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let mut other = first;
             other.kind = match first.kind {
                 SolverKind::Rbf => SolverKind::Laplacian,
-                SolverKind::Laplacian => SolverKind::Rbf,
+                SolverKind::Laplacian | SolverKind::Shell => SolverKind::Rbf,
             };
             // Lines the reader rejects are skipped, as `mimic render` does.
             reader.expect_points(layout.point_count)?;
