@@ -522,6 +522,37 @@ mod tests {
     }
 
     #[test]
+    fn control_names_are_fdps_or_layout_points() {
+        let fdp: ControlName = "8.3".parse().unwrap();
+        assert_eq!(fdp.as_fdp(), Some("8.3".parse().unwrap()));
+        assert_eq!(fdp.to_string(), "8.3");
+        let p: ControlName = "kinect121:23".parse().unwrap();
+        assert_eq!(p.as_point(), Some(("kinect121", 23)));
+        assert_eq!((p.to_string(), p.as_fdp()), ("kinect121:23".to_string(), None));
+        for bad in ["Kinect:1", ":3", "k:-1", "k:70000", "k:x", "a-very-long-layout-name-xx:1"] {
+            assert!(
+                matches!(bad.parse::<ControlName>(), Err(ControlNameError::Syntax(_))),
+                "{bad}"
+            );
+        }
+        assert!(matches!(
+            "8.11".parse::<ControlName>(),
+            Err(ControlNameError::Fdp(_))
+        ));
+        // A layout drives its own points directly, its FDPs through `controls`, no other layout's.
+        let l = layout();
+        assert_eq!(l.control_points(fdp), Some(&[1usize, 2][..]));
+        assert_eq!(l.control_points("t:3".parse().unwrap()), Some(&[3usize][..]));
+        assert_eq!(l.control_points("t:4".parse().unwrap()), None);
+        assert_eq!(l.control_points("u:1".parse().unwrap()), None);
+        assert_eq!(l.control_points("4.1".parse().unwrap()), None);
+        let mut one = l.clone();
+        one.controls[0].points = vec![2];
+        assert_eq!(one.fdp_of("t:2".parse().unwrap()), Some("8.3".parse().unwrap()));
+        assert_eq!(one.fdp_of("t:1".parse().unwrap()), None);
+    }
+
+    #[test]
     fn out_of_range_control_names_the_control() {
         let mut l = layout();
         l.controls[0].points.push(7);
