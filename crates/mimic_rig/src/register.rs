@@ -313,6 +313,72 @@ pub fn dense_controls(
     Ok((controls, registration))
 }
 
+/// A rig's controls by set name: `mpeg4` keeps the rig's own (FDP) controls and returns
+/// `None`; a layout name of [`DENSE_SETS`] replaces them with that layout's registered points
+/// ([`dense_controls`]; the layout is read from `configs/layouts/`) and returns the registration.
+pub fn apply_control_set(
+    rig: &mut Rig,
+    set: &str,
+    configs: &Path,
+    landmarks: Option<&Landmarks>,
+    settings: &RegisterSettings,
+) -> Result<Option<Registration>, RigNewError> {
+    if set == "mpeg4" {
+        return Ok(None);
+    }
+    if !DENSE_SETS.contains(&set) {
+        return Err(RigNewError::Frame(format!(
+            "control set `{set}`: use mpeg4 (the rig's 38 FDPs) or one of {}",
+            DENSE_SETS.join(", ")
+        )));
+    }
+    let layout = mimic_assets::load_layout(&configs.join("layouts").join(format!("{set}.toml")))?;
+    let (controls, registration) = dense_controls(rig, &layout, configs, landmarks, settings)?;
+    rig.controls = controls;
+    Ok(Some(registration))
+}
+
+/// `text` (a rig file) with its `[[controls]]` tables replaced by `controls`, written as
+/// `control = "layout:i"` with a note giving each one's registration residual (face units).
+/// Everything else (comments, settings, `[look]`, morph targets, relative paths) is kept.
+pub fn replace_controls_toml(text: &str, controls: &[RigControl], registration: &Registration) -> String {
+    use std::fmt::Write;
+    let mut out = String::new();
+    let mut in_controls = false;
+    for line in text.lines() {
+        let head = line.trim_start();
+        if head.starts_with('[') {
+            in_controls = head.starts_with("[[controls]]");
+        }
+        if !in_controls {
+            out.push_str(line);
+            out.push('\n');
+        }
+    }
+    while out.ends_with("\n\n") {
+        out.pop();
+    }
+    let residual: std::collections::HashMap<u32, f32> =
+        registration.placed.iter().map(|p| (p.vertex, p.residual)).collect();
+    let _ = writeln!(
+        out,
+        "\n# {} controls registered from the layout's template by `mimic rig new --controls` / `mimic eval --write-rig` (docs/rigging.md); {} template points rejected.",
+        controls.len(),
+        registration.rejected.len()
+    );
+    for c in controls {
+        let _ = write!(
+            out,
+            "\n[[controls]]\ncontrol = \"{}\"\nvertex = {}\nregion = \"{}\"\nnote = \"registered, {:.3} IOD from the warped template point\"\n",
+            c.fdp,
+            c.vertex,
+            c.region.name(),
+            residual.get(&c.vertex).copied().unwrap_or(0.0)
+        );
+    }
+    out
+}
+
 /// `ibug68`: point i is landmark vertex i itself (frozen or missing ones rejected).
 fn landmark_registration(rig: &Rig, marks: &Landmarks, allowed: &[bool], iod: f32) -> Registration {
     let mut placed = Vec::new();

@@ -39,6 +39,19 @@ pub struct Args {
     /// true displacement), for plotting where the error is.
     #[arg(long)]
     pub dump: Option<PathBuf>,
+    /// Which controls drive the rig: `mpeg4` (the rig's own 38 FDPs) or a layout's own points
+    /// registered onto the rig from its template: `kinect121`, `ibug68`, `mediapipe478`
+    /// (docs/rigging.md, "Dense control sets").
+    #[arg(long, default_value = "mpeg4")]
+    pub controls: String,
+    /// The rig's iBUG-68 landmark vertices (for `--controls ibug68`); default: the rig file's
+    /// `<name>.landmarks.json` beside it, if there is one.
+    #[arg(long)]
+    pub landmarks: Option<PathBuf>,
+    /// Write the rig with the chosen control set to this file (in the rig file's own folder,
+    /// so its relative paths hold).
+    #[arg(long)]
+    pub write_rig: Option<PathBuf>,
 }
 
 /// Inclusive vertex index ranges.
@@ -61,6 +74,41 @@ fn parse_vertices(text: &str) -> Result<Ranges, String> {
 /// Runs `mimic eval`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut rig = args.rig.load_rig()?;
+    let rig_path = args.rig.rig_path();
+    let landmarks_path = args.landmarks.clone().or_else(|| {
+        let p = rig_path.with_extension("landmarks.json");
+        p.is_file().then_some(p)
+    });
+    let marks = match (&landmarks_path, args.controls.as_str()) {
+        (Some(p), "ibug68") => Some(mimic_rig::load_landmarks(p, mimic_rig::LandmarkBase::Zero)?),
+        _ => None,
+    };
+    let registration = mimic_rig::register::apply_control_set(
+        &mut rig,
+        &args.controls,
+        &args.rig.config_dirs().root,
+        marks.as_ref(),
+        &mimic_rig::register::RegisterSettings::default(),
+    )
+    .with_context(|| format!("--controls {}", args.controls))?;
+    if let (Some(out), Some(reg)) = (&args.write_rig, &registration) {
+        let same_dir = out.parent().map(std::path::Path::to_path_buf).unwrap_or_default()
+            == rig_path.parent().map(std::path::Path::to_path_buf).unwrap_or_default();
+        if !same_dir {
+            bail!(
+                "--write-rig {}: write it beside {} (its mesh path is relative)",
+                out.display(),
+                rig_path.display()
+            );
+        }
+        let text = mimic_types::limits::read_capped(&rig_path, &mimic_types::limits::RIG_FILE)
+            .with_context(|| rig_path.display().to_string())?;
+        let written = mimic_rig::register::replace_controls_toml(&text, &rig.controls, reg);
+        std::fs::write(out, written).with_context(|| out.display().to_string())?;
+        mimic_assets::load_rig(out)
+            .with_context(|| format!("{}: the written rig does not load", out.display()))?;
+        eprintln!("wrote {} ({} controls)", out.display(), rig.controls.len());
+    }
     args.tuning.apply_to_rig(&mut rig);
     let settings = args.tuning.solver_settings(&args.rig, &rig);
     let (basis, took) = timed_basis(&rig, &settings)?;
@@ -116,6 +164,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let median = median(&mut ratios);
     let report = json!({
         "rig": args.rig.rig,
+        "controls": args.controls,
+        "control_count": rig.controls.len(),
         "units": rig.units,
         "settings": serde_json::to_value(settings)?,
         "band": rig.regions.band,
@@ -136,9 +186,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "rig {} ({}), solver {:?}, regions {}, top split {:?}, kernel {:?}, affine {}, distance {:?}, weights {:?}, constraint weight {}, band {}; setup {:.0} ms",
+        "rig {} ({}), controls {} ({}), solver {:?}, regions {}, top split {:?}, kernel {:?}, affine {}, distance {:?}, weights {:?}, constraint weight {}, band {}; setup {:.0} ms",
         args.rig.rig,
         rig.units,
+        args.controls,
+        rig.controls.len(),
         settings.kind,
         settings.regions,
         settings.top_split,
