@@ -172,6 +172,10 @@ pub fn check_rig(rig: &Rig) -> Vec<Warning> {
         }
     }
     let Some(frame) = rig_frame(rig) else {
+        if dense {
+            // A dense rig has no eye-corner FDPs: the mirror and unit checks need them.
+            return out;
+        }
         out.push(warn(
             "no_face_frame",
             &[] as &[Fdp],

@@ -326,6 +326,16 @@ pub fn apply_control_set(
     if set == "mpeg4" {
         return Ok(None);
     }
+    // `SET@N`: N of the set's controls, spread by farthest-point sampling.
+    let (set, keep) = match set.split_once('@') {
+        Some((s, n)) => (
+            s,
+            Some(n.parse::<usize>().ok().filter(|n| *n >= 4).ok_or_else(|| {
+                RigNewError::Frame(format!("control set `{set}`: `@N` needs a count N >= 4"))
+            })?),
+        ),
+        None => (set, None),
+    };
     if !DENSE_SETS.contains(&set) {
         return Err(RigNewError::Frame(format!(
             "control set `{set}`: use mpeg4 (the rig's 38 FDPs) or one of {}",
@@ -333,9 +343,41 @@ pub fn apply_control_set(
         )));
     }
     let layout = mimic_assets::load_layout(&configs.join("layouts").join(format!("{set}.toml")))?;
-    let (controls, registration) = dense_controls(rig, &layout, configs, landmarks, settings)?;
+    let (mut controls, registration) = dense_controls(rig, &layout, configs, landmarks, settings)?;
+    if let Some(n) = keep {
+        let at: Vec<Vec3> = controls
+            .iter()
+            .map(|c| rig.mesh.positions[c.vertex as usize])
+            .collect();
+        let mut picked = farthest_points(&at, n);
+        picked.sort_unstable();
+        controls = picked.into_iter().map(|i| controls[i].clone()).collect();
+    }
     rig.controls = controls;
     Ok(Some(registration))
+}
+
+/// `n` of `points` (all if fewer) by farthest-point sampling from the first: each next one is
+/// the point farthest from those picked so far (ties: the lowest index). Indices into `points`.
+pub fn farthest_points(points: &[Vec3], n: usize) -> Vec<usize> {
+    if points.is_empty() {
+        return Vec::new();
+    }
+    let mut picked = vec![0usize];
+    let mut gap: Vec<f32> = points.iter().map(|p| p.distance_squared(points[0])).collect();
+    while picked.len() < n.min(points.len()) {
+        let mut best = 0;
+        for (i, g) in gap.iter().enumerate() {
+            if *g > gap[best] {
+                best = i;
+            }
+        }
+        picked.push(best);
+        for (g, p) in gap.iter_mut().zip(points) {
+            *g = g.min(p.distance_squared(points[best]));
+        }
+    }
+    picked
 }
 
 /// `text` (a rig file) with its `[[controls]]` tables replaced by `controls`, written as
@@ -597,6 +639,16 @@ mod tests {
             }
         }
         assert_eq!(inside, 19 * 19);
+    }
+
+    #[test]
+    fn farthest_points_spread_over_a_line() {
+        let line: Vec<Vec3> = (0..11).map(|i| Vec3::new(i as f32, 0.0, 0.0)).collect();
+        // From 0: the far end 10, then the middle 5.
+        let picked = farthest_points(&line, 3);
+        assert_eq!(picked, vec![0, 10, 5]);
+        assert_eq!(farthest_points(&line, 50).len(), 11);
+        assert!(farthest_points(&[], 3).is_empty());
     }
 
     #[test]
