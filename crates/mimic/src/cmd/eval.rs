@@ -6,7 +6,7 @@ use anyhow::{Context, bail};
 use glam::Vec3;
 use mimic_assets::{load_morph_targets, load_obj};
 use mimic_retarget::quality::{
-    MorphEval, ShapeError, control_displacements, error_csv, measure, median, noise_gain,
+    MorphEval, ShapeError, control_displacements, error_csv, jitter, measure, median, noise_gain,
 };
 use mimic_types::Region;
 use serde_json::json;
@@ -20,8 +20,15 @@ pub struct Args {
     #[command(flatten)]
     pub tuning: SolverTuningArgs,
     /// Expression meshes (OBJ) with the rig mesh's topology.
-    #[arg(long, num_args = 1.., required = true)]
+    #[arg(long, num_args = 1.., required_unless_present = "jitter")]
     pub shapes: Vec<PathBuf>,
+    /// Instead of shapes: replay these recordings through the pipeline (default settings) and
+    /// report the frame-to-frame jitter of the deformed non-frozen vertices (docs/quality.md).
+    #[arg(long, num_args = 1.., conflicts_with = "shapes")]
+    pub jitter: Vec<PathBuf>,
+    /// With `--jitter`: the One Euro filter off.
+    #[arg(long, requires = "jitter")]
+    pub no_filter: bool,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -114,6 +121,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (basis, took) = timed_basis(&rig, &settings)?;
     let setup_ms = took.as_secs_f64() * 1e3;
     let noise_gain = noise_gain(&basis);
+    if !args.jitter.is_empty() {
+        return run_jitter(&args, &rig, basis, noise_gain);
+    }
     let blend = if args.rig.solver == Some(SolverChoice::Blendshapes) {
         let targets = load_morph_targets(&args.rig.rig_path(), &rig)?;
         if targets.is_empty() {
@@ -234,5 +244,74 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "median ratio {median:.3}, max ratio {:.3}, noise gain {noise_gain:.2}",
         ratios.last().copied().unwrap_or(f64::NAN)
     );
+    Ok(())
+}
+
+/// `mimic eval --jitter REC...`: the jitter of each replayed recording on the rig.
+fn run_jitter(
+    args: &Args,
+    rig: &mimic_types::Rig,
+    basis: mimic_solve::Basis,
+    noise_gain: f64,
+) -> anyhow::Result<()> {
+    let basis = std::sync::Arc::new(basis);
+    let measured: Vec<bool> = rig.frozen.iter().map(|f| !f).collect();
+    let mut rows = Vec::new();
+    for path in &args.jitter {
+        let rec = mimic_capture::read_recording(path, None)?;
+        let layout = args
+            .rig
+            .config_dirs()
+            .load_layout_named(&rec.header.layout)?;
+        let settings = mimic_retarget::RetargetSettings {
+            filter: if args.no_filter {
+                None
+            } else {
+                mimic_retarget::RetargetSettings::default().filter
+            },
+            ..Default::default()
+        };
+        let mut r = mimic_retarget::Retargeter::new(rig, &layout, basis.clone(), settings)
+            .with_context(|| format!("{}: rig `{}`", path.display(), rig.name))?;
+        let j = jitter(&mut r, rec.frames.iter().map(|f| &f.frame), &measured);
+        rows.push((path.clone(), j, r.stats()));
+    }
+    if args.json {
+        let report = json!({
+            "rig": args.rig.rig,
+            "controls": args.controls,
+            "control_count": rig.controls.len(),
+            "filter": !args.no_filter,
+            "noise_gain": noise_gain,
+            "recordings": rows.iter().map(|(p, j, s)| json!({
+                "recording": p.display().to_string(), "jitter": j, "stats": s,
+            })).collect::<Vec<_>>(),
+        });
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "rig {} ({}), controls {} ({}), filter {}, noise gain {noise_gain:.2}",
+        args.rig.rig,
+        rig.units,
+        args.controls,
+        rig.controls.len(),
+        if args.no_filter { "off" } else { "on" }
+    );
+    println!(
+        "{:<40} {:>7} {:>12} {:>12} {:>12} {:>6}",
+        "recording", "triples", "median_d2", "p95_d2", "median_d1", "gated"
+    );
+    for (p, j, s) in &rows {
+        println!(
+            "{:<40} {:>7} {:>12.5} {:>12.5} {:>12.5} {:>6}",
+            p.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+            j.triples,
+            j.median_second_difference,
+            j.p95_second_difference,
+            j.median_first_difference,
+            s.gated
+        );
+    }
     Ok(())
 }
