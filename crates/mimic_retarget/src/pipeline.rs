@@ -241,13 +241,12 @@ impl Retargeter {
             .controls
             .iter()
             .map(|c| {
-                layout
-                    .control_points(c.fdp)
-                    .map(<[usize]>::to_vec)
-                    .ok_or(RetargetError::MissingControl {
+                layout.control_points(c.fdp).map(<[usize]>::to_vec).ok_or(
+                    RetargetError::MissingControl {
                         fdp: c.fdp,
                         layout: layout.name.clone(),
-                    })
+                    },
+                )
             })
             .collect::<Result<Vec<_>, _>>()?;
         let p = layout.point_count;

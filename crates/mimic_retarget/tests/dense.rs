@@ -126,11 +126,7 @@ fn every_point_control_follows_its_own_point_under_head_motion() {
     for k in 1..20 {
         let rot = Quat::from_euler(glam::EulerRot::YXZ, 0.02 * k as f32, -0.01 * k as f32, 0.0);
         let t = Vec3::new(0.01, -0.02, 0.3) * k as f32 * 0.1;
-        let e: Vec<Vec3> = neutral
-            .iter()
-            .take(81)
-            .map(|p| expression(k, *p))
-            .collect();
+        let e: Vec<Vec3> = neutral.iter().take(81).map(|p| expression(k, *p)).collect();
         let moved: Vec<Vec3> = neutral
             .iter()
             .enumerate()
@@ -248,7 +244,10 @@ fn the_jitter_filter_runs_per_point_control() {
             }
         }
     }
-    assert!(moved_f < 0.7 * moved_p, "filtered {moved_f} vs raw {moved_p}");
+    assert!(
+        moved_f < 0.7 * moved_p,
+        "filtered {moved_f} vs raw {moved_p}"
+    );
 }
 
 #[test]

@@ -364,7 +364,10 @@ pub fn farthest_points(points: &[Vec3], n: usize) -> Vec<usize> {
         return Vec::new();
     }
     let mut picked = vec![0usize];
-    let mut gap: Vec<f32> = points.iter().map(|p| p.distance_squared(points[0])).collect();
+    let mut gap: Vec<f32> = points
+        .iter()
+        .map(|p| p.distance_squared(points[0]))
+        .collect();
     while picked.len() < n.min(points.len()) {
         let mut best = 0;
         for (i, g) in gap.iter().enumerate() {
@@ -383,7 +386,11 @@ pub fn farthest_points(points: &[Vec3], n: usize) -> Vec<usize> {
 /// `text` (a rig file) with its `[[controls]]` tables replaced by `controls`, written as
 /// `control = "layout:i"` with a note giving each one's registration residual (face units).
 /// Everything else (comments, settings, `[look]`, morph targets, relative paths) is kept.
-pub fn replace_controls_toml(text: &str, controls: &[RigControl], registration: &Registration) -> String {
+pub fn replace_controls_toml(
+    text: &str,
+    controls: &[RigControl],
+    registration: &Registration,
+) -> String {
     use std::fmt::Write;
     let mut out = String::new();
     let mut in_controls = false;
@@ -400,8 +407,11 @@ pub fn replace_controls_toml(text: &str, controls: &[RigControl], registration: 
     while out.ends_with("\n\n") {
         out.pop();
     }
-    let residual: std::collections::HashMap<u32, f32> =
-        registration.placed.iter().map(|p| (p.vertex, p.residual)).collect();
+    let residual: std::collections::HashMap<u32, f32> = registration
+        .placed
+        .iter()
+        .map(|p| (p.vertex, p.residual))
+        .collect();
     let _ = writeln!(
         out,
         "\n# {} controls registered from the layout's template by `mimic rig new --controls` / `mimic eval --write-rig` (docs/rigging.md); {} template points rejected.",
@@ -515,7 +525,8 @@ impl ThinPlate {
 
     fn apply(&self, p: Vec3) -> Vec3 {
         let q = p.as_dvec3();
-        let mut u = self.affine[0] + self.affine[1] * q.x + self.affine[2] * q.y + self.affine[3] * q.z;
+        let mut u =
+            self.affine[0] + self.affine[1] * q.x + self.affine[2] * q.y + self.affine[3] * q.z;
         for (c, w) in self.centres.iter().zip(&self.weights) {
             u += *w * c.distance(q);
         }
@@ -526,9 +537,13 @@ impl ThinPlate {
 /// Solves `a x = rhs` (`n x n`, row-major, three right-hand sides as `DVec3`) by Gaussian
 /// elimination with partial pivoting; `None` if singular.
 fn solve_dense(a: &mut [f64], rhs: &mut [DVec3], n: usize) -> Option<Vec<DVec3>> {
-    let scale = a.iter().fold(0f64, |m, v| m.max(v.abs())).max(f64::MIN_POSITIVE);
+    let scale = a
+        .iter()
+        .fold(0f64, |m, v| m.max(v.abs()))
+        .max(f64::MIN_POSITIVE);
     for col in 0..n {
-        let pivot = (col..n).max_by(|&r, &s| a[r * n + col].abs().total_cmp(&a[s * n + col].abs()))?;
+        let pivot =
+            (col..n).max_by(|&r, &s| a[r * n + col].abs().total_cmp(&a[s * n + col].abs()))?;
         if a[pivot * n + col].abs() <= 1e-12 * scale {
             return None;
         }
@@ -679,7 +694,11 @@ mod tests {
         assert_eq!((r.placed[0].point, r.placed[0].vertex), (0, 220));
         // 221 is not allowed: point 1 goes to the nearest allowed vertex, 222.
         assert_eq!((r.placed[1].point, r.placed[1].vertex), (1, 222));
-        assert!(matches!(r.rejected[0], (2, Rejection::Duplicate(0))), "{:?}", r.rejected);
+        assert!(
+            matches!(r.rejected[0], (2, Rejection::Duplicate(0))),
+            "{:?}",
+            r.rejected
+        );
         assert!(matches!(r.rejected[1], (3, Rejection::OffFace(d)) if d > 4.0));
     }
 }

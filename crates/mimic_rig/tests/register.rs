@@ -8,7 +8,9 @@
 )]
 
 use glam::Vec3;
-use mimic_rig::register::{RegisterSettings, Template, dense_controls, fdp_pairs, register, rig_iod};
+use mimic_rig::register::{
+    RegisterSettings, Template, dense_controls, fdp_pairs, register, rig_iod,
+};
 use mimic_rig::{LandmarkBase, load_landmarks};
 use std::path::PathBuf;
 
@@ -132,6 +134,11 @@ fn dense_sets_of_the_shipped_layouts_land_on_the_free_face() {
         dense.validate().unwrap();
         assert!(dense.coincident_controls().is_empty());
         assert!(worst <= RegisterSettings::default().max_distance);
-        assert!(dense.controls.iter().all(|c| !rig.frozen[c.vertex as usize]));
+        assert!(
+            dense
+                .controls
+                .iter()
+                .all(|c| !rig.frozen[c.vertex as usize])
+        );
     }
 }

@@ -379,7 +379,11 @@ impl Layout {
     /// cannot drive it (an FDP it does not map, another layout's point, an index out of range).
     pub fn control_points(&self, name: ControlName) -> Option<&[usize]> {
         match name {
-            ControlName::Fdp(f) => self.controls.iter().find(|c| c.fdp == f).map(|c| &c.points[..]),
+            ControlName::Fdp(f) => self
+                .controls
+                .iter()
+                .find(|c| c.fdp == f)
+                .map(|c| &c.points[..]),
             ControlName::Point { .. } => {
                 let (set, index) = name.as_point()?;
                 (set == self.name && index < self.point_count)
@@ -404,7 +408,9 @@ impl Layout {
             ControlName::Fdp(f) => Some(f),
             ControlName::Point { .. } => {
                 let (set, index) = name.as_point()?;
-                (set == self.name).then(|| self.fdp_of_point(index)).flatten()
+                (set == self.name)
+                    .then(|| self.fdp_of_point(index))
+                    .flatten()
             }
         }
     }
@@ -528,8 +534,18 @@ mod tests {
         assert_eq!(fdp.to_string(), "8.3");
         let p: ControlName = "kinect121:23".parse().unwrap();
         assert_eq!(p.as_point(), Some(("kinect121", 23)));
-        assert_eq!((p.to_string(), p.as_fdp()), ("kinect121:23".to_string(), None));
-        for bad in ["Kinect:1", ":3", "k:-1", "k:70000", "k:x", "a-very-long-layout-name-xx:1"] {
+        assert_eq!(
+            (p.to_string(), p.as_fdp()),
+            ("kinect121:23".to_string(), None)
+        );
+        for bad in [
+            "Kinect:1",
+            ":3",
+            "k:-1",
+            "k:70000",
+            "k:x",
+            "a-very-long-layout-name-xx:1",
+        ] {
             assert!(
                 matches!(bad.parse::<ControlName>(), Err(ControlNameError::Syntax(_))),
                 "{bad}"
@@ -542,13 +558,19 @@ mod tests {
         // A layout drives its own points directly, its FDPs through `controls`, no other layout's.
         let l = layout();
         assert_eq!(l.control_points(fdp), Some(&[1usize, 2][..]));
-        assert_eq!(l.control_points("t:3".parse().unwrap()), Some(&[3usize][..]));
+        assert_eq!(
+            l.control_points("t:3".parse().unwrap()),
+            Some(&[3usize][..])
+        );
         assert_eq!(l.control_points("t:4".parse().unwrap()), None);
         assert_eq!(l.control_points("u:1".parse().unwrap()), None);
         assert_eq!(l.control_points("4.1".parse().unwrap()), None);
         let mut one = l.clone();
         one.controls[0].points = vec![2];
-        assert_eq!(one.fdp_of("t:2".parse().unwrap()), Some("8.3".parse().unwrap()));
+        assert_eq!(
+            one.fdp_of("t:2".parse().unwrap()),
+            Some("8.3".parse().unwrap())
+        );
         assert_eq!(one.fdp_of("t:1".parse().unwrap()), None);
     }
 

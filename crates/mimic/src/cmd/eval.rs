@@ -99,8 +99,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )
     .with_context(|| format!("--controls {}", args.controls))?;
     if let (Some(out), Some(reg)) = (&args.write_rig, &registration) {
-        let same_dir = out.parent().map(std::path::Path::to_path_buf).unwrap_or_default()
-            == rig_path.parent().map(std::path::Path::to_path_buf).unwrap_or_default();
+        let same_dir = out
+            .parent()
+            .map(std::path::Path::to_path_buf)
+            .unwrap_or_default()
+            == rig_path
+                .parent()
+                .map(std::path::Path::to_path_buf)
+                .unwrap_or_default();
         if !same_dir {
             bail!(
                 "--write-rig {}: write it beside {} (its mesh path is relative)",
@@ -305,7 +311,8 @@ fn run_jitter(
     for (p, j, s) in &rows {
         println!(
             "{:<40} {:>7} {:>12.5} {:>12.5} {:>12.5} {:>6}",
-            p.file_name().map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+            p.file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
             j.triples,
             j.median_second_difference,
             j.p95_second_difference,

@@ -109,11 +109,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     .with_context(|| format!("--controls {}", args.controls))?
     {
         let dense = mimic_rig::register::replace_controls_toml(&text, &loaded.controls, &reg);
-        std::fs::write(&args.output, &dense)
-            .with_context(|| args.output.display().to_string())?;
-        loaded = mimic_assets::load_rig(&args.output).with_context(|| {
-            format!("{}: the written rig does not load", args.output.display())
-        })?;
+        std::fs::write(&args.output, &dense).with_context(|| args.output.display().to_string())?;
+        loaded = mimic_assets::load_rig(&args.output)
+            .with_context(|| format!("{}: the written rig does not load", args.output.display()))?;
     }
     let c = rig.frozen_counts;
     println!(
