@@ -384,8 +384,9 @@ pub fn farthest_points(points: &[Vec3], n: usize) -> Vec<usize> {
 }
 
 /// `text` (a rig file) with its `[[controls]]` tables replaced by `controls`, written as
-/// `control = "layout:i"` with a note giving each one's registration residual (face units).
-/// Everything else (comments, settings, `[look]`, morph targets, relative paths) is kept.
+/// `control = "layout:i"` (no per-control note, so a 464-point set stays a small file), after a
+/// comment with the registration's residuals (face units). Everything else (comments, settings,
+/// `[look]`, morph targets, relative paths) is kept.
 pub fn replace_controls_toml(
     text: &str,
     controls: &[RigControl],
@@ -407,25 +408,23 @@ pub fn replace_controls_toml(
     while out.ends_with("\n\n") {
         out.pop();
     }
-    let residual: std::collections::HashMap<u32, f32> = registration
-        .placed
-        .iter()
-        .map(|p| (p.vertex, p.residual))
-        .collect();
+    let mut residuals: Vec<f32> = registration.placed.iter().map(|p| p.residual).collect();
+    residuals.sort_by(f32::total_cmp);
+    let median = residuals.get(residuals.len() / 2).copied().unwrap_or(0.0);
+    let max = residuals.last().copied().unwrap_or(0.0);
     let _ = writeln!(
         out,
-        "\n# {} controls registered from the layout's template by `mimic rig new --controls` / `mimic eval --write-rig` (docs/rigging.md); {} template points rejected.",
+        "\n# {} controls registered from the layout's template (docs/rigging.md, \"Dense control sets\"): each the\n# nearest allowed vertex to its warped template point, {median:.3} IOD away at the median, {max:.3} at most;\n# {} template points rejected (off the face, or sharing a vertex with a nearer point).",
         controls.len(),
         registration.rejected.len()
     );
     for c in controls {
         let _ = write!(
             out,
-            "\n[[controls]]\ncontrol = \"{}\"\nvertex = {}\nregion = \"{}\"\nnote = \"registered, {:.3} IOD from the warped template point\"\n",
+            "\n[[controls]]\ncontrol = \"{}\"\nvertex = {}\nregion = \"{}\"\n",
             c.fdp,
             c.vertex,
             c.region.name(),
-            residual.get(&c.vertex).copied().unwrap_or(0.0)
         );
     }
     out
