@@ -294,7 +294,7 @@ pub fn dense_controls(
                     layout.name
                 ))
             })?;
-            landmark_registration(rig, marks, &allowed, iod)
+            landmark_registration(rig, marks, &allowed)
         }
     };
     let controls = registration
@@ -431,7 +431,7 @@ pub fn replace_controls_toml(
 }
 
 /// `ibug68`: point i is landmark vertex i itself (frozen or missing ones rejected).
-fn landmark_registration(rig: &Rig, marks: &Landmarks, allowed: &[bool], iod: f32) -> Registration {
+fn landmark_registration(rig: &Rig, marks: &Landmarks, allowed: &[bool]) -> Registration {
     let mut placed = Vec::new();
     let mut rejected = Vec::new();
     let mut warped = Vec::new();
@@ -455,7 +455,6 @@ fn landmark_registration(rig: &Rig, marks: &Landmarks, allowed: &[bool], iod: f3
             _ => rejected.push((i, Rejection::OffFace(f32::INFINITY))),
         }
     }
-    let _ = iod;
     Registration {
         placed,
         rejected,
