@@ -10,6 +10,7 @@ mod churn;
 mod clock;
 mod config_limits;
 mod crash;
+mod dense;
 mod depth;
 mod escape;
 mod faults;

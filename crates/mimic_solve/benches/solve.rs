@@ -80,7 +80,7 @@ fn rig(side: usize) -> Rig {
             let vertex = (j * side + i) as u32;
             let region = regions.region_at(positions[vertex as usize].y);
             controls.push(RigControl {
-                fdp: fdps[controls.len()],
+                fdp: fdps[controls.len()].into(),
                 vertex,
                 region,
             });

@@ -1,6 +1,6 @@
 //! Target rigs: a mesh, its control vertices, regions, frozen vertices and solver settings.
 
-use crate::{Fdp, Mesh, Region, RegionBands};
+use crate::{ControlName, Mesh, Region, RegionBands};
 use serde::{Deserialize, Serialize};
 
 /// A target head ready to be deformed.
@@ -12,7 +12,8 @@ pub struct Rig {
     pub units: String,
     /// Rest mesh.
     pub mesh: Mesh,
-    /// Control vertices, one per driven FDP.
+    /// Control vertices, one per driven FDP or layout point (any count: 38 FDPs is the
+    /// source method's set, dense sets have a layout's own points).
     pub controls: Vec<RigControl>,
     /// How vertices are split into regions.
     pub regions: RegionBands,
@@ -25,8 +26,11 @@ pub struct Rig {
 /// One control point of a rig.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct RigControl {
-    /// The feature point.
-    pub fdp: Fdp,
+    /// The control's name: an MPEG-4 FDP (`8.3`) or one point of a layout (`kinect121:23`,
+    /// a dense control set). Written `fdp = ...` (or `control = ...`) in rig files; the field
+    /// keeps the name it had when every control was an FDP.
+    #[serde(alias = "control")]
+    pub fdp: ControlName,
     /// Mesh vertex that carries it.
     pub vertex: u32,
     /// Region whose solve it drives.
@@ -40,7 +44,7 @@ pub enum RigError {
     #[error("control {fdp} uses vertex {vertex}, but the mesh has {vertex_count} vertices")]
     ControlVertexOutOfRange {
         /// Offending control.
-        fdp: Fdp,
+        fdp: ControlName,
         /// Offending vertex.
         vertex: u32,
         /// Vertices in the mesh.
@@ -48,12 +52,12 @@ pub enum RigError {
     },
     /// Two controls share an FDP.
     #[error("control {0} appears twice")]
-    DuplicateControl(Fdp),
+    DuplicateControl(ControlName),
     /// A control vertex is frozen, so it could never follow its control.
     #[error("control {fdp} uses vertex {vertex}, which is frozen")]
     FrozenControl {
         /// Offending control.
-        fdp: Fdp,
+        fdp: ControlName,
         /// Offending vertex.
         vertex: u32,
     },
@@ -132,7 +136,7 @@ impl Rig {
     /// Pairs of controls that sit on one rest position (the same vertex, or vertices within
     /// `1e-9` of the control cloud's extent): an RBF solve can only move such a pair together
     /// (it merges them into one centre driven by their mean), so the rig cannot show them apart.
-    pub fn coincident_controls(&self) -> Vec<(Fdp, Fdp)> {
+    pub fn coincident_controls(&self) -> Vec<(ControlName, ControlName)> {
         let at = self.control_positions();
         let (lo, hi) = at.iter().fold(
             (

@@ -6,7 +6,7 @@ use glam::Vec3;
 use mimic_capture::RecordingReader;
 use mimic_render::{Camera, Deform, Image, Renderer, Shading, View};
 use mimic_retarget::RetargetSettings;
-use mimic_types::Fdp;
+use mimic_types::ControlName;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `mimic render`.
@@ -91,7 +91,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let name = s.strip_prefix("control:").with_context(|| {
                 format!("--heat `{s}`: expected `displacement` or `control:FDP` (e.g. control:8.3)")
             })?;
-            let fdp: Fdp = name
+            let fdp: ControlName = name
                 .parse()
                 .map_err(|e| anyhow::anyhow!("--heat `{s}`: {e}"))?;
             let control = rig
