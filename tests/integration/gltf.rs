@@ -14,7 +14,7 @@ const EVERY: usize = 173;
 const STRIDE: usize = 7;
 
 /// Whether `node` runs; prints why the test skips when it does not.
-fn node_ready() -> bool {
+pub(crate) fn node_ready() -> bool {
     match Command::new("node").arg("--version").output() {
         Ok(o) if o.status.success() => {}
         _ => {
@@ -41,7 +41,7 @@ fn node_ready() -> bool {
 }
 
 /// `node tools/gltf-check/check.mjs GLB [EXPECT]`; fails the test on any finding.
-fn check(glb: &Path, expect: Option<&Path>) {
+pub(crate) fn check(glb: &Path, expect: Option<&Path>) {
     let mut c = Command::new("node");
     c.arg(repo().join("tools/gltf-check/check.mjs")).arg(glb);
     if let Some(e) = expect {

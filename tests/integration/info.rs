@@ -27,7 +27,15 @@ fn accepts_every_shipped_layout_and_rig() {
         let (stdout, stderr) = text(&out);
         assert!(out.status.success(), "{f}: {stderr}");
         let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
-        assert_eq!(v["controls"], 38, "{f} should map the 38 controls");
+        // Dense rigs (`<rig>.<layout>.toml`, docs/rigging.md) have their layout's points instead.
+        let dense = ["kinect121", "ibug68", "mediapipe478"]
+            .iter()
+            .any(|set| f.ends_with(&format!(".{set}.toml")) && f.contains("configs/rigs"));
+        if dense {
+            assert!(v["controls"].as_u64().unwrap() > 38, "{f}: {v}");
+        } else {
+            assert_eq!(v["controls"], 38, "{f} should map the 38 controls");
+        }
     }
 }
 

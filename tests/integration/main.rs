@@ -5,18 +5,23 @@
     reason = "a test: a failed unwrap is the failure report"
 )]
 
+mod browser;
 mod churn;
 mod clock;
 mod config_limits;
 mod crash;
+mod dense;
 mod depth;
 mod escape;
 mod faults;
 mod fit;
+mod forward;
 mod gltf;
+mod gpu_bench;
 mod import;
 mod info;
 mod livelink;
+mod look;
 mod loopback;
 mod lost;
 mod mediapipe;
@@ -24,13 +29,16 @@ mod morph;
 mod nats;
 mod openseeface;
 mod protected;
+mod record_weights;
 mod regression;
 mod render;
 mod replay;
+mod replay_take;
 mod rig_new;
 mod seams;
 mod serve;
 mod serve_weights;
+mod shell;
 mod slots;
 mod view;
 

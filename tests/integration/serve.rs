@@ -255,9 +255,18 @@ fn garbage_oversized_and_half_sent_messages_get_errors_while_another_session_str
 #[test]
 fn a_stalled_viewer_does_not_delay_the_other_viewer() {
     // ICT positions frames are 26 719 x 12 bytes = 320 kB each: a viewer that reads nothing fills
-    // its socket buffers within a few frames and its queue then drops the oldest.
+    // its socket buffers within a few frames and its queue then drops the oldest. The write
+    // timeout is long so that on a slow machine the stalled viewer is not dropped as stalled
+    // before it reads (here it is only slow).
     let rec = "recordings/openface_test.jsonl";
-    let server = Serve::start(&["--rig", "ict-face", "--viewer-queue", "32"]);
+    let server = Serve::start(&[
+        "--rig",
+        "ict-face",
+        "--viewer-queue",
+        "32",
+        "--viewer-write-timeout",
+        "600",
+    ]);
     let mut stalled = viewer(&server.tcp, "st", true);
     let mut live = viewer(&server.tcp, "st", false);
     server.wait_for("two viewers", |s| s["viewers_active"] == 2);

@@ -13,6 +13,14 @@ pub enum AssetError {
         /// What the OS said.
         cause: std::io::Error,
     },
+    /// A texture image that does not decode, or a texture the rig names wrongly.
+    #[error("{}: {message}", path.display())]
+    Texture {
+        /// The file.
+        path: PathBuf,
+        /// What was wrong.
+        message: String,
+    },
     /// A TOML file that does not parse or lacks a field.
     #[error("{}:{line}: {message}", path.display())]
     Toml {

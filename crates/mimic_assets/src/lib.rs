@@ -15,6 +15,7 @@ mod obj_write;
 mod read;
 mod rig;
 mod span;
+mod texture;
 
 pub use error::AssetError;
 pub use frames::{FRAMES_MAGIC, FRAMES_VERSION, FrameRecord, FramesReader, FramesWriter};
@@ -30,3 +31,4 @@ pub use morph::{
 pub use obj::{load_obj, parse_obj, write_obj};
 pub use obj_write::{ObjExtras, ObjFrames, write_mtl, write_obj_with};
 pub use rig::{RigFile, load_rig, parse_rig};
+pub use texture::{decode_texture, load_rig_textures, load_texture};

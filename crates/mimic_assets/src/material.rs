@@ -15,6 +15,9 @@ pub struct Material {
     /// Drawn see-through by its renderer: `d` below 1, or a transmission filter `Tf` of zero
     /// (ICT-FaceKit's eye blend, eye occlusion and lacrimal shells, and its alpha-mapped eyelashes).
     pub transparent: bool,
+    /// Diffuse texture `map_Kd` (relative names resolved against the MTL file's folder), or
+    /// `None`; drawn instead of `Kd` where the mesh has texture coordinates.
+    pub texture: Option<PathBuf>,
 }
 
 /// The materials of a mesh and the material of each triangle.
@@ -67,8 +70,9 @@ fn mtl_err(path: &Path, line: usize, message: impl Into<String>) -> AssetError {
     }
 }
 
-/// Parses MTL text (`newmtl`, `Kd`, `d`, `Tf`; other statements are ignored); `path` names the
-/// file in errors.
+/// Parses MTL text (`newmtl`, `Kd`, `d`, `Tf`, `map_Kd`; other statements are ignored); `path`
+/// names the file in errors, and `map_Kd` names are relative to its folder. `map_Kd` options
+/// (`-s 1 1 1`, `-clamp on`, ...) are skipped: the file name is the last word then.
 pub fn parse_mtl(path: &Path, text: &str) -> Result<Vec<Material>, AssetError> {
     let mut out: Vec<Material> = Vec::new();
     for (k, raw) in text.lines().enumerate() {
@@ -90,7 +94,23 @@ pub fn parse_mtl(path: &Path, text: &str) -> Result<Vec<Material>, AssetError> {
                 name: tokens.collect::<Vec<_>>().join(" "),
                 diffuse: [0.5; 3],
                 transparent: false,
+                texture: None,
             }),
+            "map_Kd" => {
+                let Some(m) = out.last_mut() else {
+                    return Err(mtl_err(path, line_no, "`map_Kd` before any newmtl"));
+                };
+                let words: Vec<&str> = tokens.collect();
+                let name = if words.iter().any(|w| w.starts_with('-')) {
+                    words.last().map(|w| (*w).to_string())
+                } else {
+                    Some(words.join(" "))
+                };
+                let Some(name) = name.filter(|n| !n.is_empty()) else {
+                    return Err(mtl_err(path, line_no, "`map_Kd` names no file"));
+                };
+                m.texture = Some(path.parent().unwrap_or(Path::new(".")).join(name));
+            }
             "Kd" | "d" | "Tf" => {
                 let Some(m) = out.last_mut() else {
                     return Err(mtl_err(path, line_no, format!("`{key}` before any newmtl")));
@@ -180,6 +200,20 @@ mod tests {
         assert!(e.to_string().contains("x.mtl:1"), "{e}");
         let e = parse_mtl(Path::new("x.mtl"), "newmtl a\nKd 1 x 1\n").unwrap_err();
         assert!(e.to_string().contains("x.mtl:2"), "{e}");
+        assert_eq!(m[0].texture, None);
+    }
+
+    #[test]
+    fn map_kd_is_relative_to_the_mtl() {
+        let m = parse_mtl(
+            Path::new("dir/x.mtl"),
+            "newmtl A\nmap_Kd tex/skin map.png\nnewmtl B\nmap_Kd -s 1 1 1 -clamp on b.jpg\n",
+        )
+        .unwrap();
+        assert_eq!(m[0].texture, Some(PathBuf::from("dir/tex/skin map.png")));
+        assert_eq!(m[1].texture, Some(PathBuf::from("dir/b.jpg")));
+        let e = parse_mtl(Path::new("x.mtl"), "newmtl A\nmap_Kd\n").unwrap_err();
+        assert_eq!(e.to_string(), "x.mtl:2: `map_Kd` names no file");
     }
 
     #[test]

@@ -91,6 +91,9 @@ pub fn write_mtl<W: Write>(w: &mut W, header: &str, materials: &[Material]) -> s
         if m.transparent {
             writeln!(w, "d 0.3")?;
         }
+        if let Some(t) = &m.texture {
+            writeln!(w, "map_Kd {}", t.display())?;
+        }
         writeln!(w)?;
     }
     Ok(())
@@ -116,7 +119,15 @@ impl ObjFrames {
         rig_name: &str,
         triangle_count: usize,
     ) -> Result<Self, AssetError> {
-        let mats = crate::load_rig_materials(rig_path)?;
+        let mut mats = crate::load_rig_materials(rig_path)?;
+        // The MTL is written elsewhere: its texture names must not be relative to the old one.
+        for m in &mut mats.materials {
+            if let Some(t) = &mut m.texture
+                && let Ok(abs) = std::path::absolute(&*t)
+            {
+                *t = abs;
+            }
+        }
         let mut out = Self {
             mtllib: None,
             names: Vec::new(),
@@ -226,11 +237,13 @@ mod tests {
                 name: "A".into(),
                 diffuse: [1.0, 0.0, 0.0],
                 transparent: false,
+                texture: None,
             },
             Material {
                 name: "B".into(),
                 diffuse: [0.0, 0.0, 1.0],
                 transparent: true,
+                texture: None,
             },
         ];
         let names: Vec<String> = mats.iter().map(|m| m.name.clone()).collect();

@@ -2,6 +2,7 @@
 
 use crate::{GltfError, Morph, Take, split_vertices};
 use glam::{Vec2, Vec3};
+use mimic_types::TextureImage;
 use serde_json::{Value, json};
 use std::io::Write;
 
@@ -14,6 +15,8 @@ pub struct GltfMaterial {
     pub base_color: [f32; 4],
     /// Drawn blended (see-through) rather than opaque.
     pub blend: bool,
+    /// Base colour texture (index into [`GltfMesh::textures`], over `TEXCOORD_0`), or `None`.
+    pub texture: Option<usize>,
 }
 
 /// The rig's mesh, in rig units and the rig's vertex order.
@@ -33,6 +36,8 @@ pub struct GltfMesh<'a> {
     pub triangle_material: &'a [Option<usize>],
     /// Linear RGB per rig vertex (glTF `COLOR_0`, which multiplies the base colour); empty if none.
     pub colors: &'a [[f32; 3]],
+    /// Texture images the materials name (embedded as they were read: PNG or JPEG).
+    pub textures: &'a [TextureImage],
 }
 
 /// What to write.
@@ -279,7 +284,24 @@ pub fn write_glb(scene: &Scene<'_>, w: &mut impl Write) -> Result<GlbSummary, Gl
             if m.blend {
                 v["alphaMode"] = json!("BLEND");
             }
+            // A texture needs texture coordinates: without them the material keeps its colour.
+            if let Some(t) = m
+                .texture
+                .filter(|t| *t < mesh.textures.len() && !split.uvs.is_empty())
+            {
+                v["pbrMetallicRoughness"]["baseColorTexture"] = json!({"index": t, "texCoord": 0});
+            }
             v
+        })
+        .collect();
+    // Each texture image as it was read, in the binary chunk, with one shared sampler
+    // (trilinear, repeating: as mimic_render samples it).
+    let images: Vec<Value> = mesh
+        .textures
+        .iter()
+        .map(|t| {
+            let view = b.view(t.encoded.iter().copied(), None);
+            json!({"name": t.name, "bufferView": view, "mimeType": t.mime})
         })
         .collect();
     let default_material = materials.len();
@@ -341,6 +363,16 @@ pub fn write_glb(scene: &Scene<'_>, w: &mut impl Write) -> Result<GlbSummary, Gl
         "meshes": [gl_mesh],
         "materials": materials,
     });
+    if !images.is_empty() {
+        let textures: Vec<Value> = (0..images.len())
+            .map(|k| json!({"sampler": 0, "source": k}))
+            .collect();
+        root["images"] = Value::Array(images);
+        root["textures"] = Value::Array(textures);
+        root["samplers"] = json!([{
+            "magFilter": 9729, "minFilter": 9987, "wrapS": 10497, "wrapT": 10497,
+        }]);
+    }
 
     // The animation.
     let mut keys = 0;

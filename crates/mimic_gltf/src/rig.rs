@@ -20,8 +20,10 @@ pub struct RigLookParts {
     /// Material of each triangle.
     pub triangle_material: Vec<Option<usize>>,
     /// Per-vertex colours ([`mimic_assets::look_colors`], `skin` for the skin materials); empty
-    /// when the mesh names no materials.
+    /// when the mesh names no materials; white where a triangle is textured.
     pub colors: Vec<[f32; 3]>,
+    /// Texture images ([`mimic_assets::load_rig_textures`]) the materials name.
+    pub textures: Vec<mimic_types::TextureImage>,
 }
 
 /// The materials and colours of the rig at `rig_path` (loaded as `rig`), `skin` for its skin.
@@ -33,13 +35,34 @@ pub fn rig_look_parts(
     let look = mimic_assets::load_rig_look(rig_path)?;
     let mats = mimic_assets::load_rig_materials(rig_path)?;
     let (p, t) = (&rig.mesh.positions, &rig.mesh.triangles);
-    let colors = mimic_assets::look_colors(rig_path, &look, p, t, skin)?.unwrap_or_default();
+    let mut colors = mimic_assets::look_colors(rig_path, &look, p, t, skin)?.unwrap_or_default();
     if colors.is_empty() || mats.triangle_material.len() != t.len() {
         return Ok(RigLookParts {
             materials: Vec::new(),
             triangle_material: Vec::new(),
             colors: Vec::new(),
+            textures: Vec::new(),
         });
+    }
+    let textures = mimic_assets::load_rig_textures(rig_path, &rig.mesh)?.unwrap_or_default();
+    let mut texture_of = vec![None; mats.materials.len()];
+    for (k, ms) in textures.materials.iter().enumerate() {
+        for &m in ms {
+            if let Some(slot) = texture_of.get_mut(m) {
+                *slot = Some(k);
+            }
+        }
+    }
+    // A textured triangle's vertices are white: COLOR_0 multiplies the texture (as mimic_render
+    // draws it: the texture alone, times the light).
+    for (tri, x) in t.iter().zip(&textures.triangles) {
+        if x.is_some() {
+            for &v in tri {
+                if let Some(c) = colors.get_mut(v as usize) {
+                    *c = [1.0; 3];
+                }
+            }
+        }
     }
     let mut hidden = vec![false; mats.materials.len()];
     for (tri, m) in t.iter().zip(&mats.triangle_material) {
@@ -53,7 +76,8 @@ pub fn rig_look_parts(
         .materials
         .iter()
         .zip(&hidden)
-        .map(|(m, hidden)| {
+        .enumerate()
+        .map(|(k, (m, hidden))| {
             let alpha = if *hidden {
                 0.0
             } else if m.transparent {
@@ -65,6 +89,7 @@ pub fn rig_look_parts(
                 name: m.name.clone(),
                 base_color: [1.0, 1.0, 1.0, alpha],
                 blend: alpha < 1.0,
+                texture: texture_of[k],
             }
         })
         .collect();
@@ -72,6 +97,7 @@ pub fn rig_look_parts(
         materials,
         triangle_material: mats.triangle_material,
         colors,
+        textures: textures.textures,
     })
 }
 
@@ -101,6 +127,7 @@ pub fn write_rig_glb(
             materials: &parts.materials,
             triangle_material: &parts.triangle_material,
             colors: &parts.colors,
+            textures: &parts.textures,
         },
         metres_per_unit: s,
         morphs,

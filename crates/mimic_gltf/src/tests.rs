@@ -102,6 +102,7 @@ fn the_glb_morphs_reproduce_b_d_on_every_vertex_including_seams() {
         name: "skin".into(),
         base_color: [0.8, 0.6, 0.5, 1.0],
         blend: false,
+        texture: None,
     }];
     let triangle_material = [Some(0), Some(0), None, Some(0)];
     let scene = Scene {
@@ -114,6 +115,7 @@ fn the_glb_morphs_reproduce_b_d_on_every_vertex_including_seams() {
             materials: &materials,
             triangle_material: &triangle_material,
             colors: &[],
+            textures: &[],
         },
         metres_per_unit: s,
         morphs: &morphs,
@@ -217,6 +219,7 @@ fn a_take_with_the_wrong_target_count_is_refused() {
             materials: &[],
             triangle_material: &[],
             colors: &[],
+            textures: &[],
         },
         metres_per_unit: 1.0,
         morphs: &[],

@@ -39,6 +39,16 @@ pub enum RenderError {
         /// Vertices in the mesh.
         vertex_count: usize,
     },
+    /// A textured triangle names a texture the rig does not have.
+    #[error("triangle {triangle} uses texture {texture}, but there are {count}")]
+    NoSuchTexture {
+        /// Triangle number.
+        triangle: usize,
+        /// Offending texture index.
+        texture: u32,
+        /// Textures given.
+        count: usize,
+    },
     /// A control index of the weight heat map is out of range.
     #[error("heat map of control {control}, but the rig has {count} controls")]
     NoSuchControl {

@@ -13,9 +13,11 @@
 //! Runs on any Vulkan adapter, including Mesa's software lavapipe. No tokio.
 
 mod camera;
+pub mod compute;
 mod error;
 mod image;
 mod renderer;
+mod texture;
 
 pub use camera::Camera;
 pub use error::RenderError;

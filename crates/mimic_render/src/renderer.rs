@@ -1,8 +1,10 @@
 //! The headless renderer: device, offscreen targets, pipelines, and the per-rig GPU buffers.
 
+use crate::texture::Level;
 use crate::{Camera, Image, RenderError};
 use glam::{Mat4, Quat, Vec3};
 use mimic_solve::Basis;
+use mimic_types::{MeshTextures, TextureImage};
 use std::sync::mpsc;
 use wgpu::util::DeviceExt;
 
@@ -89,6 +91,19 @@ impl View {
     }
 }
 
+/// The buffers and texture the draw pass binds.
+struct DrawBuffers<'a> {
+    uniform: &'a wgpu::Buffer,
+    rest: &'a wgpu::Buffer,
+    basis: &'a wgpu::Buffer,
+    positions: &'a wgpu::Buffer,
+    normals: &'a wgpu::Buffer,
+    triangles: &'a wgpu::Buffer,
+    albedo: &'a wgpu::Buffer,
+    corners: &'a wgpu::Buffer,
+    texture: &'a wgpu::TextureView,
+}
+
 /// The per-frame uniform, laid out as `Frame` in the shaders.
 #[repr(C)]
 #[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
@@ -115,6 +130,13 @@ pub struct RigGpu {
     draw_group: wgpu::BindGroup,
     indices: wgpu::Buffer,
     albedo: wgpu::Buffer,
+    rest: wgpu::Buffer,
+    basis: wgpu::Buffer,
+    /// Per drawn corner: uv, texture layer (negative: untextured); one untextured entry until
+    /// [`Renderer::set_textures`].
+    corners: wgpu::Buffer,
+    texture: wgpu::TextureView,
+    textured: bool,
 }
 
 /// Albedo of every vertex until [`Renderer::set_albedo`] says otherwise: skin (linear RGB).
@@ -129,6 +151,16 @@ impl RigGpu {
     /// Number of controls (basis columns).
     pub fn control_count(&self) -> usize {
         self.control_count as usize
+    }
+
+    /// Number of triangles drawn.
+    pub fn triangle_count(&self) -> usize {
+        self.index_count as usize / 3
+    }
+
+    /// Whether textures were set ([`Renderer::set_textures`]).
+    pub fn is_textured(&self) -> bool {
+        self.textured
     }
 }
 
@@ -150,6 +182,7 @@ pub struct Renderer {
     morph: wgpu::ComputePipeline,
     normals: wgpu::ComputePipeline,
     draw: wgpu::RenderPipeline,
+    sampler: wgpu::Sampler,
 }
 
 fn vec4s(v: &[Vec3], w: f32) -> Vec<[f32; 4]> {
@@ -331,6 +364,16 @@ impl Renderer {
         });
 
         let t = Targets::new(&device, width, height, format);
+        // Textures repeat outside 0..1 (as modelling tools show them), trilinear filtering.
+        let sampler = device.create_sampler(&wgpu::SamplerDescriptor {
+            label: Some("texture"),
+            address_mode_u: wgpu::AddressMode::Repeat,
+            address_mode_v: wgpu::AddressMode::Repeat,
+            mag_filter: wgpu::FilterMode::Linear,
+            min_filter: wgpu::FilterMode::Linear,
+            mipmap_filter: wgpu::MipmapFilterMode::Linear,
+            ..Default::default()
+        });
         Ok(Self {
             device,
             queue,
@@ -347,6 +390,7 @@ impl Renderer {
             morph,
             normals,
             draw,
+            sampler,
         })
     }
 
@@ -546,17 +590,23 @@ impl Renderer {
                 (8, &normals_buf),
             ],
         );
-        let draw_group = group(
-            &self.draw.get_bind_group_layout(0),
-            &[
-                (0, &uniform),
-                (1, &rest_buf),
-                (2, &basis_buf),
-                (3, &positions_buf),
-                (4, &normals_buf),
-                (10, &albedo),
-            ],
+        let corners = init(
+            "corners",
+            bytemuck::cast_slice(&[[0f32, 0.0, -1.0, 0.0]]),
+            storage,
         );
+        let texture = self.texture_array(&[], 1, 1)?;
+        let draw_group = self.draw_group(DrawBuffers {
+            uniform: &uniform,
+            rest: &rest_buf,
+            basis: &basis_buf,
+            positions: &positions_buf,
+            normals: &normals_buf,
+            triangles: &indices,
+            albedo: &albedo,
+            corners: &corners,
+            texture: &texture,
+        });
         Ok(RigGpu {
             vertex_count: n as u32,
             control_count: m as u32,
@@ -570,7 +620,197 @@ impl Renderer {
             draw_group,
             indices,
             albedo,
+            rest: rest_buf,
+            basis: basis_buf,
+            corners,
+            texture,
+            textured: false,
         })
+    }
+
+    /// The draw pass's bind group over a rig's buffers and texture array.
+    fn draw_group(&self, b: DrawBuffers<'_>) -> wgpu::BindGroup {
+        fn buffer(binding: u32, buf: &wgpu::Buffer) -> wgpu::BindGroupEntry<'_> {
+            wgpu::BindGroupEntry {
+                binding,
+                resource: buf.as_entire_binding(),
+            }
+        }
+        self.device.create_bind_group(&wgpu::BindGroupDescriptor {
+            label: Some("draw"),
+            layout: &self.draw.get_bind_group_layout(0),
+            entries: &[
+                buffer(0, b.uniform),
+                buffer(1, b.rest),
+                buffer(2, b.basis),
+                buffer(3, b.positions),
+                buffer(4, b.normals),
+                buffer(5, b.triangles),
+                buffer(10, b.albedo),
+                buffer(11, b.corners),
+                wgpu::BindGroupEntry {
+                    binding: 12,
+                    resource: wgpu::BindingResource::TextureView(b.texture),
+                },
+                wgpu::BindGroupEntry {
+                    binding: 13,
+                    resource: wgpu::BindingResource::Sampler(&self.sampler),
+                },
+            ],
+        })
+    }
+
+    /// A texture array of `images` (sRGB), all resampled to the largest width and height among
+    /// them (within the device's limit) with full mip chains; `images` empty: one white
+    /// `width x height` layer.
+    fn texture_array(
+        &self,
+        images: &[&TextureImage],
+        width: u32,
+        height: u32,
+    ) -> Result<wgpu::TextureView, RenderError> {
+        let max = self.device.limits().max_texture_dimension_2d;
+        let (w, h) = images.iter().fold((width, height), |(w, h), i| {
+            (w.max(i.width).min(max), h.max(i.height).min(max))
+        });
+        for image in images {
+            let want = image.width as usize * image.height as usize * 4;
+            if image.rgba.len() != want || image.width == 0 || image.height == 0 {
+                return Err(RenderError::SizeMismatch {
+                    what: "texture bytes vs width x height x 4",
+                    got: image.rgba.len(),
+                    expected: want,
+                });
+            }
+        }
+        let layers = images.len().max(1) as u32;
+        if layers > self.device.limits().max_texture_array_layers {
+            return Err(RenderError::SizeMismatch {
+                what: "textures vs the device's texture array layers",
+                got: layers as usize,
+                expected: self.device.limits().max_texture_array_layers as usize,
+            });
+        }
+        let mips = crate::texture::mip_count(w, h);
+        let texture = self.device.create_texture(&wgpu::TextureDescriptor {
+            label: Some("textures"),
+            size: wgpu::Extent3d {
+                width: w,
+                height: h,
+                depth_or_array_layers: layers,
+            },
+            mip_level_count: mips,
+            sample_count: 1,
+            dimension: wgpu::TextureDimension::D2,
+            format: wgpu::TextureFormat::Rgba8UnormSrgb,
+            usage: wgpu::TextureUsages::TEXTURE_BINDING | wgpu::TextureUsages::COPY_DST,
+            view_formats: &[],
+        });
+        for layer in 0..layers {
+            let mut level = match images.get(layer as usize) {
+                Some(image) => Level::from_image(image).resized(w, h),
+                None => Level {
+                    width: w,
+                    height: h,
+                    pixels: vec![[1.0; 4]; (w * h) as usize],
+                },
+            };
+            for mip in 0..mips {
+                if mip > 0 {
+                    level = level.half();
+                }
+                self.queue.write_texture(
+                    wgpu::TexelCopyTextureInfo {
+                        texture: &texture,
+                        mip_level: mip,
+                        origin: wgpu::Origin3d {
+                            x: 0,
+                            y: 0,
+                            z: layer,
+                        },
+                        aspect: wgpu::TextureAspect::All,
+                    },
+                    &level.to_srgb8(),
+                    wgpu::TexelCopyBufferLayout {
+                        offset: 0,
+                        bytes_per_row: Some(level.width * 4),
+                        rows_per_image: Some(level.height),
+                    },
+                    wgpu::Extent3d {
+                        width: level.width,
+                        height: level.height,
+                        depth_or_array_layers: 1,
+                    },
+                );
+            }
+        }
+        Ok(texture.create_view(&wgpu::TextureViewDescriptor {
+            dimension: Some(wgpu::TextureViewDimension::D2Array),
+            ..Default::default()
+        }))
+    }
+
+    /// Textures the rig: `textures.triangles` parallel to the triangles uploaded (a hidden
+    /// triangle left out of the upload is left out here too, [`MeshTextures::kept`]). A textured
+    /// triangle is drawn in its texture's colour (sampled trilinearly, sRGB decoded) times the
+    /// light, instead of its vertices' albedo; an untextured one as before. Heat maps ignore it.
+    pub fn set_textures(
+        &self,
+        rig: &mut RigGpu,
+        textures: &MeshTextures,
+    ) -> Result<(), RenderError> {
+        if textures.triangles.len() != rig.triangle_count() {
+            return Err(RenderError::SizeMismatch {
+                what: "textured triangles vs triangles drawn",
+                got: textures.triangles.len(),
+                expected: rig.triangle_count(),
+            });
+        }
+        let mut corners: Vec<[f32; 4]> = Vec::with_capacity(textures.triangles.len() * 3);
+        for (t, tri) in textures.triangles.iter().enumerate() {
+            match tri {
+                Some(tt) => {
+                    if tt.texture as usize >= textures.textures.len() {
+                        return Err(RenderError::NoSuchTexture {
+                            triangle: t,
+                            texture: tt.texture,
+                            count: textures.textures.len(),
+                        });
+                    }
+                    for uv in tt.uv {
+                        corners.push([uv[0], uv[1], tt.texture as f32, 0.0]);
+                    }
+                }
+                None => corners.extend([[0.0, 0.0, -1.0, 0.0]; 3]),
+            }
+        }
+        if corners.is_empty() {
+            corners.push([0.0, 0.0, -1.0, 0.0]);
+        }
+        let images: Vec<&TextureImage> = textures.textures.iter().collect();
+        let texture = self.texture_array(&images, 1, 1)?;
+        let corners = self
+            .device
+            .create_buffer_init(&wgpu::util::BufferInitDescriptor {
+                label: Some("corners"),
+                contents: bytemuck::cast_slice(&corners),
+                usage: wgpu::BufferUsages::STORAGE,
+            });
+        rig.draw_group = self.draw_group(DrawBuffers {
+            uniform: &rig.uniform,
+            rest: &rig.rest,
+            basis: &rig.basis,
+            positions: &rig.positions,
+            normals: &rig.normals,
+            triangles: &rig.indices,
+            albedo: &rig.albedo,
+            corners: &corners,
+            texture: &texture,
+        });
+        rig.corners = corners;
+        rig.texture = texture;
+        rig.textured = !textures.textures.is_empty();
+        Ok(())
     }
 
     fn uniform(&self, rig: &RigGpu, view: Option<&View>) -> Result<FrameUniform, RenderError> {
@@ -765,6 +1005,31 @@ impl Renderer {
         Ok(())
     }
 
+    /// Clears `target` (a view like [`Renderer::draw_to`]'s) to the lit view's background and
+    /// submits: what a window shows while it has nothing to draw.
+    pub fn clear_to(&self, target: &wgpu::TextureView) -> Result<(), RenderError> {
+        let [r, g, b, a] = View::lit(Camera::front(Vec3::ZERO, Vec3::ONE)).background;
+        let mut encoder = self.device.create_command_encoder(&Default::default());
+        encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
+            label: Some("clear"),
+            color_attachments: &[Some(wgpu::RenderPassColorAttachment {
+                view: target,
+                depth_slice: None,
+                resolve_target: None,
+                ops: wgpu::Operations {
+                    load: wgpu::LoadOp::Clear(wgpu::Color { r, g, b, a }),
+                    store: wgpu::StoreOp::Store,
+                },
+            })],
+            depth_stencil_attachment: None,
+            timestamp_writes: None,
+            occlusion_query_set: None,
+            multiview_mask: None,
+        });
+        self.queue.submit([encoder.finish()]);
+        Ok(())
+    }
+
     /// Encodes the draw of the deformed rig into the multisampled target, resolved into `target`.
     fn draw_pass(
         &self,
@@ -799,8 +1064,9 @@ impl Renderer {
         });
         pass.set_pipeline(&self.draw);
         pass.set_bind_group(0, &rig.draw_group, &[]);
-        pass.set_index_buffer(rig.indices.slice(..), wgpu::IndexFormat::Uint32);
-        pass.draw_indexed(0..rig.index_count, 0, 0..1);
+        // Not indexed: the vertex shader reads corner c's vertex from the triangles and its
+        // texture coordinate from the corners (UV seams need no split vertices).
+        pass.draw(0..rig.index_count, 0..1);
     }
 
     /// The rig's current GPU positions (after [`Renderer::deform`] or [`Renderer::render`]).

@@ -79,6 +79,66 @@ fn step(c: &mut Criterion) {
         c.bench_function(&format!("apply_every_vertex/{name}"), |b| {
             b.iter(|| basis.apply(black_box(&d), &mut u))
         });
+        if let Some(steps) = std::env::var("MIMIC_BENCH_AB")
+            .ok()
+            .and_then(|v| v.parse().ok())
+        {
+            ab(name, &rig, &basis, steps);
+        }
+    }
+}
+
+/// `MIMIC_BENCH_AB=STEPS`: the fan pass's and the deform's variants interleaved in one loop (so
+/// each sees the same machine state), over the moving rows and every vertex's fan; medians in us.
+fn ab(name: &str, rig: &mimic_types::Rig, basis: &mimic_solve::Basis, steps: usize) {
+    use mimic_solve::normals::VertexFans;
+    use std::time::Instant;
+    let n = rig.mesh.vertex_count();
+    let deform = MovingDeform::new(basis, &rig.mesh.positions);
+    let d: Vec<Vec3> = (0..basis.control_count())
+        .map(|j| Vec3::new(0.01 * j as f32, -0.02, 0.005))
+        .collect();
+    let mut compact = vec![Vec3A::ZERO; deform.rows().len()];
+    let mut packed_rows = vec![0f32; 3 * deform.rows().len()];
+    let mut positions = rig.mesh.positions.clone();
+    deform.deform(&d, &mut compact, &mut positions);
+    let fans = VertexFans::new(n, n, &rig.mesh.triangles);
+    let wide: Vec<Vec3A> = positions.iter().map(|p| Vec3A::from(*p)).collect();
+    let mut packed: Vec<f32> = positions.iter().flat_map(|p| p.to_array()).collect();
+    packed.push(0.0);
+    let mut normals = vec![Vec3::ZERO; n];
+    let mut t: [Vec<f64>; 4] = Default::default();
+    let names = [
+        "deform, Vec3A copy",
+        "deform, packed copy",
+        "fans, Vec3A positions",
+        "fans, packed positions",
+    ];
+    for _ in 0..steps {
+        let mut time = |k: usize, f: &mut dyn FnMut()| {
+            let s = Instant::now();
+            f();
+            t[k].push(s.elapsed().as_secs_f64() * 1e6);
+        };
+        time(0, &mut || {
+            deform.deform(black_box(&d), &mut compact, &mut positions)
+        });
+        time(1, &mut || {
+            deform.deform_packed(black_box(&d), &mut packed_rows, &mut positions)
+        });
+        time(2, &mut || fans.normals(&wide, |v, x| normals[v] = x));
+        time(3, &mut || {
+            fans.normals_packed(&packed, |v, x| normals[v] = x)
+        });
+    }
+    black_box((&normals, &positions, &compact, &packed_rows));
+    eprintln!(
+        "A/B on {name} ({} moving rows, {n} fans), {steps} interleaved steps, medians:",
+        deform.rows().len()
+    );
+    for (what, mut v) in names.iter().zip(t) {
+        v.sort_by(f64::total_cmp);
+        eprintln!("  {what:<30} {:>8.2} us", v[v.len() / 2]);
     }
 }
 

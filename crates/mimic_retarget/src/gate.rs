@@ -4,7 +4,7 @@
 //! target's inter-ocular distance (`docs/gate.md`).
 
 use glam::{Quat, Vec3};
-use mimic_types::Fdp;
+use mimic_types::{Fdp, Region};
 use serde::{Deserialize, Serialize};
 
 /// Bounds of the plausibility gate; lengths in inter-ocular distances (IOD) of the target face
@@ -89,6 +89,19 @@ impl GateSettings {
             _ => self.max_other,
         }
     }
+
+    /// The displacement bound (IOD) of a control that stands for `fdp` (its group's bound, as
+    /// [`Self::bound`]), or of a point control that is no FDP: the loosest bound of its region's
+    /// groups (top: eyes and brows; middle: cheeks and nose; bottom: jaw and lips), so a dense
+    /// set holds no frame that the FDPs around it would pass.
+    pub fn bound_of(&self, fdp: Option<Fdp>, region: Region) -> f32 {
+        match (fdp, region) {
+            (Some(f), _) => self.bound(f),
+            (None, Region::Top) => self.max_eye.max(self.max_brow),
+            (None, Region::Middle) => self.max_cheek.max(self.max_other),
+            (None, Region::Bottom) => self.max_jaw.max(self.max_lip),
+        }
+    }
 }
 
 /// Why the gate held a frame.
@@ -152,12 +165,16 @@ impl GateReading {
 /// Inter-ocular distance of a face: the distance between the eye centres, each the midpoint of
 /// the eye's outer and inner corners (FDPs 3.7 + 3.11 and 3.8 + 3.12). Without those controls,
 /// 1.25 times the RMS distance of the controls from their centroid (the ratio on the ICT head is
-/// 1.23, on CANDIDE-3 1.32). `None` if that is not positive and finite.
-pub fn face_size(fdps: &[Fdp], positions: &[Vec3]) -> Option<f32> {
+/// 1.23, on CANDIDE-3 1.32). `None` if that is not positive and finite. `fdps` names each
+/// position's FDP (`Fdp`, `Option<Fdp>` for controls that may be none, or rig control names).
+pub fn face_size<F: Copy + Into<Option<Fdp>>>(fdps: &[F], positions: &[Vec3]) -> Option<f32> {
     let find = |g: u8, i: u8| {
         fdps.iter()
             .zip(positions)
-            .find(|(f, _)| f.group == g && f.index == i)
+            .find(|(f, _)| {
+                let f: Option<Fdp> = (**f).into();
+                f.is_some_and(|f| f.group == g && f.index == i)
+            })
             .map(|(_, p)| *p)
     };
     let iod = match (find(3, 7), find(3, 11), find(3, 8), find(3, 12)) {

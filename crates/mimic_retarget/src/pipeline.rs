@@ -5,18 +5,20 @@ use crate::patch::MovingPatch;
 use crate::{Neutral, OneEuro, RetargetSettings, SourceToTarget};
 use glam::{Quat, Vec3};
 use mimic_solve::{Basis, kabsch::fit_similarity, vertex_normals};
-use mimic_types::{Fdp, HeadPose, LandmarkFrame, Layout, Rig};
+use mimic_types::layout::mean_of_valid;
+use mimic_types::{ControlName, Fdp, HeadPose, LandmarkFrame, Layout, Rig};
 use std::sync::Arc;
 use std::time::Instant;
 
 /// Why a retargeter cannot be set up.
 #[derive(Debug, Clone, PartialEq, thiserror::Error)]
 pub enum RetargetError {
-    /// The rig drives a control the layout does not define.
+    /// The rig drives a control the layout does not define (an FDP it does not map, or a
+    /// point control of another layout).
     #[error("rig control {fdp} has no counterpart in layout `{layout}`")]
     MissingControl {
         /// Control of the rig.
-        fdp: Fdp,
+        fdp: ControlName,
         /// Layout name.
         layout: String,
     },
@@ -168,8 +170,9 @@ pub struct Retargeter {
     pub(crate) rest: Vec<Vec3>,
     pub(crate) triangles: Vec<[u32; 3]>,
     pub(crate) target_controls: Vec<Vec3>,
-    /// Layout control index of each rig control.
-    pub(crate) source_control: Vec<usize>,
+    /// Layout points of each rig control (its position is their mean): an FDP's points, or a
+    /// point control's one point.
+    pub(crate) source_points: Vec<Vec<usize>>,
     // Neutral, once known.
     pub(crate) neutral_points: Vec<Vec3>,
     pub(crate) neutral_valid: Vec<bool>,
@@ -234,26 +237,29 @@ impl Retargeter {
                 controls: m,
             });
         }
-        let source_control = rig
+        let source_points = rig
             .controls
             .iter()
             .map(|c| {
-                layout
-                    .control_index(c.fdp)
-                    .ok_or(RetargetError::MissingControl {
+                layout.control_points(c.fdp).map(<[usize]>::to_vec).ok_or(
+                    RetargetError::MissingControl {
                         fdp: c.fdp,
                         layout: layout.name.clone(),
-                    })
+                    },
+                )
             })
             .collect::<Result<Vec<_>, _>>()?;
         let p = layout.point_count;
-        let fdps: Vec<Fdp> = rig.controls.iter().map(|c| c.fdp).collect();
+        // The FDP each control stands for (a point control: the FDP that is that point alone in
+        // the layout, e.g. kinect121:20 is 3.7), for the face size and the gate's bounds.
+        let fdps: Vec<Option<Fdp>> = rig.controls.iter().map(|c| layout.fdp_of(c.fdp)).collect();
         let target_controls = rig.control_positions();
         // A rig too degenerate to measure has no face size: the gate then never holds a frame.
         let face = face_size(&fdps, &target_controls).unwrap_or(f32::INFINITY);
         let gate_bounds = fdps
             .iter()
-            .map(|f| settings.gate.bound(*f) * face)
+            .zip(&rig.controls)
+            .map(|(f, c)| settings.gate.bound_of(*f, c.region) * face)
             .collect();
         let mut r = Retargeter {
             layout: layout.clone(),
@@ -269,7 +275,7 @@ impl Retargeter {
             rest: rig.mesh.positions.clone(),
             triangles: rig.mesh.triangles.clone(),
             target_controls,
-            source_control,
+            source_points,
             neutral_points: vec![Vec3::ZERO; p],
             neutral_valid: vec![false; p],
             neutral_controls: vec![Vec3::ZERO; m],
@@ -462,7 +468,7 @@ impl Retargeter {
         }
         let t0 = Instant::now();
         for (j, slot) in self.controls_now.iter_mut().enumerate() {
-            *slot = self.layout.control_position(self.source_control[j], frame);
+            *slot = mean_of_valid(&self.source_points[j], frame);
         }
         let t1 = Instant::now();
         self.stable_src.clear();
@@ -787,8 +793,8 @@ impl Retargeter {
             valid: self.neutral_valid.clone(),
             tracked: true,
         };
-        for (j, &c) in self.source_control.iter().enumerate() {
-            match self.layout.control_position(c, &neutral) {
+        for (j, points) in self.source_points.iter().enumerate() {
+            match mean_of_valid(points, &neutral) {
                 Some(p) => self.neutral_controls[j] = p,
                 None => return false,
             }

@@ -199,6 +199,80 @@ impl MorphEval {
     }
 }
 
+/// Frame-to-frame jitter of a replay's deformed mesh ([`jitter`]), rig units.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct Jitter {
+    /// Runs of three consecutive tracked frames measured.
+    pub triples: usize,
+    /// Median over triples of the RMS second difference `|p(t+1) - 2 p(t) + p(t-1)|` over the
+    /// measured vertices: motion that reverses from frame to frame (noise), not steady motion.
+    pub median_second_difference: f64,
+    /// Nearest-rank 95th percentile of the same.
+    pub p95_second_difference: f64,
+    /// Median over frame pairs of the RMS first difference `|p(t) - p(t-1)|` (how much the
+    /// face moves at all), for scale.
+    pub median_first_difference: f64,
+}
+
+/// Replays `frames` through `r` and measures the jitter of the deformed positions at the
+/// `measured` vertices (rig order); only runs of tracked frames count.
+pub fn jitter<'a>(
+    r: &mut crate::Retargeter,
+    frames: impl IntoIterator<Item = &'a mimic_types::LandmarkFrame>,
+    measured: &[bool],
+) -> Jitter {
+    let mut out = r.new_output();
+    let idx: Vec<usize> = (0..out.positions.len())
+        .filter(|&i| measured.get(i).copied().unwrap_or(false))
+        .collect();
+    let mut history: Vec<Vec<Vec3>> = Vec::new();
+    let (mut second, mut first) = (Vec::new(), Vec::new());
+    for f in frames {
+        let status = r.step(f, &mut out);
+        if status != crate::FrameStatus::Tracked {
+            history.clear();
+            continue;
+        }
+        history.push(idx.iter().map(|&i| out.positions[i]).collect());
+        if history.len() > 3 {
+            history.remove(0);
+        }
+        let k = idx.len().max(1) as f64;
+        let n = history.len();
+        if n >= 2 {
+            let s: f64 = history[n - 1]
+                .iter()
+                .zip(&history[n - 2])
+                .map(|(a, b)| f64::from(a.distance_squared(*b)))
+                .sum();
+            first.push((s / k).sqrt());
+        }
+        if n == 3 {
+            let s: f64 = (0..idx.len())
+                .map(|v| {
+                    let a = history[2][v] - 2.0 * history[1][v] + history[0][v];
+                    f64::from(a.length_squared())
+                })
+                .sum();
+            second.push((s / k).sqrt());
+        }
+    }
+    let pick = |v: &mut Vec<f64>, q: f64| {
+        if v.is_empty() {
+            return 0.0;
+        }
+        v.sort_by(f64::total_cmp);
+        let rank = ((q * v.len() as f64).ceil() as usize).clamp(1, v.len());
+        v[rank - 1]
+    };
+    Jitter {
+        triples: second.len(),
+        median_second_difference: pick(&mut second.clone(), 0.5),
+        p95_second_difference: pick(&mut second, 0.95),
+        median_first_difference: pick(&mut first, 0.5),
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

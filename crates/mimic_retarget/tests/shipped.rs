@@ -254,7 +254,7 @@ fn dump_gate_readings() {
             previous = Some((f.timestamp_us, out.displacements.clone()));
             let mut by_group = [0f32; 12];
             for (c, d) in rb.rig.controls.iter().zip(&out.displacements) {
-                let slot = &mut by_group[c.fdp.group as usize];
+                let slot = &mut by_group[c.fdp.as_fdp().map_or(0, |f| f.group) as usize];
                 *slot = slot.max(d.length() / face);
             }
             println!(

@@ -60,7 +60,7 @@ impl std::fmt::Display for Warning {
     }
 }
 
-fn warn(kind: &'static str, fdps: &[Fdp], message: String) -> Warning {
+fn warn<F: ToString>(kind: &'static str, fdps: &[F], message: String) -> Warning {
     Warning {
         kind,
         fdps: fdps.iter().map(ToString::to_string).collect(),
@@ -75,7 +75,7 @@ pub fn rig_frame(rig: &Rig) -> Option<FaceFrame> {
     let at = |g: u8, i: u8| {
         rig.controls
             .iter()
-            .find(|c| c.fdp.group == g && c.fdp.index == i)
+            .find(|c| c.fdp.as_fdp() == Some(Fdp { group: g, index: i }))
             .and_then(|c| rig.mesh.positions.get(c.vertex as usize).copied())
     };
     let (ri, li) = (at(3, 8)?, at(3, 11)?);
@@ -95,9 +95,11 @@ pub fn rig_frame(rig: &Rig) -> Option<FaceFrame> {
 pub fn check_rig(rig: &Rig) -> Vec<Warning> {
     let mut out = Vec::new();
     let standard: Vec<Fdp> = CONTROLS.iter().map(|c| fdp_of(c.0)).collect();
-    let has = |f: &Fdp| rig.controls.iter().any(|c| c.fdp == *f);
+    let has = |f: &Fdp| rig.controls.iter().any(|c| c.fdp.as_fdp() == Some(*f));
+    // A dense rig (layout points as controls, docs/layouts.md) needs no FDP.
+    let dense = rig.controls.iter().any(|c| c.fdp.as_point().is_some());
     let missing: Vec<Fdp> = standard.iter().copied().filter(|f| !has(f)).collect();
-    if !missing.is_empty() {
+    if !missing.is_empty() && !dense {
         let names: Vec<String> = missing.iter().map(ToString::to_string).collect();
         out.push(warn(
             "missing_fdp",
@@ -112,7 +114,7 @@ pub fn check_rig(rig: &Rig) -> Vec<Warning> {
     let extra: Vec<Fdp> = rig
         .controls
         .iter()
-        .map(|c| c.fdp)
+        .filter_map(|c| c.fdp.as_fdp())
         .filter(|f| !standard.contains(f))
         .collect();
     if !extra.is_empty() {
@@ -170,9 +172,13 @@ pub fn check_rig(rig: &Rig) -> Vec<Warning> {
         }
     }
     let Some(frame) = rig_frame(rig) else {
+        if dense {
+            // A dense rig has no eye-corner FDPs: the mirror and unit checks need them.
+            return out;
+        }
         out.push(warn(
             "no_face_frame",
-            &[],
+            &[] as &[Fdp],
             "the eye corners (3.7, 3.8, 3.11, 3.12) and mouth corners (8.3, 8.4) are missing or degenerate: mirror and unit checks skipped".into(),
         ));
         return out;
@@ -180,7 +186,7 @@ pub fn check_rig(rig: &Rig) -> Vec<Warning> {
     let face = |g: u8, i: u8| -> Option<Vec3> {
         rig.controls
             .iter()
-            .find(|c| c.fdp.group == g && c.fdp.index == i)
+            .find(|c| c.fdp.as_fdp() == Some(Fdp { group: g, index: i }))
             .and_then(|c| rig.mesh.positions.get(c.vertex as usize))
             .map(|p| frame.to_face(*p))
     };
@@ -220,7 +226,7 @@ pub fn check_rig(rig: &Rig) -> Vec<Warning> {
         if !(1.0 / 3.0..=3.0).contains(&ratio) {
             out.push(warn(
                 "units",
-                &[],
+                &[] as &[Fdp],
                 format!(
                     "units = \"{}\" makes the eye centres {:.4} m apart, {ratio:.2} times a typical head's {TYPICAL_IOD_M} m; the mesh looks like it is in {}",
                     rig.units,

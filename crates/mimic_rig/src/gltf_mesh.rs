@@ -4,11 +4,16 @@
 //! every node) is read with its node's world transform applied; vertices are numbered in that
 //! order (nodes in scene order, primitives in mesh order), which is what landmark files for a
 //! glTF mesh count. Data URIs are not read.
+//!
+//! [`load_gltf_look`] also reads what the look needs: `TEXCOORD_0` (as the mesh's UVs, OBJ
+//! convention), each primitive's material (`baseColorFactor`) and its `baseColorTexture` image
+//! (from a buffer view or a file beside the glTF), which [`write_obj_copy`] writes out as an OBJ
+//! with `vt`, an MTL with `Kd` and `map_Kd`, and the image files: the rig's mesh.
 
 use crate::RigNewError;
-use glam::{Mat4, Vec3};
+use glam::{Mat4, Vec2, Vec3};
 use mimic_types::{FileKind, Mesh};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// Size cap of glTF and GLB files and of the buffers they name.
 pub const GLTF_FILE: FileKind = FileKind {
@@ -30,8 +35,35 @@ pub fn is_gltf(path: &Path) -> bool {
         .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"))
 }
 
+/// One material of a glTF mesh, as the rig's MTL will hold it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct GltfLookMaterial {
+    /// Name: `material_K` for glTF material K, `default` for primitives without one.
+    pub name: String,
+    /// `baseColorFactor`'s RGB (linear).
+    pub diffuse: [f32; 3],
+    /// Index into [`GltfLook::images`] of its `baseColorTexture`, if any.
+    pub image: Option<usize>,
+}
+
+/// The look of a glTF mesh: materials, the material of each triangle, the texture images.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct GltfLook {
+    /// Materials used by the mesh's primitives.
+    pub materials: Vec<GltfLookMaterial>,
+    /// Per triangle of the mesh, its material (index into `materials`).
+    pub triangle_material: Vec<usize>,
+    /// Texture images: a file name (`.png` / `.jpg`) and the encoded bytes.
+    pub images: Vec<(String, Vec<u8>)>,
+}
+
 /// Reads a glTF or GLB file's triangles into one mesh (see the module docs).
 pub fn load_gltf(path: &Path) -> Result<Mesh, RigNewError> {
+    load_gltf_look(path).map(|(mesh, _)| mesh)
+}
+
+/// Reads a glTF or GLB file's triangles into one mesh with its texture coordinates, and its look.
+pub fn load_gltf_look(path: &Path) -> Result<(Mesh, GltfLook), RigNewError> {
     let read = |p: &Path| {
         mimic_types::limits::read_bytes_capped(p, &GLTF_FILE).map_err(|cause| RigNewError::Read {
             path: p.to_path_buf(),
@@ -89,6 +121,12 @@ pub fn load_gltf(path: &Path) -> Result<Mesh, RigNewError> {
         }),
     }
     let mut mesh = Mesh::default();
+    let mut look = GltfLook::default();
+    // glTF material index (None: no material) to look material; glTF image index to look image.
+    let mut material_of: Vec<(Option<usize>, usize)> = Vec::new();
+    let mut image_of: Vec<(usize, usize)> = Vec::new();
+    let mut uvs: Vec<Vec2> = Vec::new();
+    let mut any_uv = false;
     for (node, world) in &nodes {
         let Some(m) = node.mesh() else { continue };
         for prim in m.primitives() {
@@ -104,6 +142,49 @@ pub fn load_gltf(path: &Path) -> Result<Mesh, RigNewError> {
             mesh.positions
                 .extend(positions.map(|p| world.transform_point3(Vec3::from_array(p))));
             let count = (mesh.positions.len() - before) as u32;
+            // UVs per vertex (glTF's v runs down: OBJ's is 1 - v); none: zeros.
+            let mut prim_uvs: Vec<Vec2> = reader
+                .read_tex_coords(0)
+                .map(|t| t.into_f32().map(|[u, v]| Vec2::new(u, 1.0 - v)).collect())
+                .unwrap_or_default();
+            any_uv |= !prim_uvs.is_empty();
+            prim_uvs.resize(count as usize, Vec2::ZERO);
+            uvs.extend(prim_uvs);
+            let material = prim.material();
+            let key = material.index();
+            let look_material = match material_of.iter().find(|(k, _)| *k == key) {
+                Some((_, m)) => *m,
+                None => {
+                    let image = match material
+                        .pbr_metallic_roughness()
+                        .base_color_texture()
+                        .map(|info| info.texture().source())
+                    {
+                        Some(img) => match image_of.iter().find(|(k, _)| *k == img.index()) {
+                            Some((_, i)) => Some(*i),
+                            None => {
+                                let (ext, bytes) = image_bytes(path, base, &img, &buffers)?;
+                                look.images
+                                    .push((format!("texture{}.{ext}", look.images.len()), bytes));
+                                image_of.push((img.index(), look.images.len() - 1));
+                                Some(look.images.len() - 1)
+                            }
+                        },
+                        None => None,
+                    };
+                    let [r, g, b, _] = material.pbr_metallic_roughness().base_color_factor();
+                    // The gltf crate reads names only with its `names` feature: by index.
+                    let name =
+                        key.map_or_else(|| "default".to_string(), |k| format!("material_{k}"));
+                    look.materials.push(GltfLookMaterial {
+                        name,
+                        diffuse: [r, g, b],
+                        image,
+                    });
+                    material_of.push((key, look.materials.len() - 1));
+                    look.materials.len() - 1
+                }
+            };
             let indices: Vec<u32> = match reader.read_indices() {
                 Some(i) => i.into_u32().collect(),
                 None => (0..count).collect(),
@@ -133,6 +214,7 @@ pub fn load_gltf(path: &Path) -> Result<Mesh, RigNewError> {
                 }
                 mesh.triangles
                     .push([first + t[0], first + t[1], first + t[2]]);
+                look.triangle_material.push(look_material);
             }
             if mesh.positions.len() > mimic_types::limits::MAX_MESH_VERTICES {
                 return Err(err(path, "more vertices than mimic reads"));
@@ -142,8 +224,115 @@ pub fn load_gltf(path: &Path) -> Result<Mesh, RigNewError> {
     if mesh.positions.is_empty() {
         return Err(err(path, "no triangle primitive with positions"));
     }
+    if any_uv {
+        mesh.uvs = uvs;
+        mesh.uv_triangles = mesh.triangles.clone();
+    }
     mesh.validate().map_err(|e| err(path, e.to_string()))?;
-    Ok(mesh)
+    Ok((mesh, look))
+}
+
+/// The encoded bytes of a glTF image and the file extension of its type (PNG or JPEG only).
+fn image_bytes(
+    path: &Path,
+    base: &Path,
+    image: &gltf::Image<'_>,
+    buffers: &[Vec<u8>],
+) -> Result<(&'static str, Vec<u8>), RigNewError> {
+    let bytes = match image.source() {
+        gltf::image::Source::View { view, .. } => {
+            let data = buffers
+                .get(view.buffer().index())
+                .and_then(|b| b.get(view.offset()..view.offset() + view.length()))
+                .ok_or_else(|| {
+                    err(
+                        path,
+                        format!("image {}: its buffer view is out of range", image.index()),
+                    )
+                })?;
+            data.to_vec()
+        }
+        gltf::image::Source::Uri { uri, .. } if uri.starts_with("data:") => {
+            return Err(err(
+                path,
+                format!(
+                    "image {} is a data URI, which is not read: export as .glb or with image files",
+                    image.index()
+                ),
+            ));
+        }
+        gltf::image::Source::Uri { uri, .. } => {
+            let p = base.join(uri);
+            mimic_types::limits::read_bytes_capped(&p, &mimic_types::TEXTURE_FILE)
+                .map_err(|cause| RigNewError::Read { path: p, cause })?
+        }
+    };
+    if bytes.starts_with(b"\x89PNG\r\n\x1a\n") {
+        Ok(("png", bytes))
+    } else if bytes.starts_with(&[0xFF, 0xD8]) {
+        Ok(("jpg", bytes))
+    } else {
+        Err(err(
+            path,
+            format!("image {}: neither PNG nor JPEG", image.index()),
+        ))
+    }
+}
+
+/// Writes `mesh` with `look` as the rig's OBJ copy `dir/STEM.mesh.obj`: `vt` and `usemtl` when
+/// the mesh has them, an MTL `STEM.mesh.mtl` (`Kd`, `map_Kd`) and the images as
+/// `STEM.TEXTURE` beside it; `header` goes in the OBJ's comment. Returns the OBJ's path.
+pub fn write_obj_copy(
+    dir: &Path,
+    stem: &str,
+    mesh: &Mesh,
+    look: &GltfLook,
+    header: &str,
+) -> std::io::Result<PathBuf> {
+    let obj = dir.join(format!("{stem}.mesh.obj"));
+    let mtl_name = format!("{stem}.mesh.mtl");
+    let with_materials =
+        !look.materials.is_empty() && look.triangle_material.len() == mesh.triangles.len();
+    if with_materials {
+        let mut images = Vec::with_capacity(look.images.len());
+        for (name, bytes) in &look.images {
+            let file = format!("{stem}.{name}");
+            std::fs::write(dir.join(&file), bytes)?;
+            images.push(file);
+        }
+        let materials: Vec<mimic_assets::Material> = look
+            .materials
+            .iter()
+            .map(|m| mimic_assets::Material {
+                name: m.name.clone(),
+                diffuse: m.diffuse,
+                transparent: false,
+                texture: m.image.and_then(|i| images.get(i)).map(PathBuf::from),
+            })
+            .collect();
+        let mut text = Vec::new();
+        mimic_assets::write_mtl(&mut text, header, &materials)?;
+        std::fs::write(dir.join(&mtl_name), text)?;
+    }
+    let names: Vec<String> = look.materials.iter().map(|m| m.name.clone()).collect();
+    let triangle_material: Vec<Option<usize>> =
+        look.triangle_material.iter().map(|m| Some(*m)).collect();
+    let extras = mimic_assets::ObjExtras {
+        uvs: &mesh.uvs,
+        uv_triangles: &mesh.uv_triangles,
+        mtllib: with_materials.then_some(mtl_name.as_str()),
+        materials: if with_materials { &names } else { &[] },
+        triangle_material: if with_materials {
+            &triangle_material
+        } else {
+            &[]
+        },
+        ..Default::default()
+    };
+    let mut w = std::io::BufWriter::new(std::fs::File::create(&obj)?);
+    mimic_assets::write_obj_with(&mut w, header, &mesh.positions, &mesh.triangles, &extras)?;
+    std::io::Write::flush(&mut w)?;
+    Ok(obj)
 }
 
 /// A minimal GLB of `positions` and `triangles` under one node translated by `t` (what the
@@ -211,6 +400,82 @@ pub fn write_glb(positions: &[Vec3], triangles: &[[u32; 3]], t: Vec3) -> Vec<u8>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_textured_glb_becomes_an_obj_with_its_mtl_and_image() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let png = include_bytes!("../../../configs/meshes/ict-facekit-textured/skin.png").to_vec();
+        let image = mimic_assets::decode_texture(Path::new("skin.png"), png.clone()).unwrap();
+        let positions = [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::new(1.0, 1.0, 0.0)];
+        let triangles = [[0, 1, 2], [2, 1, 3]];
+        // OBJ-convention UVs; vertex 2 is on a seam (another UV in the second triangle).
+        let uvs = [
+            Vec2::new(0.0, 0.0),
+            Vec2::new(1.0, 0.0),
+            Vec2::new(0.0, 1.0),
+            Vec2::new(1.0, 1.0),
+            Vec2::new(0.25, 0.75),
+        ];
+        let uv_triangles = [[0, 1, 2], [4, 1, 3]];
+        let materials = [mimic_gltf::GltfMaterial {
+            name: "Skin Mat".into(),
+            base_color: [1.0, 0.5, 0.25, 1.0],
+            blend: false,
+            texture: Some(0),
+        }];
+        let scene = mimic_gltf::Scene {
+            name: "quad",
+            mesh: mimic_gltf::GltfMesh {
+                positions: &positions,
+                triangles: &triangles,
+                uvs: &uvs,
+                uv_triangles: &uv_triangles,
+                materials: &materials,
+                triangle_material: &[Some(0), Some(0)],
+                colors: &[],
+                textures: std::slice::from_ref(&image),
+            },
+            metres_per_unit: 1.0,
+            morphs: &[],
+            take: None,
+            pivot: Vec3::ZERO,
+        };
+        let glb = d.join("quad.glb");
+        let mut bytes = Vec::new();
+        mimic_gltf::write_glb(&scene, &mut bytes).unwrap();
+        std::fs::write(&glb, bytes).unwrap();
+        let (mesh, look) = load_gltf_look(&glb).unwrap();
+        assert_eq!(look.materials.len(), 1);
+        assert_eq!(look.materials[0].name, "material_0");
+        assert_eq!(look.materials[0].diffuse, [1.0, 0.5, 0.25]);
+        assert_eq!(look.images, vec![("texture0.png".to_string(), png.clone())]);
+        let obj = write_obj_copy(d, "quad", &mesh, &look, "test").unwrap();
+        assert_eq!(obj, d.join("quad.mesh.obj"));
+        assert_eq!(std::fs::read(d.join("quad.texture0.png")).unwrap(), png);
+        // Loaded back as a rig's mesh: the corners keep their UVs (image convention: 1 - v).
+        let rig = d.join("quad.toml");
+        std::fs::write(
+            &rig,
+            "name = \"q\"\nunits = \"m\"\nmesh = \"quad.mesh.obj\"\ncontrols = []\n\
+             [regions]\ntop_from = 0.7\nbottom_below = 0.3\nband = 0.1\n",
+        )
+        .unwrap();
+        let back = mimic_assets::load_obj(&obj).unwrap();
+        let tex = mimic_assets::load_rig_textures(&rig, &back)
+            .unwrap()
+            .unwrap();
+        assert_eq!(tex.textures[0].encoded, png);
+        for (t, uvt) in uv_triangles.iter().enumerate() {
+            let got = tex.triangles[t].unwrap().uv;
+            for k in 0..3 {
+                let want = uvs[uvt[k] as usize];
+                assert!(
+                    (got[k][0] - want.x).abs() < 1e-6 && (got[k][1] - (1.0 - want.y)).abs() < 1e-6
+                );
+            }
+        }
+    }
 
     #[test]
     fn reads_a_glb_with_its_node_transform() {

@@ -10,6 +10,7 @@ pub mod new;
 pub mod parts;
 pub mod picture;
 pub mod place;
+pub mod register;
 pub mod write;
 
 pub use check::{Warning, check_rig};

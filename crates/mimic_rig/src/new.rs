@@ -231,6 +231,7 @@ pub fn make_rig(
         constraint_weight: 10.0,
         regions: true,
         top_split,
+        shell: mimic_types::ShellSettings::default(),
     };
     Ok(GeneratedRig {
         name: name.to_string(),

@@ -29,7 +29,7 @@ fn rules_reproduce_the_hand_rig_on_the_ict_head() {
     assert_eq!(rig.controls.len(), 38);
     let mut same = 0;
     for c in &hand.controls {
-        let g = rig.controls.iter().find(|g| g.fdp == c.fdp).unwrap();
+        let g = rig.controls.iter().find(|g| c.fdp == g.fdp.into()).unwrap();
         assert_eq!(g.region, c.region, "{}", c.fdp);
         let (a, b) = (
             hand.mesh.positions[c.vertex as usize],

@@ -1,6 +1,7 @@
 //! Criterion benchmarks of mimic_solve: per-frame apply (with the previous row-pair kernel, the
 //! blocked kernel on a matrix with no zero to skip, and naive baselines in the same process), basis
-//! setup for RBF and Laplacian, vertex normals (face scatter and vertex fans), Kabsch and morph fit.
+//! setup for RBF, Laplacian and the thin shell, vertex normals (face scatter and vertex fans),
+//! Kabsch and morph fit.
 //!
 //! Inputs are generated meshes (a curved sheet, like a face patch) of about 3k, 30k and 100k
 //! vertices with 38 controls spread over them; everything is built outside the timed closures.
@@ -79,7 +80,7 @@ fn rig(side: usize) -> Rig {
             let vertex = (j * side + i) as u32;
             let region = regions.region_at(positions[vertex as usize].y);
             controls.push(RigControl {
-                fdp: fdps[controls.len()],
+                fdp: fdps[controls.len()].into(),
                 vertex,
                 region,
             });
@@ -231,6 +232,14 @@ fn bench_setup(c: &mut Criterion) {
         });
         g.bench_with_input(BenchmarkId::new("laplacian_mean_value", n), &n, |bch, _| {
             bch.iter(|| build_basis(black_box(&r), &laplacian_settings()).unwrap())
+        });
+        let shell = SolverSettings {
+            kind: SolverKind::Shell,
+            regions: false,
+            ..SolverSettings::default()
+        };
+        g.bench_with_input(BenchmarkId::new("shell", n), &n, |bch, _| {
+            bch.iter(|| build_basis(black_box(&r), &shell).unwrap())
         });
     }
     g.finish();

@@ -1,9 +1,9 @@
-//! [`build_basis`]: the basis `B` of a rig, from RBF or Laplacian solves per region part.
+//! [`build_basis`]: the basis `B` of a rig, from RBF, Laplacian or thin-shell solves per region part.
 
-use crate::{Basis, SolveError, geodesic, laplacian, rbf, regions};
+use crate::{Basis, SolveError, geodesic, laplacian, rbf, regions, shell};
 use mimic_types::{RbfDistance, Rig, SolverKind, SolverSettings};
 
-/// The Laplacian blends its regions over this many times the rig's `regions.band`.
+/// The Laplacian and the thin shell blend their regions over this many times the rig's `regions.band`.
 const LAPLACIAN_BAND_SCALE: f32 = 2.0;
 
 /// Builds the deformation basis of `rig` with `settings` (the rig's own `rig.solver` is not read).
@@ -11,10 +11,11 @@ const LAPLACIAN_BAND_SCALE: f32 = 2.0;
 /// Without regions, one solve over all controls. With regions, `B = sum_r diag(alpha_r) B_r`
 /// blended by the rig's [`mimic_types::RegionBands`], where `B_r` has non-zero columns only for
 /// region r's controls: for RBF, `B_r` is an RBF through region r's controls alone; for the
-/// Laplacian, `B_r` is region r's columns of the one solve constrained by every control (one
+/// Laplacian and the thin shell ([`crate::shell`]), `B_r` is region r's columns of the one solve
+/// constrained by every control (one
 /// factorisation; measured better than per-region solves on real expressions, see
 /// docs/quality.md, but it no longer reproduces a uniform translation). A region without controls
-/// contributes nothing (its vertices stay still); the Laplacian blends over
+/// contributes nothing (its vertices stay still); the Laplacian and the shell blend over
 /// twice the rig's band (`LAPLACIAN_BAND_SCALE`). Rows of frozen vertices are zero.
 /// RBF reproduces each control displacement exactly when regions are off (with regions, a control
 /// inside a blend band is only weighted by its own region's share). With
@@ -51,7 +52,12 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
     let split = settings
         .top_split
         .filter(|_| settings.kind == SolverKind::Rbf);
-    let parts = regions::Part::all(settings.regions, split);
+    let use_regions = if settings.kind == SolverKind::Shell {
+        settings.shell.regions
+    } else {
+        settings.regions
+    };
+    let parts = regions::Part::all(use_regions, split);
     let groups: Vec<(regions::Part, Vec<usize>)> = parts
         .into_iter()
         .map(|p| {
@@ -68,7 +74,7 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
     // well past a band: cut over the rig's band they shear into a seam across the cheeks on a
     // jaw opening; over twice the band they bend no more than the regions (docs/quality.md).
     let mut bands = rig.regions;
-    if settings.kind == SolverKind::Laplacian {
+    if matches!(settings.kind, SolverKind::Laplacian | SolverKind::Shell) {
         bands.band *= LAPLACIAN_BAND_SCALE;
     }
     let weights = regions::vertex_region_weights(&bands, positions);
@@ -85,17 +91,26 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
         });
     // Laplacian: one solve constrained by every control; with regions, region r keeps its own
     // controls' columns of it (measured better than per-region solves, docs/quality.md).
+    // The thin shell likewise: one solve with every control, columns kept per region.
+    let all: Vec<usize> = rig.controls.iter().map(|c| c.vertex as usize).collect();
+    let system = format!("{:?} solve", settings.kind);
     let lap_all = match &lap_rows {
-        Some(rows) => {
-            let all: Vec<usize> = rig.controls.iter().map(|c| c.vertex as usize).collect();
-            let system = format!("{:?} solve", settings.kind);
-            Some(laplacian::laplacian_columns(
-                rows,
-                &rig.frozen,
-                &all,
-                settings.constraint_weight,
-                &system,
-            )?)
+        Some(rows) => Some(laplacian::laplacian_columns(
+            rows,
+            &rig.frozen,
+            &all,
+            settings.constraint_weight,
+            &system,
+        )?),
+        None if settings.kind == SolverKind::Shell => {
+            Some(shell::shell_columns(&shell::ShellInputs {
+                positions,
+                triangles: &rig.mesh.triangles,
+                frozen: &rig.frozen,
+                controls: &all,
+                settings: &settings.shell,
+                system: &system,
+            })?)
         }
         None => None,
     };

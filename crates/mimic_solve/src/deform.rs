@@ -163,6 +163,53 @@ impl MovingDeform {
         self.deform_portable(d, compact, positions);
     }
 
+    /// [`MovingDeform::deform`] with the compact copy packed 3 floats a row
+    /// (`compact[3 k..3 k + 3] = positions[rows()[k]]`, for the fan pass's packed reads,
+    /// [`crate::normals::VertexFans::normals_packed`]): the same positions bit for bit, and the
+    /// same registers stored twice where a block's rows are consecutive vertices. Allocates nothing.
+    ///
+    /// # Panics
+    /// As [`MovingDeform::deform`], with `compact.len() < 3 * rows().len()`.
+    pub fn deform_packed(&self, d: &[Vec3], compact: &mut [f32], positions: &mut [Vec3]) {
+        assert_eq!(
+            d.len(),
+            self.control_count,
+            "MovingDeform::deform_packed: {} control displacements for {} controls",
+            d.len(),
+            self.control_count
+        );
+        assert!(
+            compact.len() >= 3 * self.rows.len() && positions.len() >= self.vertex_count,
+            "MovingDeform::deform_packed: outputs of {} floats and {} entries for {} rows of {} vertices",
+            compact.len(),
+            positions.len(),
+            self.rows.len(),
+            self.vertex_count
+        );
+        let compact = &mut compact[..3 * self.rows.len()];
+        #[cfg(target_arch = "x86_64")]
+        if crate::basis::avx2_fma() {
+            // SAFETY: AVX2 and FMA are checked just above; the shapes are asserted above and
+            // the blocked arrays were built for these rows and controls.
+            unsafe { self.deform_packed_avx2(d, compact, positions) };
+            return;
+        }
+        for (b, out) in compact.chunks_mut(3 * BLOCK).enumerate() {
+            let kept = self.starts[b] as usize..self.starts[b + 1] as usize;
+            let rest = &self.rest[b * 3 * BLOCK..][..3 * BLOCK];
+            for (r, o) in out.chunks_exact_mut(3).enumerate() {
+                let mut u = Vec3A::ZERO;
+                for (k, &j) in self.cols[kept.clone()].iter().enumerate() {
+                    let w = self.values[(kept.start + k) * BLOCK + r];
+                    u += Vec3A::from(d[j as usize]) * w;
+                }
+                let p = Vec3A::new(rest[r], rest[BLOCK + r], rest[2 * BLOCK + r]) + u;
+                o.copy_from_slice(&p.to_array());
+                positions[self.rows[b * BLOCK + r] as usize] = Vec3::from(p);
+            }
+        }
+    }
+
     /// [`MovingDeform::deform`] on any CPU: the same blocked sums, one row at a time.
     fn deform_portable(&self, d: &[Vec3], compact: &mut [Vec3A], positions: &mut [Vec3]) {
         for (b, out) in compact.chunks_mut(BLOCK).enumerate() {
@@ -252,6 +299,81 @@ impl MovingDeform {
             if self.runs[b] == SCATTERED {
                 for (&i, p) in self.rows[b * BLOCK..].iter().zip(out.iter()) {
                     positions[i as usize] = Vec3::from(*p);
+                }
+            }
+        }
+    }
+}
+
+impl MovingDeform {
+    /// [`MovingDeform::deform_packed`] with AVX2 + FMA: [`MovingDeform::deform_avx2`]'s sums, the
+    /// rows stored packed (x, y, z) to `compact` and, for a run of consecutive vertices, the same
+    /// three registers to `positions`.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA; `compact.len() == 3 * rows.len()`, `positions.len() >=
+    /// vertex_count` and `d.len() == control_count`.
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx2,fma")]
+    unsafe fn deform_packed_avx2(&self, d: &[Vec3], compact: &mut [f32], positions: &mut [Vec3]) {
+        use std::arch::x86_64::*;
+        const L: usize = 8;
+        let mut spare = [0f32; 3 * BLOCK];
+        let dp = d.as_ptr().cast::<f32>();
+        for (b, out) in compact.chunks_mut(3 * BLOCK).enumerate() {
+            let full = out.len() == 3 * BLOCK;
+            let dst: *mut f32 = if full {
+                out.as_mut_ptr()
+            } else {
+                spare.as_mut_ptr()
+            };
+            let kept = self.starts[b] as usize..self.starts[b + 1] as usize;
+            let values = &self.values[kept.start * BLOCK..kept.end * BLOCK];
+            let cols = &self.cols[kept];
+            let rest = &self.rest[b * 3 * BLOCK..][..3 * BLOCK];
+            // SAFETY: as in `deform_avx2`; `dst` points at 3 * BLOCK floats (the block's packed
+            // compact rows when full, else `spare`).
+            unsafe {
+                let mut col = values.as_ptr();
+                let mut acc = [_mm256_setzero_ps(); 9];
+                for &j in cols {
+                    let c = [
+                        _mm256_loadu_ps(col),
+                        _mm256_loadu_ps(col.add(L)),
+                        _mm256_loadu_ps(col.add(2 * L)),
+                    ];
+                    let dj = dp.add(3 * j as usize);
+                    let dv = [
+                        _mm256_broadcast_ss(&*dj),
+                        _mm256_broadcast_ss(&*dj.add(1)),
+                        _mm256_broadcast_ss(&*dj.add(2)),
+                    ];
+                    for g in 0..3 {
+                        for a in 0..3 {
+                            acc[3 * g + a] = _mm256_fmadd_ps(c[g], dv[a], acc[3 * g + a]);
+                        }
+                    }
+                    col = col.add(BLOCK);
+                }
+                let rp = rest.as_ptr();
+                let run = self.runs[b];
+                for g in 0..3 {
+                    let [x, y, z] = [0, 1, 2].map(|a| {
+                        _mm256_add_ps(_mm256_loadu_ps(rp.add(a * BLOCK + g * L)), acc[3 * g + a])
+                    });
+                    crate::basis::store_xyz8(dst.add(g * 3 * L), x, y, z);
+                    if run != SCATTERED {
+                        let p = positions.as_mut_ptr().cast::<f32>();
+                        crate::basis::store_xyz8(p.add(3 * (run as usize + g * L)), x, y, z);
+                    }
+                }
+            }
+            if !full {
+                out.copy_from_slice(&spare[..out.len()]);
+            }
+            if self.runs[b] == SCATTERED {
+                for (&i, p) in self.rows[b * BLOCK..].iter().zip(out.chunks_exact(3)) {
+                    positions[i as usize] = Vec3::new(p[0], p[1], p[2]);
                 }
             }
         }
@@ -363,6 +485,17 @@ mod tests {
                 let tol = (m + 2) as f32 * f32::EPSILON * bound;
                 assert!((positions[i] - want).abs().max_element() <= tol, "row {i}");
                 assert_eq!(Vec3::from(compact[k]), positions[i]);
+            }
+            // The packed variant: the same positions and compact rows, bit for bit.
+            let mut packed = vec![f32::NAN; 3 * deform.rows().len()];
+            let mut positions_p = vec![Vec3::NAN; n];
+            deform.deform_packed(&d, &mut packed, &mut positions_p);
+            for (k, &i) in deform.rows().iter().enumerate() {
+                assert_eq!(
+                    positions_p[i as usize], positions[i as usize],
+                    "packed row {i}"
+                );
+                assert_eq!(&packed[3 * k..3 * k + 3], &positions[i as usize].to_array());
             }
             // Frozen rows are left alone.
             for (i, p) in positions.iter().enumerate() {

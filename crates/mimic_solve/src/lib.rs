@@ -1,7 +1,7 @@
 //! Numeric core of mimic: builds the n x m deformation basis `B` once per rig, applies it per frame.
 //!
 //! Entry points: [`build_basis`] (RBF with Euclidean or along-the-skin [`geodesic`] distances, or
-//! sparse Laplacian editing, optionally per face region, folded into one [`Basis`]),
+//! sparse Laplacian editing, or the cotangent [`shell`] (thin-shell) energy, optionally per face region, folded into one [`Basis`]),
 //! [`Basis::apply`] (`u = B d`, allocation-free, AVX2 + FMA where the CPU has it), [`vertex_normals`],
 //! [`kabsch::fit_similarity`] (head pose) and [`morph_fit::MorphFit`] (blendshape weights).
 //! Setup allocates and may fail with [`SolveError`]; the per-frame steps take `&self`, inputs and
@@ -9,6 +9,7 @@
 
 pub mod basis;
 mod build;
+pub mod cotangent;
 pub mod deform;
 pub mod error;
 pub mod geodesic;
@@ -19,6 +20,7 @@ pub mod morph_fit;
 pub mod normals;
 pub mod rbf;
 pub mod regions;
+pub mod shell;
 #[cfg(test)]
 mod test_meshes;
 #[cfg(test)]

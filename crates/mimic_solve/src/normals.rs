@@ -139,12 +139,52 @@ impl VertexFans {
         #[cfg(target_arch = "x86_64")]
         if crate::basis::avx2_fma() {
             // SAFETY: AVX2 and FMA are checked just above; every centre and entry is below
-            // position_count <= positions.len() (asserted), and each group's entries lie in
-            // `entries` by construction.
-            unsafe { self.normals_avx2::<false>(positions, &mut write) };
+            // position_count <= positions.len() (asserted), each a 16-byte Vec3A at 4 floats a
+            // vertex, and each group's entries lie in `entries` by construction.
+            unsafe { self.normals_avx2::<false, 4>(positions.as_ptr().cast(), &mut write) };
             return;
         }
         self.normals_portable(positions, &mut write);
+    }
+
+    /// [`VertexFans::normals`] on positions packed 3 floats a vertex (`positions[3 v..3 v + 3]`,
+    /// one float of padding after the last), as [`crate::deform::MovingDeform::deform_packed`]
+    /// writes them: the same loads (the fourth float of each, the next vertex's x, is dropped by
+    /// the transpose) on a quarter less memory, so the same normals bit for bit as
+    /// [`VertexFans::normals`] on the same positions.
+    ///
+    /// # Panics
+    /// If `positions.len() < 3 * position_count() + 1`.
+    pub fn normals_packed(&self, positions: &[f32], mut write: impl FnMut(usize, Vec3)) {
+        assert!(
+            positions.len() > 3 * self.position_count,
+            "VertexFans::normals_packed: {} floats, fans name {} positions (3 floats each and 1 of padding)",
+            positions.len(),
+            self.position_count
+        );
+        #[cfg(target_arch = "x86_64")]
+        if crate::basis::avx2_fma() {
+            let p = positions.as_ptr();
+            // SAFETY: AVX2 and FMA are checked just above; every centre and entry v is below
+            // position_count, and the 4 floats at 3 v lie within positions (asserted: 3
+            // position_count + 1 floats); each group's entries lie in `entries` by construction.
+            unsafe { self.normals_avx2::<false, 3>(p, &mut write) };
+            return;
+        }
+        self.normals_packed_portable(positions, &mut write);
+    }
+
+    /// [`VertexFans::normals_packed`] one fan at a time, on any CPU.
+    fn normals_packed_portable(&self, positions: &[f32], write: &mut impl FnMut(usize, Vec3)) {
+        for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
+            let entries = &self.entries[first as usize..][..steps as usize * GROUP];
+            let at = |v: usize| Vec3A::from_slice(&positions[3 * v..3 * v + 3]);
+            for k in 0..lanes as usize {
+                let v = self.centres[g * GROUP + k] as usize;
+                let acc = fan_sum(at(v), entries.iter().skip(k).step_by(GROUP), at);
+                write(v, Vec3::from(acc.normalize_or_zero()));
+            }
+        }
     }
 
     /// [`VertexFans::normals`] with the neighbours fetched by AVX2 gathers (one per axis and
@@ -163,7 +203,7 @@ impl VertexFans {
         #[cfg(target_arch = "x86_64")]
         if crate::basis::avx2_fma() {
             // SAFETY: as in `normals`.
-            unsafe { self.normals_avx2::<true>(positions, &mut write) };
+            unsafe { self.normals_avx2::<true, 4>(positions.as_ptr().cast(), &mut write) };
             return;
         }
         self.normals_portable(positions, &mut write);
@@ -175,22 +215,9 @@ impl VertexFans {
             let entries = &self.entries[first as usize..][..steps as usize * GROUP];
             for k in 0..lanes as usize {
                 let v = self.centres[g * GROUP + k] as usize;
-                let p = positions[v];
-                let mut fan = entries.iter().skip(k).step_by(GROUP);
-                let mut acc = Vec3A::ZERO;
-                if let Some(&w0) = fan.next() {
-                    // a x b = (a * b.yzx - a.yzx * b).yzx: sum the inner vectors, rotate at the end.
-                    let mut a = positions[w0 as usize] - p;
-                    let mut a_r = a.yzx();
-                    for &w in fan {
-                        let b = positions[w as usize] - p;
-                        let b_r = b.yzx();
-                        acc += a * b_r - a_r * b;
-                        a = b;
-                        a_r = b_r;
-                    }
-                }
-                write(v, Vec3::from(acc.yzx().normalize_or_zero()));
+                let fan = entries.iter().skip(k).step_by(GROUP);
+                let acc = fan_sum(positions[v], fan, |w| positions[w]);
+                write(v, Vec3::from(acc.normalize_or_zero()));
             }
         }
     }
@@ -199,23 +226,26 @@ impl VertexFans {
     /// 8 neighbour loads transposed to x, y, z registers, 8 cross products, one vector square root
     /// and division per group for the normalisation.
     ///
+    /// `STRIDE` floats a vertex (4: `Vec3A`, 3: packed), x, y, z first; `GATHER` fetches by AVX2
+    /// gathers (`STRIDE` 4 only).
+    ///
     /// # Safety
-    /// The CPU must support AVX2 and FMA, and `positions.len() >= self.position_count`.
+    /// The CPU must support AVX2 and FMA, and `base` must be valid for reading 4 floats at
+    /// `STRIDE * v` for every `v < self.position_count`.
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
-    unsafe fn normals_avx2<const GATHER: bool>(
+    unsafe fn normals_avx2<const GATHER: bool, const STRIDE: usize>(
         &self,
-        positions: &[Vec3A],
+        base: *const f32,
         write: &mut impl FnMut(usize, Vec3),
     ) {
         use std::arch::x86_64::*;
-        debug_assert!(positions.len() >= self.position_count);
-        let base = positions.as_ptr().cast::<f32>();
         // 8 positions named by `idx` as x, y, z registers (lane k = idx[k]).
-        // SAFETY (of the caller): every index read below is < position_count <= positions.len().
+        // SAFETY (of the caller): every index read below is < position_count, and 4 floats at
+        // STRIDE * index are readable.
         let load8 = |idx: &[u32]| -> (__m256, __m256, __m256) {
-            // SAFETY: idx holds 8 indices below positions.len(); Vec3A is 16 bytes (x, y, z, pad).
-            if GATHER {
+            // SAFETY: idx holds 8 indices below position_count; 4 floats at STRIDE * v readable.
+            if GATHER && STRIDE == 4 {
                 // SAFETY: as above; the gathers read f32 4 * idx[k] + axis of `positions`.
                 return unsafe {
                     let i = _mm256_slli_epi32::<2>(_mm256_loadu_si256(idx.as_ptr().cast()));
@@ -227,7 +257,7 @@ impl VertexFans {
                 };
             }
             unsafe {
-                let at = |k: usize| base.add(idx[k] as usize * 4);
+                let at = |k: usize| base.add(idx[k] as usize * STRIDE);
                 let r0 = _mm256_loadu2_m128(at(4), at(0));
                 let r1 = _mm256_loadu2_m128(at(5), at(1));
                 let r2 = _mm256_loadu2_m128(at(6), at(2));
@@ -317,6 +347,29 @@ impl VertexFans {
             }
         }
     }
+}
+
+/// The un-normalised fan sum `sum_l (p[w_l] - c) x (p[w_l+1] - c)` around centre `c`, one fan
+/// at a time (the portable paths), as its components in x, y, z order.
+fn fan_sum<'a>(
+    c: Vec3A,
+    mut fan: impl Iterator<Item = &'a u32>,
+    at: impl Fn(usize) -> Vec3A,
+) -> Vec3A {
+    let mut acc = Vec3A::ZERO;
+    if let Some(&w0) = fan.next() {
+        // a x b = (a * b.yzx - a.yzx * b).yzx: sum the inner vectors, rotate at the end.
+        let mut a = at(w0 as usize) - c;
+        let mut a_r = a.yzx();
+        for &w in fan {
+            let b = at(w as usize) - c;
+            let b_r = b.yzx();
+            acc += a * b_r - a_r * b;
+            a = b;
+            a_r = b_r;
+        }
+    }
+    acc.yzx()
 }
 
 /// Per vertex `v < count`, its triangles `(v, w1, w2)` chained into fans `w_0, w_1, ...` (see
@@ -444,13 +497,28 @@ mod tests {
         // The gather variant loads the same values into the same lanes: the same sums.
         let mut gathered = vec![Vec3::NAN; count];
         fans.normals_gather(&pa, |v, n| gathered[v] = n);
+        // So do the packed positions (3 floats a vertex, 1 of padding, NaN here: never used).
+        let mut packed: Vec<f32> = positions.iter().flat_map(|p| p.to_array()).collect();
+        packed.push(f32::NAN);
+        let mut from_packed = vec![Vec3::NAN; count];
+        fans.normals_packed(&packed, |v, n| from_packed[v] = n);
+        let mut packed_portable = vec![Vec3::NAN; count];
+        fans.normals_packed_portable(&packed, &mut |v, n| packed_portable[v] = n);
         for v in 0..count {
+            let (a, b) = (packed_portable[v], portable[v]);
             assert!(
-                gathered[v] == fast[v] || (gathered[v].is_nan() && fast[v].is_nan()),
-                "gather v={v}: {} vs {}",
-                gathered[v],
-                fast[v]
+                a == b || (a.is_nan() && b.is_nan()),
+                "packed portable v={v}: {a} vs {b}"
             );
+        }
+        for v in 0..count {
+            for (what, other) in [("gather", gathered[v]), ("packed", from_packed[v])] {
+                assert!(
+                    other == fast[v] || (other.is_nan() && fast[v].is_nan()),
+                    "{what} v={v}: {other} vs {}",
+                    fast[v]
+                );
+            }
         }
         for v in 0..count {
             let (t, tol) = truth[v];

@@ -9,7 +9,7 @@ use crate::SolveError;
 use faer::prelude::*;
 use faer::{Mat, Side};
 use glam::{DVec3, Vec3};
-use mimic_types::{Fdp, RbfKernel};
+use mimic_types::{ControlName, RbfKernel};
 
 /// Relative distance (to the control cloud's extent) under which two controls count as coincident.
 const COINCIDENT: f64 = 1e-9;
@@ -85,8 +85,8 @@ pub struct RbfInputs<'a> {
     pub frozen: &'a [bool],
     /// Rest positions of the centres (the controls).
     pub centres: &'a [Vec3],
-    /// FDP name of each centre, for errors and warnings.
-    pub fdps: &'a [Fdp],
+    /// Name of each centre's control (an FDP or a layout point), for errors and warnings.
+    pub fdps: &'a [ControlName],
     /// The radial kernel.
     pub kernel: RbfKernel,
     /// Adds the affine term `(1, x, y, z)`.
@@ -330,7 +330,7 @@ mod tests {
     use super::*;
     use crate::test_meshes::{control_lattice, fdp, grid, lcg};
 
-    fn setup() -> (Vec<Vec3>, Vec<Vec3>, Vec<Fdp>) {
+    fn setup() -> (Vec<Vec3>, Vec<Vec3>, Vec<ControlName>) {
         let mesh = grid(15, 15, 0.3, 0.3, 2);
         let centres: Vec<Vec3> = control_lattice(15, 15, 4, 4)
             .iter()

@@ -1,7 +1,7 @@
 //! Generated meshes and rigs for the unit tests.
 
 use glam::Vec3;
-use mimic_types::{Fdp, Mesh, RegionBands, Rig, RigControl, SolverSettings};
+use mimic_types::{ControlName, Fdp, Mesh, RegionBands, Rig, RigControl, SolverSettings};
 
 pub use mimic_testkit::lcg;
 
@@ -76,17 +76,18 @@ pub fn tri_lattice(nx: usize, ny: usize, jitter: f32, seed: u64) -> Mesh {
     }
 }
 
-/// The `j`-th FDP MPEG-4 defines (groups 2..=11 in order), to name test controls uniquely.
-pub fn fdp(j: usize) -> Fdp {
+/// The `j`-th FDP MPEG-4 defines (groups 2..=11 in order), to name test controls uniquely;
+/// past the 89 FDPs, the point control `test:j` (any count of controls).
+pub fn fdp(j: usize) -> ControlName {
     const SIZES: [u8; 10] = [14, 14, 6, 4, 4, 1, 10, 15, 15, 6];
-    let mut j = j;
+    let mut k = j;
     for (g, &size) in SIZES.iter().enumerate() {
-        if j < size as usize {
-            return Fdp::new(g as u8 + 2, j as u8 + 1).unwrap();
+        if k < size as usize {
+            return Fdp::new(g as u8 + 2, k as u8 + 1).unwrap().into();
         }
-        j -= size as usize;
+        k -= size as usize;
     }
-    panic!("only 89 FDPs");
+    ControlName::point("test", j).unwrap()
 }
 
 /// A rig on `mesh` with controls at `vertices`, regions by height (thirds of [0, 1] with `band`).

@@ -17,6 +17,10 @@ fn settings(kind: SolverKind, regions: bool) -> SolverSettings {
         constraint_weight: 10.0,
         regions,
         top_split: None,
+        shell: mimic_types::ShellSettings {
+            regions,
+            ..mimic_types::ShellSettings::default()
+        },
     }
 }
 
@@ -59,7 +63,7 @@ fn zero_and_linearity_and_frozen_rows_for_both_solvers() {
         *f = i < 20; // bottom row of the grid (no controls there)
     }
     let mut seed = 2;
-    for kind in [SolverKind::Rbf, SolverKind::Laplacian] {
+    for kind in [SolverKind::Rbf, SolverKind::Laplacian, SolverKind::Shell] {
         for regions in [false, true] {
             let b = build_basis(&r, &settings(kind, regions)).unwrap();
             let m = r.controls.len();
@@ -113,7 +117,7 @@ fn region_field(r: &Rig, kind: SolverKind, region: mimic_types::Region, d: &[Vec
             let dr: Vec<Vec3> = keep.iter().map(|&j| d[j]).collect();
             apply(&build_basis(&sub, &settings(kind, false)).unwrap(), &dr)
         }
-        SolverKind::Laplacian => {
+        SolverKind::Laplacian | SolverKind::Shell => {
             let dr: Vec<Vec3> = (0..d.len())
                 .map(|j| if keep.contains(&j) { d[j] } else { Vec3::ZERO })
                 .collect();
@@ -130,11 +134,11 @@ fn regions_fold_into_blended_independent_solves() {
     let r = test_rig(0.15);
     let mut seed = 3;
     let d = random_d(&mut seed, r.controls.len(), 0.05);
-    for kind in [SolverKind::Rbf, SolverKind::Laplacian] {
+    for kind in [SolverKind::Rbf, SolverKind::Laplacian, SolverKind::Shell] {
         let folded = apply(&build_basis(&r, &settings(kind, true)).unwrap(), &d);
         let mut blended = vec![Vec3::ZERO; r.mesh.vertex_count()];
         let mut bands = r.regions;
-        if kind == SolverKind::Laplacian {
+        if kind != SolverKind::Rbf {
             bands.band *= 2.0;
         }
         for region in mimic_types::Region::ALL {
@@ -216,7 +220,7 @@ fn region_blend_has_no_seam() {
     let mut seed = 4;
     let base = test_rig(0.0);
     let d = random_d(&mut seed, base.controls.len(), 0.05);
-    for kind in [SolverKind::Rbf, SolverKind::Laplacian] {
+    for kind in [SolverKind::Rbf, SolverKind::Laplacian, SolverKind::Shell] {
         let mut per_region = Vec::new();
         for region in mimic_types::Region::ALL {
             per_region.push(region_field(&base, kind, region, &d));

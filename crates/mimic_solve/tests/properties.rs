@@ -97,7 +97,7 @@ impl Case {
             .iter()
             .enumerate()
             .map(|(j, &v)| RigControl {
-                fdp: fdp(j),
+                fdp: fdp(j).into(),
                 vertex: v as u32,
                 region: regions.region_at(mesh.positions[v].y),
             })

@@ -56,12 +56,19 @@ pub struct MorphSet {
     deltas: Vec<Vec3>,
     /// The rig message weights-session viewers get (morph basis, three columns per target).
     pub message: Message,
+    /// The targets themselves (for a landmark session's blendshape fit when it forwards).
+    targets: Vec<MorphTarget>,
 }
 
 impl MorphSet {
     /// Number of targets.
     pub fn len(&self) -> usize {
         self.names.len()
+    }
+
+    /// The morph targets, in weight order.
+    pub fn targets(&self) -> &[MorphTarget] {
+        &self.targets
     }
 
     /// True without targets (never, for a set attached to a rig).
@@ -156,6 +163,7 @@ impl RigEntry {
             names,
             deltas,
             message,
+            targets,
         });
         Ok(self)
     }

@@ -12,13 +12,18 @@
 //! built once ([`RigEntry`]) and shared. Everything is bounded: sessions, viewers, message size,
 //! idle time, reply and UDP queues, and viewer queues, which drop their oldest frame (counted per
 //! viewer) so a slow viewer never slows a session. With a record folder, every accepted frame of
-//! a landmark session is also written, flushed per frame, to that session's v1 recording. Wire
+//! a session is also written, flushed per frame, to that session's file (a v1 recording, or a
+//! weights CSV for weights and Live Link sessions); with forward targets ([`forward`]) it is
+//! also sent on to VMC and Live Link receivers. Wire
 //! encoding lives in the `mimic_wire` crate (re-exported as [`wire`]).
+//! With `Server::serve_http` it also serves the browser viewer (axum, docs/browser.md).
 //! Depends on mimic_types, mimic_solve, mimic_retarget, mimic_capture, mimic_wire and tokio; no
 //! renderer.
 
 mod catalog;
+pub mod forward;
 mod lines;
+pub mod pace;
 pub mod placement;
 mod queue;
 mod record;
@@ -31,6 +36,6 @@ mod timing;
 pub use mimic_wire as wire;
 
 pub use catalog::{Catalog, CatalogError, MorphSet, RigEntry};
-pub use server::{HELLO_MAX_BYTES, Server};
+pub use server::{HELLO_MAX_BYTES, HttpSettings, Server};
 pub use settings::{BindError, DEFAULT_LISTEN, LiveLinkIntake, ServerSettings, check_bind};
 pub use stats::{LatencyHistogram, LatencySummary, ServerStats, SessionSnapshot, ViewerSnapshot};

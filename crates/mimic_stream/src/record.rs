@@ -1,7 +1,13 @@
-//! Session recordings (`mimic serve --record DIR`): every accepted frame of a landmark session
-//! as a v1 recording, one file per session, written and flushed frame by frame on a blocking
-//! thread behind a bounded channel. A full channel makes the session wait (the tracker's TCP
-//! reads pause, its UDP queue fills) rather than lose an accepted frame.
+//! Session recordings (`mimic serve --record DIR`): every accepted frame of a session, one file
+//! per session, written and flushed frame by frame on a blocking thread behind a bounded
+//! channel: a landmark session's frames as a v1 recording (`.jsonl`), a weights or Live Link
+//! session's morph-target weights as a weights CSV (`.weights.csv`, [`weights`]). A full channel
+//! makes the session wait (the tracker's TCP reads pause, its UDP queue fills) rather than lose an
+//! accepted frame.
+
+mod weights;
+
+use weights::WeightsCsv;
 
 use crate::stats::Counter;
 use mimic_capture::{RecordedFrame, RecordingHeader, RecordingWriter, WriteError};
@@ -75,8 +81,77 @@ impl Drop for OpenGuard {
     }
 }
 
+/// What a session's recording holds.
+#[derive(Clone, Copy, Debug)]
+pub enum RecordKind<'a> {
+    /// Landmark frames: a v1 recording with this header (`.jsonl`).
+    Landmarks(&'a RecordingHeader),
+    /// Morph-target weights, one column per name in this order (`.weights.csv`).
+    Weights(&'a [String]),
+}
+
+/// One accepted frame, as its recording keeps it.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Entry {
+    /// A landmark frame.
+    Landmarks(RecordedFrame),
+    /// A frame's weights at `t_us`, in the recording's column order.
+    Weights {
+        /// Frame time (µs, the session's clock).
+        t_us: i64,
+        /// One weight per column.
+        weights: Vec<f32>,
+    },
+}
+
+impl From<RecordedFrame> for Entry {
+    fn from(f: RecordedFrame) -> Self {
+        Entry::Landmarks(f)
+    }
+}
+
+/// The file a recording writes, by kind.
+enum FileWriter {
+    Landmarks(RecordingWriter<BufWriter<File>>),
+    Weights(WeightsCsv),
+}
+
+impl FileWriter {
+    /// Writes and flushes one entry (an entry of the other kind is an error).
+    fn write(&mut self, e: &Entry) -> Result<(), WriteError> {
+        match (self, e) {
+            (FileWriter::Landmarks(w), Entry::Landmarks(f)) => w.write(f),
+            (FileWriter::Weights(w), Entry::Weights { t_us, weights }) => {
+                w.write(*t_us, weights).map_err(WriteError::from)
+            }
+            _ => Err(WriteError::Header(
+                "a frame of another kind than the recording's".into(),
+            )),
+        }
+    }
+
+    /// The file under the buffer (for `fdatasync`).
+    fn file(&self) -> &File {
+        match self {
+            FileWriter::Landmarks(w) => w.get_ref().get_ref(),
+            FileWriter::Weights(w) => w.file(),
+        }
+    }
+
+    /// Flushes what is buffered and hands back the file.
+    fn finish(self) -> Result<File, WriteError> {
+        match self {
+            FileWriter::Landmarks(w) => w
+                .finish()?
+                .into_inner()
+                .map_err(|e| WriteError::from(e.into_error())),
+            FileWriter::Weights(w) => w.finish().map_err(WriteError::from),
+        }
+    }
+}
+
 /// A frame for the writer, and where to say when it is on disk (`--record-sync`).
-type Item = (RecordedFrame, Option<oneshot::Sender<bool>>);
+type Item = (Entry, Option<oneshot::Sender<bool>>);
 
 /// The session's end of its recording.
 #[derive(Debug)]
@@ -88,11 +163,12 @@ pub struct Recorder {
 }
 
 impl Recorder {
-    /// Creates `DIR/<session>-<id>-<peer>-<UTC time>.jsonl` (never overwriting a file), writes
-    /// the header and starts the writer thread; `open` counts recordings not yet closed.
+    /// Creates `DIR/<session>-<id>-<peer>-<UTC time>.jsonl` (`.weights.csv` for weights; never
+    /// overwriting a file), writes the header and starts the writer thread; `open` counts
+    /// recordings not yet closed.
     pub async fn start(
         dir: &Path,
-        header: &RecordingHeader,
+        kind: RecordKind<'_>,
         who: &SessionLabel<'_>,
         queue_frames: usize,
         counters: Arc<RecordCounters>,
@@ -112,19 +188,25 @@ impl Recorder {
             })
             .collect();
         let stem = format!("{}-{}-{safe_peer}-{stamp}", who.name, who.id);
-        let mut h = header.clone();
-        for (k, v) in [
-            ("session", Value::from(who.name)),
-            ("session_id", Value::from(who.id)),
-            ("rig", Value::from(who.rig)),
-            ("peer", Value::from(peer)),
-            ("recorded_by", Value::from("mimic serve")),
-            ("started_utc", Value::from(stamp)),
-        ] {
-            h.extra.insert(k.to_string(), v);
-        }
+        let what = match kind {
+            RecordKind::Landmarks(header) => {
+                let mut h = header.clone();
+                for (k, v) in [
+                    ("session", Value::from(who.name)),
+                    ("session_id", Value::from(who.id)),
+                    ("rig", Value::from(who.rig)),
+                    ("peer", Value::from(peer)),
+                    ("recorded_by", Value::from("mimic serve")),
+                    ("started_utc", Value::from(stamp)),
+                ] {
+                    h.extra.insert(k.to_string(), v);
+                }
+                Owned::Landmarks(h)
+            }
+            RecordKind::Weights(names) => Owned::Weights(names.to_vec()),
+        };
         let dir = dir.to_path_buf();
-        let (path, writer) = tokio::task::spawn_blocking(move || create(&dir, &stem, &h))
+        let (path, writer) = tokio::task::spawn_blocking(move || create(&dir, &stem, &what))
             .await
             .map_err(|e| RecordError::Task(e.to_string()))??;
         let (tx, mut rx) = mpsc::channel::<Item>(queue_frames.max(1));
@@ -140,10 +222,7 @@ impl Recorder {
                     w.write(&f)?;
                     if durable.is_some() {
                         // Written and flushed to the OS per frame; now to the disk too.
-                        w.get_ref()
-                            .get_ref()
-                            .sync_data()
-                            .map_err(WriteError::from)?;
+                        w.file().sync_data().map_err(WriteError::from)?;
                     }
                     Ok::<(), WriteError>(())
                 });
@@ -170,7 +249,7 @@ impl Recorder {
             if let Some(w) = writer {
                 match w.finish() {
                     Ok(out) => {
-                        if let Err(e) = out.get_ref().sync_data() {
+                        if let Err(e) = out.sync_data() {
                             tracing::warn!(path = %shown.display(), "syncing the recording: {e}");
                         }
                     }
@@ -194,8 +273,8 @@ impl Recorder {
     }
 
     /// Queues an accepted frame, waiting for room when the disk is behind (counted in `waits`).
-    pub async fn record(&self, f: RecordedFrame) {
-        let f = match self.tx.try_send((f, None)) {
+    pub async fn record(&self, f: impl Into<Entry>) {
+        let f = match self.tx.try_send((f.into(), None)) {
             Ok(()) => return,
             Err(TrySendError::Full(f)) => {
                 self.counters.waits.bump();
@@ -214,9 +293,9 @@ impl Recorder {
     /// Writes an accepted frame, flushes it and syncs the file to the disk (`fdatasync`),
     /// returning once that is done: true when the frame is on disk, false when it could not be
     /// written (counted in `lost`).
-    pub async fn record_durable(&self, f: RecordedFrame) -> bool {
+    pub async fn record_durable(&self, f: impl Into<Entry>) -> bool {
         let (done, on_disk) = oneshot::channel();
-        if self.tx.send((f, Some(done))).await.is_err() {
+        if self.tx.send((f.into(), Some(done))).await.is_err() {
             self.counters.lost.bump();
             return false;
         }
@@ -232,18 +311,25 @@ impl Recorder {
     }
 }
 
-/// Creates the file (first free name of `stem.jsonl`, `stem-2.jsonl`, ...) and writes the header.
-fn create(
-    dir: &Path,
-    stem: &str,
-    header: &RecordingHeader,
-) -> Result<(PathBuf, RecordingWriter<BufWriter<File>>), RecordError> {
+/// A recording's kind with what its header needs, owned (for the blocking task).
+enum Owned {
+    Landmarks(RecordingHeader),
+    Weights(Vec<String>),
+}
+
+/// Creates the file (first free name of `stem.jsonl`, `stem-2.jsonl`, ...; `.weights.csv` for
+/// weights) and writes the header.
+fn create(dir: &Path, stem: &str, what: &Owned) -> Result<(PathBuf, FileWriter), RecordError> {
+    let ext = match what {
+        Owned::Landmarks(_) => "jsonl",
+        Owned::Weights(_) => "weights.csv",
+    };
     let mut k = 1;
     let (path, file) = loop {
         let name = if k == 1 {
-            format!("{stem}.jsonl")
+            format!("{stem}.{ext}")
         } else {
-            format!("{stem}-{k}.jsonl")
+            format!("{stem}-{k}.{ext}")
         };
         let path = dir.join(name);
         match OpenOptions::new().write(true).create_new(true).open(&path) {
@@ -252,13 +338,21 @@ fn create(
             Err(source) => return Err(RecordError::Create { path, source }),
         }
     };
-    let writer = RecordingWriter::new(BufWriter::new(file), header)
-        .map_err(|source| RecordError::Header {
-            path: path.clone(),
-            source,
-        })?
-        .flush_each_frame(true)
-        .exact_coordinates(true);
+    let header_error = |source| RecordError::Header {
+        path: path.clone(),
+        source,
+    };
+    let writer = match what {
+        Owned::Landmarks(header) => FileWriter::Landmarks(
+            RecordingWriter::new(BufWriter::new(file), header)
+                .map_err(header_error)?
+                .flush_each_frame(true)
+                .exact_coordinates(true),
+        ),
+        Owned::Weights(names) => {
+            FileWriter::Weights(WeightsCsv::new(file, names).map_err(header_error)?)
+        }
+    };
     Ok((path, writer))
 }
 
@@ -315,10 +409,11 @@ mod tests {
         };
         let counters = Arc::new(RecordCounters::default());
         // A one-frame queue: most frames wait for the writer, none is lost.
-        let r = Recorder::start(&dir, &header, &who, 1, counters.clone(), open.clone())
+        let kind = RecordKind::Landmarks(&header);
+        let r = Recorder::start(&dir, kind, &who, 1, counters.clone(), open.clone())
             .await
             .unwrap();
-        let again = Recorder::start(&dir, &header, &who, 1, Arc::default(), open.clone())
+        let again = Recorder::start(&dir, kind, &who, 1, Arc::default(), open.clone())
             .await
             .unwrap();
         assert_ne!(r.path(), again.path());

@@ -1,7 +1,7 @@
 //! The server, split by what each part holds: the accept loop and hello dispatch (`accept`), the
 //! session skeleton every tracker protocol plugs into (`session`, with `admission` for refusals),
-//! the protocols (`landmark`, `weights`), UDP intake (`udp`), viewers (`viewer`) and the state
-//! they share (`state`).
+//! the protocols (`landmark`, `weights`), UDP intake (`udp`), viewers (`viewer`), the browser
+//! viewer's HTTP and WebSocket server (`http`) and the state they share (`state`).
 
 use crate::catalog::Catalog;
 use crate::settings::ServerSettings;
@@ -12,6 +12,7 @@ use std::sync::Arc;
 mod accept;
 mod admission;
 mod follow;
+mod http;
 mod intake;
 mod landmark;
 mod livelink;
@@ -22,6 +23,8 @@ mod state;
 mod udp;
 mod viewer;
 mod weights;
+
+pub use http::HttpSettings;
 
 /// Longest first line of a connection (hello or recording header), unless the message limit is
 /// smaller: a connection that has not said what it is holds at most this much.

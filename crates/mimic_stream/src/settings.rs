@@ -75,6 +75,9 @@ pub struct ServerSettings {
     /// Live Link Face's intake (`mimic serve --livelink`): one weights session per subject
     /// (`server/livelink.rs`); `None`, the default, for none.
     pub livelink: Option<LiveLinkIntake>,
+    /// Live out: where sessions' frames are forwarded (VMC, Live Link Face), and what trackers
+    /// may ask for (`crate::forward`); none by default.
+    pub forward: crate::forward::ForwardSettings,
     /// Pipeline settings of every session (`positions` and `normals` are forced off: the
     /// server computes positions itself, only for viewers that ask for them).
     pub retarget: RetargetSettings,
@@ -105,6 +108,7 @@ impl Default for ServerSettings {
             record_queue_frames: 128,
             openseeface: None,
             livelink: None,
+            forward: crate::forward::ForwardSettings::default(),
             retarget: RetargetSettings::default(),
         }
     }

@@ -179,6 +179,10 @@ pub struct SessionSnapshot {
     pub record_lost: u64,
     /// Accepted frames that found the recording queue full: the session waited for the disk.
     pub record_waits: u64,
+    /// Datagrams forwarded (`--forward`, a hello's `"forward"`): one per frame and target.
+    pub forwarded: u64,
+    /// Datagrams not forwarded: the socket would have blocked (or the send failed).
+    pub forward_dropped: u64,
     /// Arrival (line or packet read) to broadcast (pushed to every viewer queue).
     pub latency: LatencySummary,
     /// Viewers that watch this session now and the last 16 that left (older ones are only

@@ -95,6 +95,22 @@ pub fn curve_index(name: &str) -> Option<usize> {
         .position(|n| n.eq_ignore_ascii_case(name))
 }
 
+/// The head rotation of yaw, pitch and roll (radians, as Live Link sends them):
+/// `Quat::from_euler(YXZ, yaw, pitch, roll)`, the identity for a non-finite angle.
+pub fn head_quat([yaw, pitch, roll]: [f32; 3]) -> glam::Quat {
+    if yaw.is_finite() && pitch.is_finite() && roll.is_finite() {
+        glam::Quat::from_euler(glam::EulerRot::YXZ, yaw, pitch, roll)
+    } else {
+        glam::Quat::IDENTITY
+    }
+}
+
+/// Yaw, pitch and roll (radians) of a head rotation, the inverse of [`head_quat`].
+pub fn head_angles(q: glam::Quat) -> [f32; 3] {
+    let (yaw, pitch, roll) = q.normalize().to_euler(glam::EulerRot::YXZ);
+    [yaw, pitch, roll]
+}
+
 /// One Live Link Face packet.
 #[derive(Clone, Debug, PartialEq)]
 pub struct LiveLinkPacket {
@@ -275,6 +291,17 @@ mod tests {
         assert_eq!(curve_index("jawopen"), Some(17));
         assert_eq!(p.time_us(), Some((1234.5f64 / 60.0 * 1e6).round() as i64));
         assert_eq!(p.head_rotation(), [0.1, 0.0, 0.0]);
+    }
+
+    #[test]
+    fn head_angles_invert_head_quat() {
+        for a in [[0.3f32, -0.2, 0.1], [0.0, 0.0, 0.0], [-1.2, 0.7, -0.4]] {
+            let back = head_angles(head_quat(a));
+            for (x, y) in a.iter().zip(back) {
+                assert!((x - y).abs() <= 1e-5, "{a:?} -> {back:?}");
+            }
+        }
+        assert_eq!(head_quat([f32::NAN, 0.0, 0.0]), glam::Quat::IDENTITY);
     }
 
     #[test]

@@ -57,6 +57,50 @@ impl Entry {
     }
 }
 
+impl Entry {
+    /// The tracker weight that gives target weight `w` (the inverse of [`Self::weight`] inside
+    /// the clamp), clamped to [0, 1]; 0 for an entry with gain 0.
+    pub fn unweight(&self, w: f32) -> f32 {
+        if self.gain == 0.0 || !w.is_finite() {
+            return 0.0;
+        }
+        ((w - self.offset) / self.gain).clamp(0.0, 1.0)
+    }
+}
+
+/// A rig's weights read back as tracker names ([`NameMap::inverse`]): for each output name, the
+/// rig weight it comes from and the entry to invert.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Inverse {
+    /// Per output name: `(rig weight index, entry index or usize::MAX for a name the map lacks)`.
+    routes: Vec<Option<(usize, usize)>>,
+}
+
+impl Inverse {
+    /// Whether output `i` has a rig weight to come from.
+    pub fn found(&self, i: usize) -> bool {
+        self.routes.get(i).is_some_and(Option::is_some)
+    }
+
+    /// Writes `out[i]` (one per output name) from the rig's weights `rig`: the entry's inverse
+    /// of its rig weight, clamped to [0, 1], or 0 where no rig weight is found. Allocates nothing.
+    pub fn apply(&self, map: &NameMap, rig: &[f32], out: &mut [f32]) {
+        for (o, r) in out.iter_mut().zip(&self.routes) {
+            *o = match *r {
+                Some((k, e)) => {
+                    let w = rig.get(k).copied().unwrap_or(0.0);
+                    match map.entries.get(e) {
+                        Some(entry) => entry.unweight(w),
+                        None if w.is_finite() => w.clamp(0.0, 1.0),
+                        None => 0.0,
+                    }
+                }
+                None => 0.0,
+            };
+        }
+    }
+}
+
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct File {
@@ -149,6 +193,28 @@ impl NameMap {
         self.index
             .get(&name.to_ascii_lowercase())
             .and_then(|&k| self.entries.get(k))
+    }
+
+    /// The inverse for tracker names `outputs` (setup; [`Inverse::apply`] per frame): each name's
+    /// entry reads the first of its targets that `find` (a target name to a rig weight index)
+    /// knows; a name the map lacks is looked up by `find` itself.
+    pub fn inverse(
+        &self,
+        outputs: &[&str],
+        mut find: impl FnMut(&str) -> Option<usize>,
+    ) -> Inverse {
+        let routes = outputs
+            .iter()
+            .map(|name| match self.index.get(&name.to_ascii_lowercase()) {
+                Some(&e) => self.entries[e]
+                    .targets
+                    .iter()
+                    .find_map(|t| find(t))
+                    .map(|k| (k, e)),
+                None => find(name).map(|k| (k, usize::MAX)),
+            })
+            .collect();
+        Inverse { routes }
     }
 
     /// Resolves tracker column names once (setup); [`Mapping::apply`] then maps each frame.
@@ -244,6 +310,28 @@ targets = []
             assert!((o - w).abs() <= 1e-6, "{out:?}");
         }
         assert!(m.entry("jaw_open").is_some());
+    }
+
+    #[test]
+    fn the_inverse_reads_rig_weights_back_as_tracker_weights() {
+        let m = NameMap::parse(MAP, Path::new("m.toml")).unwrap();
+        let rig = ["jawOpen", "browInnerUp_R", "smile"];
+        let find = |t: &str| rig.iter().position(|r| r.eq_ignore_ascii_case(t));
+        let outs = ["browInnerUp", "jawOpen", "smile", "cheekPuff"];
+        let inv = m.inverse(&outs, find);
+        assert_eq!(
+            (0..4).map(|i| inv.found(i)).collect::<Vec<_>>(),
+            [true, true, true, false]
+        );
+        // Forward then back: brow 0.4 -> 2 * 0.4 - 0.5 = 0.3 -> 0.4; jaw 0.5 (under its clamp).
+        let brow = m.entry("browInnerUp").unwrap().weight(0.4);
+        let jaw = m.entry("jawOpen").unwrap().weight(0.5);
+        let mut out = [9.0f32; 4];
+        inv.apply(&m, &[jaw, brow, 0.7], &mut out);
+        let want = [0.4, 0.5, 0.7, 0.0];
+        for (o, w) in out.iter().zip(want) {
+            assert!((o - w).abs() <= 4.0 * f32::EPSILON, "{out:?}");
+        }
     }
 
     #[test]

@@ -12,7 +12,29 @@
 use crate::error::TrackerError;
 use crate::livelink::{CURVE_NAMES, CURVES, curve_index};
 use mimic_types::limits::{FileKind, read_capped};
+use std::io::Write;
 use std::path::Path;
+
+/// The timecode rate [`TakeWriter`] writes (Live Link Face's own: `FF` 00-59).
+pub const WRITTEN_TIMECODE_RATE: u32 = 60;
+
+/// The curve columns of a Live Link Face CSV take in the app's header order (stream indices
+/// into [`CURVE_NAMES`]): the stream order, but `JawRight` before `JawLeft` and `MouthRight`
+/// before `MouthLeft`.
+pub const TAKE_COLUMN_ORDER: [usize; CURVES] = {
+    let mut order = [0usize; CURVES];
+    let mut i = 0;
+    while i < CURVES {
+        order[i] = i;
+        i += 1;
+    }
+    // JawLeft 15, JawRight 16; MouthLeft 21, MouthRight 22 in the stream.
+    order[15] = 16;
+    order[16] = 15;
+    order[21] = 22;
+    order[22] = 21;
+    order
+};
 
 /// Live Link CSV takes (about 800 bytes a row: 256 MiB is some 3 hours at 30 rows a second).
 pub const TAKE_FILE: FileKind = FileKind {
@@ -228,6 +250,110 @@ pub fn parse_take(text: &str, path: &Path) -> Result<Take, TrackerError> {
     })
 }
 
+/// Whether the file at `path` starts with a Live Link Face take's header (its first line, up
+/// to 64 KiB, has `Timecode` and `BlendShapeCount` columns).
+pub fn is_take_file(path: &Path) -> Result<bool, TrackerError> {
+    use std::io::{BufRead, Read};
+    let io = |e: std::io::Error| TrackerError::Io {
+        path: path.to_path_buf(),
+        source: e.into(),
+    };
+    let f = std::fs::File::open(path).map_err(io)?;
+    let mut first = String::new();
+    match std::io::BufReader::new(f)
+        .take(64 * 1024)
+        .read_line(&mut first)
+    {
+        Ok(_) => Ok(is_take_header(&first)),
+        // Not text: not a take.
+        Err(e) if e.kind() == std::io::ErrorKind::InvalidData => Ok(false),
+        Err(e) => Err(io(e)),
+    }
+}
+
+/// `HH:MM:SS:FF.fff` at [`WRITTEN_TIMECODE_RATE`] of `t_us` (µs; its time of day: a day is
+/// taken off as often as it fits), the frame rounded to a thousandth: within 1/120000 s of
+/// `t_us`.
+pub fn format_timecode(t_us: i64) -> String {
+    let day_us = 86_400_000_000i64;
+    let t = t_us.rem_euclid(day_us);
+    let rate = i64::from(WRITTEN_TIMECODE_RATE);
+    // Thousandths of a frame since midnight: t_us * rate * 1000 / 1e6, rounded.
+    let milli = (i128::from(t) * i128::from(rate) + 500) / 1000;
+    let milli = i64::try_from(milli).unwrap_or(0) % (86_400 * rate * 1000);
+    let frames = milli / 1000;
+    let secs = frames / rate;
+    format!(
+        "{:02}:{:02}:{:02}:{:02}.{:03}",
+        secs / 3600,
+        secs / 60 % 60,
+        secs % 60,
+        frames % rate,
+        milli % 1000
+    )
+}
+
+/// Writes a Live Link Face CSV take: the app's header (`Timecode`, `BlendShapeCount`, the 61
+/// curves in [`TAKE_COLUMN_ORDER`]), then one row per frame (all 61 curves, `BlendShapeCount`
+/// 61; a frame with no face as `Timecode,0`). Curves are written as the shortest decimal that
+/// reads back as the same f32. [`parse_take`] reads it back.
+#[derive(Debug)]
+pub struct TakeWriter<W: Write> {
+    out: W,
+    line: String,
+    rows: usize,
+}
+
+impl<W: Write> TakeWriter<W> {
+    /// Writes the header to `out`.
+    pub fn new(mut out: W) -> std::io::Result<Self> {
+        let mut header = String::from("Timecode,BlendShapeCount");
+        for &k in &TAKE_COLUMN_ORDER {
+            header.push(',');
+            header.push_str(CURVE_NAMES[k]);
+        }
+        header.push('\n');
+        out.write_all(header.as_bytes())?;
+        Ok(Self {
+            out,
+            line: String::new(),
+            rows: 0,
+        })
+    }
+
+    /// Writes one row at `t_us` (its timecode, [`format_timecode`]): the curves in stream order
+    /// ([`CURVE_NAMES`]; a non-finite one as 0), or `None` for a frame with no face.
+    pub fn write_row(&mut self, t_us: i64, curves: Option<&[f32; CURVES]>) -> std::io::Result<()> {
+        use std::fmt::Write as _;
+        self.line.clear();
+        self.line.push_str(&format_timecode(t_us));
+        match curves {
+            None => self.line.push_str(",0"),
+            Some(c) => {
+                let _ = write!(self.line, ",{CURVES}");
+                for &k in &TAKE_COLUMN_ORDER {
+                    let v = if c[k].is_finite() { c[k] } else { 0.0 };
+                    let _ = write!(self.line, ",{v}");
+                }
+            }
+        }
+        self.line.push('\n');
+        self.rows += 1;
+        self.out.write_all(self.line.as_bytes())
+    }
+
+    /// Rows written.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Flushes and hands back the writer.
+    pub fn finish(mut self) -> std::io::Result<W> {
+        self.out.flush()?;
+        Ok(self.out)
+    }
+}
+
 /// Reads a take file (capped at [`TAKE_FILE`]).
 pub fn read_take(path: &Path) -> Result<Take, TrackerError> {
     let text = read_capped(path, &TAKE_FILE).map_err(|source| TrackerError::Io {
@@ -261,6 +387,60 @@ mod tests {
         // Through midnight: 23:59:59 + 58/60 -> 00:00:00 + 1/60 is 3/60 s.
         assert_eq!(t.rows[2].t_us, 50_000);
         assert_eq!(t.curve_names().count(), 4);
+    }
+
+    #[test]
+    fn a_written_take_parses_back_with_its_names_values_and_times() {
+        let mut w = TakeWriter::new(Vec::new()).unwrap();
+        let mut rng = mimic_testkit::Lcg::new(19);
+        // 90 frames at 60 Hz from 23:59:59.5 (through midnight), the 40th without a face.
+        let start = 86_400_000_000i64 - 500_000;
+        let mut rows = Vec::new();
+        for i in 0..90i64 {
+            let t = start + i * 16_667;
+            let mut c = [0.0f32; CURVES];
+            c.iter_mut().for_each(|x| *x = rng.next_f32());
+            let tracked = i != 40;
+            w.write_row(t, tracked.then_some(&c)).unwrap();
+            rows.push((t, tracked, c));
+        }
+        assert_eq!(w.rows(), 90);
+        let bytes = w.finish().unwrap();
+        let text = String::from_utf8(bytes).unwrap();
+        let header = text.lines().next().unwrap();
+        assert!(
+            header.contains("JawForward,JawRight,JawLeft,JawOpen"),
+            "{header}"
+        );
+        assert!(header.contains("MouthPucker,MouthRight,MouthLeft,MouthSmileLeft"));
+        assert!(text.starts_with("Timecode,BlendShapeCount,EyeBlinkLeft,"));
+        assert!(
+            text.lines()
+                .nth(1)
+                .unwrap()
+                .starts_with("23:59:59:30.000,61,")
+        );
+        let t = parse_take(&text, Path::new("w.csv")).unwrap();
+        assert_eq!(t.timecode_rate, WRITTEN_TIMECODE_RATE);
+        assert!(t.present.iter().all(|p| *p));
+        assert_eq!(t.rows.len(), rows.len());
+        // A timecode is within half a thousandth of a 60 fps frame of its time.
+        let tol_us = 1e6 / (60.0 * 1000.0) / 2.0 + 1.0;
+        for (r, (t_us, tracked, c)) in t.rows.iter().zip(&rows) {
+            let want = (t_us - start) as f64;
+            assert!(
+                (r.t_us as f64 - want).abs() <= 2.0 * tol_us,
+                "{} vs {want}",
+                r.t_us
+            );
+            assert_eq!(r.tracked, *tracked);
+            if *tracked {
+                assert_eq!(&r.curves, c);
+            }
+        }
+        assert_eq!(format_timecode(0), "00:00:00:00.000");
+        assert_eq!(format_timecode(3_723_500_000), "01:02:03:30.000");
+        assert_eq!(format_timecode(-1_000_000), "23:59:59:00.000");
     }
 
     #[test]

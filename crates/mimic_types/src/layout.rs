@@ -1,8 +1,152 @@
-//! Landmark layouts: what each tracked point is, and which points make the MPEG-4 controls.
+//! Landmark layouts: what each tracked point is, and which points make the MPEG-4 controls;
+//! [`ControlName`], the name of a rig control (an FDP, or a layout's own point `layout:index`).
 
 use crate::{Fdp, LandmarkFrame, ModelCorrespondence, Region};
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::str::FromStr;
+
+/// Longest layout name a point control may name (bytes).
+pub const MAX_SET_NAME: usize = 23;
+
+/// The name of a control: an MPEG-4 FDP (`8.3`), which every layout maps through its
+/// `controls`, or one point of one layout (`kinect121:23`, 0-based), which only that layout
+/// drives, with that point directly (a dense control set, docs/layouts.md).
+#[derive(Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(try_from = "String", into = "String")]
+pub enum ControlName {
+    /// An MPEG-4 feature point.
+    Fdp(Fdp),
+    /// Point `index` of the layout named `set`.
+    Point {
+        /// The layout's name, `len` bytes of ASCII `[a-z0-9_-]` (zero padded).
+        set: [u8; MAX_SET_NAME],
+        /// Bytes of `set` in use.
+        len: u8,
+        /// 0-based point index in that layout.
+        index: u16,
+    },
+}
+
+/// Why a string is not a control name.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+pub enum ControlNameError {
+    /// Neither an FDP nor `layout:index`.
+    #[error(
+        "`{0}` is neither an MPEG-4 FDP (e.g. 8.3) nor a layout point `layout:index` (e.g. kinect121:23; the layout name is 1-{max} of a-z 0-9 _ -, the index 0-65535)",
+        max = MAX_SET_NAME
+    )]
+    Syntax(String),
+    /// An FDP-shaped name that names no FDP.
+    #[error(transparent)]
+    Fdp(#[from] crate::FdpError),
+}
+
+impl ControlName {
+    /// Point control `index` of layout `set`; `None` for a name that is empty, longer than
+    /// [`MAX_SET_NAME`] or not ASCII `[a-z0-9_-]`, or an index over 65535.
+    pub fn point(set: &str, index: usize) -> Option<Self> {
+        let ok = !set.is_empty()
+            && set.len() <= MAX_SET_NAME
+            && set
+                .bytes()
+                .all(|b| b.is_ascii_lowercase() || b.is_ascii_digit() || b == b'_' || b == b'-');
+        let index = u16::try_from(index).ok()?;
+        if !ok {
+            return None;
+        }
+        let mut bytes = [0u8; MAX_SET_NAME];
+        bytes[..set.len()].copy_from_slice(set.as_bytes());
+        Some(ControlName::Point {
+            set: bytes,
+            len: set.len() as u8,
+            index,
+        })
+    }
+
+    /// The FDP, for an FDP control.
+    pub fn as_fdp(self) -> Option<Fdp> {
+        match self {
+            ControlName::Fdp(f) => Some(f),
+            ControlName::Point { .. } => None,
+        }
+    }
+
+    /// Layout name and point index, for a point control.
+    pub fn as_point(&self) -> Option<(&str, usize)> {
+        match self {
+            ControlName::Fdp(_) => None,
+            ControlName::Point { set, len, index } => {
+                let name = std::str::from_utf8(&set[..usize::from(*len)]).unwrap_or("");
+                Some((name, usize::from(*index)))
+            }
+        }
+    }
+
+    /// Whether this is an FDP of `group` (e.g. 3: eyes).
+    pub fn is_group(self, group: u8) -> bool {
+        self.as_fdp().is_some_and(|f| f.group == group)
+    }
+}
+
+impl From<Fdp> for ControlName {
+    fn from(f: Fdp) -> Self {
+        ControlName::Fdp(f)
+    }
+}
+
+impl From<ControlName> for Option<Fdp> {
+    fn from(c: ControlName) -> Self {
+        c.as_fdp()
+    }
+}
+
+impl fmt::Display for ControlName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ControlName::Fdp(fdp) => write!(f, "{fdp}"),
+            ControlName::Point { .. } => {
+                let (set, index) = self.as_point().unwrap_or(("", 0));
+                write!(f, "{set}:{index}")
+            }
+        }
+    }
+}
+
+impl fmt::Debug for ControlName {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{self}")
+    }
+}
+
+impl FromStr for ControlName {
+    type Err = ControlNameError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let t = s.trim();
+        match t.split_once(':') {
+            Some((set, index)) => {
+                let syntax = || ControlNameError::Syntax(s.to_string());
+                let index: usize = index.parse().map_err(|_| syntax())?;
+                ControlName::point(set, index).ok_or_else(syntax)
+            }
+            None => Ok(ControlName::Fdp(t.parse()?)),
+        }
+    }
+}
+
+impl TryFrom<String> for ControlName {
+    type Error = ControlNameError;
+    fn try_from(s: String) -> Result<Self, Self::Error> {
+        s.parse()
+    }
+}
+
+impl From<ControlName> for String {
+    fn from(c: ControlName) -> String {
+        c.to_string()
+    }
+}
 
 /// A tracker's landmark layout and its mapping to the MPEG-4 control points.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -230,18 +374,74 @@ impl Layout {
         self.controls.iter().position(|c| c.fdp == fdp)
     }
 
+    /// The points whose mean is the rig control `name` in this layout: an FDP's points from
+    /// `controls`, or for `name:index` of this layout that one point; `None` if this layout
+    /// cannot drive it (an FDP it does not map, another layout's point, an index out of range).
+    pub fn control_points(&self, name: ControlName) -> Option<&[usize]> {
+        match name {
+            ControlName::Fdp(f) => self
+                .controls
+                .iter()
+                .find(|c| c.fdp == f)
+                .map(|c| &c.points[..]),
+            ControlName::Point { .. } => {
+                let (set, index) = name.as_point()?;
+                (set == self.name && index < self.point_count)
+                    .then(|| POINT_INDICES.get(index..=index))
+                    .flatten()
+            }
+        }
+    }
+
+    /// The FDP that is exactly point `index` of this layout (a control of that one point), if any.
+    pub fn fdp_of_point(&self, index: usize) -> Option<Fdp> {
+        self.controls
+            .iter()
+            .find(|c| c.points.len() == 1 && c.points[0] == index)
+            .map(|c| c.fdp)
+    }
+
+    /// The FDP a rig control stands for in this layout: its own for an FDP control, for a
+    /// point control of this layout the FDP that is that point alone (see [`Self::fdp_of_point`]).
+    pub fn fdp_of(&self, name: ControlName) -> Option<Fdp> {
+        match name {
+            ControlName::Fdp(f) => Some(f),
+            ControlName::Point { .. } => {
+                let (set, index) = name.as_point()?;
+                (set == self.name)
+                    .then(|| self.fdp_of_point(index))
+                    .flatten()
+            }
+        }
+    }
+
     /// Position of control `c` in `frame`: the mean of its valid points, `None` if none is valid.
     pub fn control_position(&self, c: usize, frame: &LandmarkFrame) -> Option<Vec3> {
         let control = self.controls.get(c)?;
-        let (sum, count) = control
-            .points
-            .iter()
-            .filter(|&&p| frame.is_valid(p))
-            .fold((Vec3::ZERO, 0u32), |(s, n), &p| {
-                (s + frame.points[p], n + 1)
-            });
-        (count > 0).then(|| sum / count as f32)
+        mean_of_valid(&control.points, frame)
     }
+}
+
+/// `0, 1, 2, ...`: one-point slices for [`Layout::control_points`] of point controls.
+static POINT_INDICES: [usize; crate::limits::MAX_LAYOUT_POINTS] = {
+    let mut a = [0usize; crate::limits::MAX_LAYOUT_POINTS];
+    let mut i = 0;
+    while i < a.len() {
+        a[i] = i;
+        i += 1;
+    }
+    a
+};
+
+/// The mean of the valid ones of `points` in `frame`, `None` if none is valid.
+pub fn mean_of_valid(points: &[usize], frame: &LandmarkFrame) -> Option<Vec3> {
+    let (sum, count) = points
+        .iter()
+        .filter(|&&p| frame.is_valid(p))
+        .fold((Vec3::ZERO, 0u32), |(s, n), &p| {
+            (s + frame.points[p], n + 1)
+        });
+    (count > 0).then(|| sum / count as f32)
 }
 
 #[cfg(test)]
@@ -325,6 +525,53 @@ mod tests {
                 "{e}"
             );
         }
+    }
+
+    #[test]
+    fn control_names_are_fdps_or_layout_points() {
+        let fdp: ControlName = "8.3".parse().unwrap();
+        assert_eq!(fdp.as_fdp(), Some("8.3".parse().unwrap()));
+        assert_eq!(fdp.to_string(), "8.3");
+        let p: ControlName = "kinect121:23".parse().unwrap();
+        assert_eq!(p.as_point(), Some(("kinect121", 23)));
+        assert_eq!(
+            (p.to_string(), p.as_fdp()),
+            ("kinect121:23".to_string(), None)
+        );
+        for bad in [
+            "Kinect:1",
+            ":3",
+            "k:-1",
+            "k:70000",
+            "k:x",
+            "a-very-long-layout-name-xx:1",
+        ] {
+            assert!(
+                matches!(bad.parse::<ControlName>(), Err(ControlNameError::Syntax(_))),
+                "{bad}"
+            );
+        }
+        assert!(matches!(
+            "8.11".parse::<ControlName>(),
+            Err(ControlNameError::Fdp(_))
+        ));
+        // A layout drives its own points directly, its FDPs through `controls`, no other layout's.
+        let l = layout();
+        assert_eq!(l.control_points(fdp), Some(&[1usize, 2][..]));
+        assert_eq!(
+            l.control_points("t:3".parse().unwrap()),
+            Some(&[3usize][..])
+        );
+        assert_eq!(l.control_points("t:4".parse().unwrap()), None);
+        assert_eq!(l.control_points("u:1".parse().unwrap()), None);
+        assert_eq!(l.control_points("4.1".parse().unwrap()), None);
+        let mut one = l.clone();
+        one.controls[0].points = vec![2];
+        assert_eq!(
+            one.fdp_of("t:2".parse().unwrap()),
+            Some("8.3".parse().unwrap())
+        );
+        assert_eq!(one.fdp_of("t:1".parse().unwrap()), None);
     }
 
     #[test]

@@ -20,17 +20,20 @@ pub mod rig;
 pub use correspondence::ModelCorrespondence;
 pub use fdp::{Fdp, FdpError};
 pub use frame::LandmarkFrame;
-pub use layout::{Layout, LayoutControl, LayoutError};
+pub use layout::{ControlName, ControlNameError, Layout, LayoutControl, LayoutError};
 pub use limits::{FileKind, ReadError, SettingError};
-pub use look::{Eyeball, RigLook};
+pub use look::{
+    Eyeball, MAX_TEXTURE_SIDE, MeshTextures, RigLook, TEXTURE_FILE, TextureImage, TriangleTexture,
+};
 pub use mesh::{Mesh, MeshError};
 pub use morph::MorphTarget;
 pub use pose::HeadPose;
 pub use region::{Region, RegionBands};
 pub use rig::{
-    LaplacianWeights, RbfDistance, RbfKernel, Rig, RigControl, RigError, SolverKind,
-    SolverSettings, TopSplit,
+    LaplacianWeights, RbfDistance, RbfKernel, Rig, RigControl, RigError, ShellSettings, Socket,
+    SocketMode, Sockets, SolverKind, SolverSettings, TopSplit,
 };
 
-/// Nominal number of MPEG-4 control points mimic drives a face with.
+/// Nominal number of MPEG-4 control points mimic drives a face with (the `mpeg4` set); rigs
+/// may have any count (dense sets of a layout's own points), nothing may assume this one.
 pub const NOMINAL_CONTROL_COUNT: usize = 38;

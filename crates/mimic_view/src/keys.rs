@@ -19,6 +19,8 @@ pub enum Action {
     TogglePose,
     /// Back to the front view.
     ResetCamera,
+    /// Blend the rig's morph target on this number key (0: key 1) in or out.
+    Expression(usize),
     /// Close the window.
     Quit,
 }
@@ -39,6 +41,15 @@ pub const BINDINGS: &[(&str, Action, &str)] = &[
     ("h", Action::ToggleHeat, "heat map of |P - P0| on / off"),
     ("p", Action::TogglePose, "head rotation on / off"),
     ("r", Action::ResetCamera, "reset the camera"),
+    ("1", Action::Expression(0), "morph target 1 in / out"),
+    ("2", Action::Expression(1), "morph target 2 in / out"),
+    ("3", Action::Expression(2), "morph target 3 in / out"),
+    ("4", Action::Expression(3), "morph target 4 in / out"),
+    ("5", Action::Expression(4), "morph target 5 in / out"),
+    ("6", Action::Expression(5), "morph target 6 in / out"),
+    ("7", Action::Expression(6), "morph target 7 in / out"),
+    ("8", Action::Expression(7), "morph target 8 in / out"),
+    ("9", Action::Expression(8), "morph target 9 in / out"),
     ("q", Action::Quit, "quit (also Esc)"),
     ("escape", Action::Quit, ""),
 ];
@@ -53,6 +64,7 @@ Keys and mouse:
   s                solver RBF <-> Laplacian (local replay; both bases kept)
   h                heat map of |P - P0|    p            head rotation on / off
   r                reset the camera        q, esc       quit
+  1 - 9            blend the rig's morph targets 1-9 in / out (eased over 0.25 s; local replay)
 Title bar: rig, solver, frame, fps, latency (local: step to present; --connect: arrival to present).";
 
 /// Name of a key in [`BINDINGS`]: a named key in lower case, or the character typed.
@@ -111,6 +123,11 @@ mod tests {
             action_for(&Key::Named(NamedKey::Escape)),
             Some(Action::Quit)
         );
+        assert_eq!(
+            action_for(&Key::Character(SmolStr::new("3"))),
+            Some(Action::Expression(2))
+        );
+        assert_eq!(action_for(&Key::Character(SmolStr::new("0"))), None);
         assert_eq!(action_for(&Key::Character(SmolStr::new("z"))), None);
         assert_eq!(action_for(&Key::Named(NamedKey::Tab)), None);
     }
@@ -120,6 +137,8 @@ mod tests {
         for (key, _, what) in BINDINGS {
             let shown = match *key {
                 "escape" => "esc",
+                // The number keys are listed as one range.
+                k if k.len() == 1 && k.chars().all(|c| c.is_ascii_digit()) => "1 - 9",
                 k => k,
             };
             assert!(HELP.contains(shown), "help lacks key {key}");

@@ -9,9 +9,11 @@
 
 pub mod client;
 mod error;
+pub mod expressions;
 pub mod headless;
 pub mod keys;
 pub mod latest;
+pub mod look;
 pub mod orbit;
 pub mod playback;
 pub mod readout;
@@ -21,5 +23,6 @@ pub mod window;
 pub use error::ViewError;
 pub use headless::{HeadlessReport, run_headless};
 pub use keys::{Action, HELP};
-pub use viewer::{LocalSetup, Look, LookFor, Options, Viewer};
+pub use look::{Look, LookFor, upload_with_look};
+pub use viewer::{LocalSetup, Options, Viewer};
 pub use window::run_window;

@@ -4,7 +4,9 @@
 
 use crate::ViewError;
 use crate::client::{Event, Live};
+use crate::expressions::{Expressions, extend_basis};
 use crate::keys::Action;
+use crate::look::{Look, LookFor, upload_with_look};
 use crate::orbit::Orbit;
 use crate::playback::Playback;
 use crate::readout::{Readout, Status, write_title};
@@ -12,21 +14,9 @@ use glam::{Mat4, Quat, Vec3};
 use mimic_render::{Deform, Renderer, RigGpu, Shading, View};
 use mimic_retarget::{FrameOutput, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
-use mimic_types::{LandmarkFrame, Layout, Rig, SolverKind, SolverSettings};
+use mimic_types::{LandmarkFrame, Layout, MorphTarget, Rig, SolverKind, SolverSettings};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
-
-/// How a rig is drawn: per-vertex colours and vertex ranges whose triangles are left out.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct Look {
-    /// One albedo per vertex (linear RGB), or `None` for skin everywhere.
-    pub colors: Option<Vec<[f32; 3]>>,
-    /// Inclusive vertex ranges not drawn (triangles touching them are dropped).
-    pub hidden: Vec<(u32, u32)>,
-}
-
-/// The look of a live rig, from its name and vertex count (e.g. from the local configs).
-pub type LookFor = Box<dyn FnMut(&str, usize) -> Look>;
 
 /// Options shared by both sources.
 #[derive(Clone, Copy, Debug, Default)]
@@ -57,6 +47,8 @@ pub struct LocalSetup {
     pub frames: Vec<LandmarkFrame>,
     /// Colours and hidden parts.
     pub look: Look,
+    /// The rig's morph targets: the first nine go on the number keys (may be empty).
+    pub expressions: Vec<MorphTarget>,
 }
 
 /// Name of a solver as the title shows it.
@@ -64,6 +56,7 @@ fn solver_label(s: &SolverSettings) -> &'static str {
     match s.kind {
         SolverKind::Rbf => "rbf",
         SolverKind::Laplacian => "laplacian",
+        SolverKind::Shell => "shell",
     }
 }
 
@@ -127,7 +120,8 @@ struct Local {
     settings: RetargetSettings,
     frames: Vec<LandmarkFrame>,
     look: Look,
-    triangles: Vec<[u32; 3]>,
+    /// The morph targets on the number keys (their deltas become extra basis columns).
+    targets: Vec<MorphTarget>,
     slots: [Slot; 2],
     active: usize,
     clock: Playback,
@@ -166,6 +160,9 @@ pub struct Viewer {
     playing: bool,
     bounds: (Vec3, Vec3),
     shown_d: Vec<Vec3>,
+    /// `shown_d` and three displacements per expression on a key: what the GPU morphs.
+    drawn_d: Vec<Vec3>,
+    expressions: Expressions,
     shown_rotation: Quat,
     shown_frame: u64,
     /// When the shown data became ready (stepped, or read off the socket), until presented.
@@ -178,17 +175,6 @@ pub struct Viewer {
     quit: bool,
     /// The shown data must be refreshed even if the frame did not change (solver switched).
     dirty: bool,
-}
-
-fn visible(triangles: &[[u32; 3]], hidden: &[(u32, u32)]) -> Vec<[u32; 3]> {
-    triangles
-        .iter()
-        .filter(|t| {
-            !t.iter()
-                .any(|v| hidden.iter().any(|(a, b)| (*a..=*b).contains(v)))
-        })
-        .copied()
-        .collect()
 }
 
 fn bounds_of(points: &[Vec3]) -> (Vec3, Vec3) {
@@ -218,6 +204,8 @@ impl Viewer {
             playing: true,
             bounds,
             shown_d: Vec::new(),
+            drawn_d: Vec::new(),
+            expressions: Expressions::default(),
             shown_rotation: Quat::IDENTITY,
             shown_frame: 0,
             fresh_since: None,
@@ -232,7 +220,7 @@ impl Viewer {
     }
 
     /// A local replay of `setup.frames` at their recorded pace.
-    pub fn local(setup: LocalSetup, options: Options) -> Result<Self, ViewError> {
+    pub fn local(mut setup: LocalSetup, options: Options) -> Result<Self, ViewError> {
         if setup.frames.is_empty() {
             return Err(ViewError::NoFrames);
         }
@@ -243,24 +231,25 @@ impl Viewer {
         first.ready(retargeter, setup.frames.len());
         let times: Vec<i64> = setup.frames.iter().map(|f| f.timestamp_us).collect();
         let bounds = bounds_of(&setup.rig.mesh.positions);
-        let triangles = visible(&setup.rig.mesh.triangles, &setup.look.hidden);
+        let n = setup.rig.mesh.vertex_count();
+        setup.expressions.retain(|t| t.vertex_count() == n);
+        setup.expressions.truncate(crate::expressions::MAX_KEYS);
+        let names: Vec<String> = setup.expressions.iter().map(|t| t.name.clone()).collect();
         let local = Local {
             clock: Playback::new(&times),
             slots: [first, Slot::new(setup.other)],
             active: 0,
-            triangles,
             rig: setup.rig,
             layout: setup.layout,
             settings: setup.settings,
             frames: setup.frames,
             look: setup.look,
+            targets: setup.expressions,
             blocking: options.blocking_builds,
         };
-        Ok(Self::with_source(
-            Source::Local(Box::new(local)),
-            bounds,
-            options,
-        ))
+        let mut viewer = Self::with_source(Source::Local(Box::new(local)), bounds, options);
+        viewer.expressions = Expressions::new(names);
+        Ok(viewer)
     }
 
     /// A live feed from [`crate::client::connect`].
@@ -279,6 +268,20 @@ impl Viewer {
         );
         v.note = format!("waiting for session {session}");
         v
+    }
+
+    /// The waiting note with the server's address: `waiting for session X on ADDR`.
+    pub fn with_address(mut self, addr: &str) -> Self {
+        if let Source::Live(s) = &self.source {
+            self.note = format!("waiting for session {} on {addr}", s.session);
+        }
+        self
+    }
+
+    /// True while there is nothing to draw: a live viewer before its session's rig came (or
+    /// after its connection closed). The window redraws slowly then.
+    pub fn idle(&self) -> bool {
+        matches!(&self.source, Source::Live(s) if s.rig.is_none() || s.closed)
     }
 
     /// True once the user asked to quit.
@@ -347,6 +350,13 @@ impl Viewer {
             Action::ToggleHeat => self.heat = !self.heat,
             Action::TogglePose => self.pose = !self.pose,
             Action::ResetCamera => self.orbit = Orbit::default(),
+            Action::Expression(k) => {
+                if self.expressions.toggle(k) {
+                    self.dirty = true;
+                } else {
+                    self.note = format!("no morph target on key {}", k + 1);
+                }
+            }
             Action::Quit => self.quit = true,
         }
         Ok(())
@@ -438,14 +448,15 @@ impl Viewer {
                 if slot.gpu.is_none()
                     && let Some(r) = &slot.retargeter
                 {
-                    let gpu = renderer.upload_rig(
+                    // The expressions on the number keys: three more columns each.
+                    let extended = extend_basis(r.basis(), &l.targets);
+                    let gpu = upload_with_look(
+                        renderer,
                         &l.rig.mesh.positions,
-                        &l.triangles,
-                        Some(r.basis()),
+                        &l.rig.mesh.triangles,
+                        Some(extended.as_ref().unwrap_or(r.basis())),
+                        &l.look,
                     )?;
-                    if let Some(c) = &l.look.colors {
-                        renderer.set_albedo(&gpu, c)?;
-                    }
                     slot.gpu = Some(gpu);
                 }
                 let started = Instant::now();
@@ -454,7 +465,9 @@ impl Viewer {
                     .retargeter
                     .as_ref()
                     .map_or(0, |r| r.basis().control_count());
+                let eased = self.expressions.advance(dt.as_secs_f32());
                 let changed = stepped
+                    || eased
                     || frame as u64 != self.shown_frame
                     || self.shown_d.len() != m
                     || self.dirty;
@@ -468,6 +481,7 @@ impl Viewer {
                     self.dirty = false;
                 }
                 self.playing = l.clock.playing();
+                self.expressions.extend_d(&self.shown_d, &mut self.drawn_d);
             }
             Source::Live(s) => {
                 while let Ok(event) = s.live.events.try_recv() {
@@ -485,11 +499,13 @@ impl Viewer {
                             let basis = Basis::from_row_major(n, msg.controls, msg.basis)
                                 .ok_or_else(|| ViewError::BadRig(name.clone()))?;
                             let look = (s.look_for)(&name, n);
-                            let triangles = visible(&msg.triangles, &look.hidden);
-                            let gpu = renderer.upload_rig(&msg.rest, &triangles, Some(&basis))?;
-                            if let Some(c) = &look.colors {
-                                renderer.set_albedo(&gpu, c)?;
-                            }
+                            let gpu = upload_with_look(
+                                renderer,
+                                &msg.rest,
+                                &msg.triangles,
+                                Some(&basis),
+                                &look,
+                            )?;
                             let (lo, hi) = bounds_of(&msg.rest);
                             self.bounds = (lo, hi);
                             self.shown_d.clear();
@@ -540,6 +556,7 @@ impl Viewer {
                         self.note.clear();
                     }
                 }
+                self.expressions.extend_d(&self.shown_d, &mut self.drawn_d);
             }
         }
         Ok(())
@@ -555,7 +572,7 @@ impl Viewer {
                 (&r.gpu, (r.lo, r.hi))
             }
         };
-        if self.shown_d.len() != gpu.control_count() {
+        if self.drawn_d.len() != gpu.control_count() {
             return None;
         }
         let mut camera = self.orbit.camera(lo, hi);
@@ -575,7 +592,7 @@ impl Viewer {
         } else {
             view.model = Mat4::IDENTITY;
         }
-        Some((gpu, Deform::Controls(&self.shown_d), view))
+        Some((gpu, Deform::Controls(&self.drawn_d), view))
     }
 
     /// Records a presented frame; returns the new window title when the readout refreshed.
@@ -606,6 +623,10 @@ impl Viewer {
             note: &self.note,
         };
         write_title(&mut self.title, &status, &self.readout.shown);
+        if !self.expressions.is_empty() {
+            self.title.push_str(" | ");
+            self.title.push_str(&self.expressions.label());
+        }
         &self.title
     }
 }
@@ -615,11 +636,7 @@ mod tests {
     use super::*;
 
     #[test]
-    fn hidden_ranges_drop_the_triangles_that_touch_them() {
-        let tris = [[0, 1, 2], [2, 3, 4], [5, 6, 7]];
-        assert_eq!(visible(&tris, &[(3, 3)]), vec![[0, 1, 2], [5, 6, 7]]);
-        assert_eq!(visible(&tris, &[]), tris.to_vec());
-        assert_eq!(visible(&tris, &[(0, 100)]), Vec::<[u32; 3]>::new());
+    fn bounds_span_the_points() {
         let (lo, hi) = bounds_of(&[Vec3::new(1.0, -2.0, 0.0), Vec3::new(-1.0, 3.0, 5.0)]);
         assert_eq!(
             (lo, hi),

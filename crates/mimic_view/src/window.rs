@@ -5,7 +5,7 @@ use crate::keys::action_for;
 use crate::viewer::Viewer;
 use mimic_render::Renderer;
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
 use winit::event::{ElementState, MouseButton, MouseScrollDelta, WindowEvent};
@@ -14,6 +14,9 @@ use winit::window::{Window, WindowId};
 
 /// Pixels of a pixel-delta wheel event that count as one line.
 const PIXELS_PER_LINE: f32 = 40.0;
+/// Redraw interval while there is nothing to show (waiting for a live session): 10 per second,
+/// not as fast as the loop spins.
+pub const IDLE_REDRAW: Duration = Duration::from_millis(100);
 
 /// The window and what draws into it.
 struct Gpu {
@@ -44,6 +47,10 @@ struct App {
     orbiting: bool,
     scrubbing: bool,
     print_readout: bool,
+    /// When the last idle redraw was requested.
+    idle_since: Option<Instant>,
+    /// The note last printed to stderr (waiting, the server gone).
+    said: String,
 }
 
 impl App {
@@ -109,6 +116,18 @@ impl App {
         let (w, h) = gpu.renderer.size();
         if let Some((rig, deform, view)) = self.viewer.scene(w as f32 / h as f32) {
             gpu.renderer.draw_to(rig, deform, &view, &target)?;
+        } else {
+            // Nothing to draw yet: the background, and the note (waiting for session X on ADDR)
+            // in the title and on stderr, once per change.
+            gpu.renderer.clear_to(&target)?;
+            let title = self.viewer.title().to_string();
+            gpu.window.set_title(&title);
+        }
+        if self.viewer.note() != self.said {
+            self.said = self.viewer.note().to_string();
+            if !self.said.is_empty() {
+                eprintln!("mimic view: {}", self.said);
+            }
         }
         gpu.window.pre_present_notify();
         gpu.renderer.present(texture);
@@ -192,11 +211,33 @@ impl ApplicationHandler for App {
         }
     }
 
-    fn about_to_wait(&mut self, _event_loop: &ActiveEventLoop) {
-        // Draw continuously; the surface's vsync paces the loop.
-        if let Some(gpu) = &self.gpu {
-            gpu.window.request_redraw();
+    fn about_to_wait(&mut self, event_loop: &ActiveEventLoop) {
+        // The server went away: say so (the note, printed by the last redraw) and exit cleanly.
+        if self.viewer.closed() {
+            if self.viewer.note() != self.said {
+                eprintln!("mimic view: {}", self.viewer.note());
+            }
+            event_loop.exit();
+            return;
         }
+        let Some(gpu) = &self.gpu else { return };
+        if self.viewer.idle() {
+            // Waiting: redraw at IDLE_REDRAW, sleeping in between.
+            let now = Instant::now();
+            let due = self.idle_since.map_or(now, |t| t + IDLE_REDRAW);
+            if now >= due {
+                self.idle_since = Some(now);
+                gpu.window.request_redraw();
+                event_loop.set_control_flow(ControlFlow::WaitUntil(now + IDLE_REDRAW));
+            } else {
+                event_loop.set_control_flow(ControlFlow::WaitUntil(due));
+            }
+            return;
+        }
+        // Draw continuously; the surface's vsync paces the loop.
+        self.idle_since = None;
+        event_loop.set_control_flow(ControlFlow::Poll);
+        gpu.window.request_redraw();
     }
 }
 
@@ -219,6 +260,8 @@ pub fn run_window(
         orbiting: false,
         scrubbing: false,
         print_readout,
+        idle_since: None,
+        said: String::new(),
     };
     event_loop
         .run_app(&mut app)

@@ -66,6 +66,9 @@ pub struct WeightsHello {
     pub rate_hz: Option<f64>,
     /// Source the tracker announces (e.g. `arkit`), if any.
     pub source: Option<String>,
+    /// Where the session's frames should also be forwarded (`"forward":"vmc:127.0.0.1:39539"`),
+    /// as the tracker wrote it; the server checks it (`mimic_stream::forward`).
+    pub forward: Option<String>,
 }
 
 /// Why a first line is not a valid hello.
@@ -176,6 +179,7 @@ fn parse_hello_value(v: Value) -> Result<Hello, HelloError> {
             request: SessionRequest::read(text)?,
             rate_hz: obj.get("rate_hz").and_then(Value::as_f64),
             source: text("source"),
+            forward: text("forward"),
         }));
     }
     match obj.get("type").and_then(Value::as_str) {
@@ -368,6 +372,7 @@ mod tests {
                 },
                 rate_hz: Some(60.0),
                 source: None,
+                forward: None,
             })
         );
         assert!(matches!(

@@ -31,12 +31,21 @@ pub struct Args {
     #[arg(long, value_delimiter = ',')]
     pub rigs: Vec<String>,
     /// Also step 1 and then N independent sessions at once (one named thread each, one basis
-    /// shared; at least 20 000 steps each) and report frames/s and frames/s per core.
+    /// shared; at least 20 000 steps each) and report frames/s and frames/s per core; with `--gpu`,
+    /// the sessions in one GPU dispatch (default 100).
     #[arg(long)]
     pub sessions: Option<usize>,
     /// Also time numpy's `B @ D` (float32) over the same rows: runs `python3 tools/bench_numpy.py`.
     #[arg(long)]
     pub numpy: bool,
+    /// Time the GPU pass instead: `--sessions` sessions (default 100) morphed in one wgpu compute
+    /// dispatch (one basis, sessions x controls x 3 weights), positions and normals; reports the
+    /// time per dispatch and sessions per frame at 60 fps. Without an adapter it says so and exits 0.
+    #[arg(long)]
+    pub gpu: bool,
+    /// Dispatches timed by `--gpu`.
+    #[arg(long, default_value_t = 50)]
+    pub gpu_dispatches: usize,
 }
 
 /// Runs `mimic bench`.
@@ -50,6 +59,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         args.rigs.clone()
     };
+    if args.gpu {
+        return bench_gpu(&args, &rigs);
+    }
     let mut reports = Vec::new();
     for name in &rigs {
         let mut rig_args = args.rig.clone();
@@ -72,6 +84,125 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!(
             "fit CANDIDE-3 to the recording: {:.0} frames/s ({} frames, median residual {:.2} px)",
             f.frames_per_s, f.frames, f.median_residual_px
+        );
+    }
+    Ok(())
+}
+
+/// `mimic bench --gpu`: per rig, the many-sessions GPU morph of `mimic_render::compute`, timed for
+/// one session and for `--sessions` (default 100) in one dispatch, each session driven by its own
+/// frame of the recording's displacements.
+fn bench_gpu(args: &Args, rigs: &[String]) -> anyhow::Result<()> {
+    use mimic_render::{RenderError, compute::BatchError, compute::BatchMorph};
+    let sessions = args.sessions.unwrap_or(100);
+    let recording = mimic_capture::read_recording(&args.recording, None)?;
+    let frames: Vec<_> = recording.frames.iter().map(|f| f.frame.clone()).collect();
+    let mut reports = Vec::new();
+    for name in rigs {
+        let mut rig_args = args.rig.clone();
+        rig_args.rig = name.clone();
+        let mut p = prepare(&rig_args, &args.pipeline, &recording.header.layout)?;
+        // Up to 200 tracked frames' displacements; session s replays frame s (mod their count).
+        let mut out = p.retargeter.new_output();
+        let mut ds: Vec<Vec<Vec3>> = Vec::new();
+        for f in frames.iter().take(2000) {
+            if p.retargeter.step(f, &mut out) == FrameStatus::Tracked {
+                ds.push(out.displacements.clone());
+                if ds.len() == 200 {
+                    break;
+                }
+            }
+        }
+        anyhow::ensure!(
+            !ds.is_empty(),
+            "{}: no tracked frames",
+            args.recording.display()
+        );
+        let weights = |count: usize| -> Vec<Vec3> {
+            (0..count).flat_map(|s| ds[s % ds.len()].clone()).collect()
+        };
+        let basis = p.retargeter.basis();
+        let mut runs = Vec::new();
+        let mut adapter = String::new();
+        for count in [1, sessions] {
+            let mut batch =
+                match BatchMorph::new(basis, &p.rig.mesh.positions, &p.rig.mesh.triangles, count) {
+                    Ok(b) => b,
+                    Err(BatchError::Render(
+                        e @ (RenderError::NoAdapter(_) | RenderError::NoDevice(_)),
+                    )) => {
+                        println!("mimic bench --gpu: {e}; no GPU to time, nothing measured");
+                        return Ok(());
+                    }
+                    Err(e) => return Err(e.into()),
+                };
+            adapter = batch.adapter().to_string();
+            let t = batch.time(&weights(count), args.gpu_dispatches)?;
+            runs.push((
+                batch.moving_count(),
+                batch.normal_count(),
+                batch.has_timestamps(),
+                t,
+            ));
+        }
+        let load = load_average();
+        let report = json!({
+            "rig": p.rig.name,
+            "vertices": p.rig.mesh.vertex_count(),
+            "controls": basis.control_count(),
+            "adapter": adapter,
+            "runs": runs.iter().map(|(moving, normal, stamps, t)| json!({
+                "sessions": t.sessions,
+                "dispatches": t.iterations,
+                "moving_rows": moving,
+                "normal_vertices": normal,
+                "timed_by": if *stamps { "gpu timestamps" } else { "wall clock around upload, submit and wait" },
+                "per_dispatch_us": t.per_dispatch_us(),
+                "wall_us": t.wall_us,
+                "gpu_morph_us": t.gpu.map(|g| g.morph_us),
+                "gpu_normals_us": t.gpu.map(|g| g.normals_us),
+                "sessions_per_frame_at_60fps": t.sessions_at_60fps(),
+            })).collect::<Vec<_>>(),
+            "load_average": load,
+        });
+        if !args.json {
+            println!(
+                "rig {} ({} vertices, {} controls) on {adapter}",
+                p.rig.name,
+                p.rig.mesh.vertex_count(),
+                basis.control_count()
+            );
+            for (moving, normal, stamps, t) in &runs {
+                let parts = t.gpu.map_or(String::new(), |g| {
+                    format!(
+                        " (morph {:.1} us, normals {:.1} us)",
+                        g.morph_us, g.normals_us
+                    )
+                });
+                println!(
+                    "  {} session(s), {moving} moving rows, {normal} normals: {:.1} us a dispatch{parts}, by {}; wall {:.1} us; {:.1} sessions per frame at 60 fps",
+                    t.sessions,
+                    t.per_dispatch_us(),
+                    if *stamps {
+                        "GPU timestamps"
+                    } else {
+                        "wall clock"
+                    },
+                    t.wall_us,
+                    t.sessions_at_60fps()
+                );
+            }
+            println!(
+                "  load average {}",
+                load.map_or("?".into(), |l| format!("{l:.2}"))
+            );
+        }
+        reports.push(report);
+    }
+    if args.json {
+        println!(
+            "{}",
+            serde_json::to_string_pretty(&json!({ "gpu": reports })).context("report")?
         );
     }
     Ok(())
@@ -184,7 +315,9 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
     let deform = mimic_solve::deform::MovingDeform::new(basis, &p.rig.mesh.positions);
     let floor_buf = vec![1f32; deform.bytes_read() / 4];
     let baseline_steps = (args.steps / 4).max(50);
-    let mut base: [Vec<u32>; 8] = Default::default();
+    let mut base: [Vec<u32>; 10] = Default::default();
+    let mut u_packed = vec![0f32; 3 * n + 1];
+    let mut local_packed = vec![0f32; 3 * moving.rows.len()];
     let ns = elapsed_ns;
     for _ in 0..baseline_steps {
         let t = Instant::now();
@@ -203,6 +336,13 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         let t = Instant::now();
         fans.normals_gather(&u_a, |v, nv| normals[v] = nv);
         base[7].push(ns(t));
+        u_packed
+            .chunks_exact_mut(3)
+            .zip(&u)
+            .for_each(|(a, b)| a.copy_from_slice(&b.to_array()));
+        let t = Instant::now();
+        fans.normals_packed(&u_packed, |v, nv| normals[v] = nv);
+        base[8].push(ns(t));
         let t = Instant::now();
         moving.basis.apply(&d, &mut u_rows);
         let moved = moving.rows.iter().zip(&u_rows).zip(&rest_rows);
@@ -215,6 +355,9 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         let t = Instant::now();
         deform.deform(&d, &mut local, &mut positions);
         base[5].push(ns(t));
+        let t = Instant::now();
+        deform.deform_packed(&d, &mut local_packed, &mut positions);
+        base[9].push(ns(t));
         let t = Instant::now();
         std::hint::black_box(read_all(std::hint::black_box(&floor_buf)));
         base[6].push(ns(t));
@@ -229,6 +372,8 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         deform_alone,
         floor,
         bn_gather,
+        bn_packed,
+        deform_packed,
     ] = base.map(|mut v| median_p99_us(&mut v).0);
     let numpy = if args.numpy {
         Some(numpy_reference(basis, &moving.rows)?)
@@ -267,6 +412,8 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
             "deform_speedup": if deform_m > 0.0 { ba / deform_m } else { 0.0 },
             "normals_speedup": if normals_m > 0.0 { bn / normals_m } else { 0.0 },
             "normals_fans_gather_median_us": bn_gather,
+            "normals_fans_packed_median_us": bn_packed,
+            "deform_packed_kernel_median_us": deform_packed,
             "previous_deform_median_us": prev_deform,
             "deform_kernel_median_us": deform_alone,
         },
@@ -298,6 +445,9 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         );
         println!(
             "  baseline, every vertex: apply {ba:.1} us (previous row-pair kernel {ba_pairs:.1} us), normals by fans {bn_fans:.1} us (by gathers {bn_gather:.1} us; face scatter {bn:.1} us)"
+        );
+        println!(
+            "  A/B: normals by fans on packed 12-byte positions {bn_packed:.1} us (16-byte {bn_fans:.1} us); deform kernel with a packed copy {deform_packed:.1} us (16-byte copy: below)"
         );
         println!(
             "  deform: previous (blocked product in index order, then add and scatter) {prev_deform:.1} us, current kernel alone {deform_alone:.1} us; floor (one read of its {} kB) {floor:.1} us",

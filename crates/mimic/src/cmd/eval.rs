@@ -6,7 +6,7 @@ use anyhow::{Context, bail};
 use glam::Vec3;
 use mimic_assets::{load_morph_targets, load_obj};
 use mimic_retarget::quality::{
-    MorphEval, ShapeError, control_displacements, error_csv, measure, median, noise_gain,
+    MorphEval, ShapeError, control_displacements, error_csv, jitter, measure, median, noise_gain,
 };
 use mimic_types::Region;
 use serde_json::json;
@@ -20,8 +20,15 @@ pub struct Args {
     #[command(flatten)]
     pub tuning: SolverTuningArgs,
     /// Expression meshes (OBJ) with the rig mesh's topology.
-    #[arg(long, num_args = 1.., required = true)]
+    #[arg(long, num_args = 1.., required_unless_present = "jitter")]
     pub shapes: Vec<PathBuf>,
+    /// Instead of shapes: replay these recordings through the pipeline (default settings) and
+    /// report the frame-to-frame jitter of the deformed non-frozen vertices (docs/quality.md).
+    #[arg(long, num_args = 1.., conflicts_with = "shapes")]
+    pub jitter: Vec<PathBuf>,
+    /// With `--jitter`: the One Euro filter off.
+    #[arg(long, requires = "jitter")]
+    pub no_filter: bool,
     /// Print the report as JSON.
     #[arg(long)]
     pub json: bool,
@@ -39,6 +46,19 @@ pub struct Args {
     /// true displacement), for plotting where the error is.
     #[arg(long)]
     pub dump: Option<PathBuf>,
+    /// Which controls drive the rig: `mpeg4` (the rig's own 38 FDPs) or a layout's own points
+    /// registered onto the rig from its template: `kinect121`, `ibug68`, `mediapipe478`
+    /// (docs/rigging.md, "Dense control sets").
+    #[arg(long, default_value = "mpeg4")]
+    pub controls: String,
+    /// The rig's iBUG-68 landmark vertices (for `--controls ibug68`); default: the rig file's
+    /// `<name>.landmarks.json` beside it, if there is one.
+    #[arg(long)]
+    pub landmarks: Option<PathBuf>,
+    /// Write the rig with the chosen control set to this file (in the rig file's own folder,
+    /// so its relative paths hold).
+    #[arg(long)]
+    pub write_rig: Option<PathBuf>,
 }
 
 /// Inclusive vertex index ranges.
@@ -61,11 +81,55 @@ fn parse_vertices(text: &str) -> Result<Ranges, String> {
 /// Runs `mimic eval`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     let mut rig = args.rig.load_rig()?;
+    let rig_path = args.rig.rig_path();
+    let landmarks_path = args.landmarks.clone().or_else(|| {
+        let p = rig_path.with_extension("landmarks.json");
+        p.is_file().then_some(p)
+    });
+    let marks = match (&landmarks_path, args.controls.as_str()) {
+        (Some(p), "ibug68") => Some(mimic_rig::load_landmarks(p, mimic_rig::LandmarkBase::Zero)?),
+        _ => None,
+    };
+    let registration = mimic_rig::register::apply_control_set(
+        &mut rig,
+        &args.controls,
+        &args.rig.config_dirs().root,
+        marks.as_ref(),
+        &mimic_rig::register::RegisterSettings::default(),
+    )
+    .with_context(|| format!("--controls {}", args.controls))?;
+    if let (Some(out), Some(reg)) = (&args.write_rig, &registration) {
+        let same_dir = out
+            .parent()
+            .map(std::path::Path::to_path_buf)
+            .unwrap_or_default()
+            == rig_path
+                .parent()
+                .map(std::path::Path::to_path_buf)
+                .unwrap_or_default();
+        if !same_dir {
+            bail!(
+                "--write-rig {}: write it beside {} (its mesh path is relative)",
+                out.display(),
+                rig_path.display()
+            );
+        }
+        let text = mimic_types::limits::read_capped(&rig_path, &mimic_types::limits::RIG_FILE)
+            .with_context(|| rig_path.display().to_string())?;
+        let written = mimic_rig::register::replace_controls_toml(&text, &rig.controls, reg);
+        std::fs::write(out, written).with_context(|| out.display().to_string())?;
+        mimic_assets::load_rig(out)
+            .with_context(|| format!("{}: the written rig does not load", out.display()))?;
+        eprintln!("wrote {} ({} controls)", out.display(), rig.controls.len());
+    }
     args.tuning.apply_to_rig(&mut rig);
-    let settings = args.tuning.solver_settings(&args.rig, &rig);
+    let settings = args.tuning.solver_settings(&args.rig, &rig)?;
     let (basis, took) = timed_basis(&rig, &settings)?;
     let setup_ms = took.as_secs_f64() * 1e3;
     let noise_gain = noise_gain(&basis);
+    if !args.jitter.is_empty() {
+        return run_jitter(&args, &rig, basis, noise_gain);
+    }
     let blend = if args.rig.solver == Some(SolverChoice::Blendshapes) {
         let targets = load_morph_targets(&args.rig.rig_path(), &rig)?;
         if targets.is_empty() {
@@ -116,6 +180,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let median = median(&mut ratios);
     let report = json!({
         "rig": args.rig.rig,
+        "controls": args.controls,
+        "control_count": rig.controls.len(),
         "units": rig.units,
         "settings": serde_json::to_value(settings)?,
         "band": rig.regions.band,
@@ -136,9 +202,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "rig {} ({}), solver {:?}, regions {}, top split {:?}, kernel {:?}, affine {}, distance {:?}, weights {:?}, constraint weight {}, band {}; setup {:.0} ms",
+        "rig {} ({}), controls {} ({}), solver {:?}, regions {}, top split {:?}, kernel {:?}, affine {}, distance {:?}, weights {:?}, constraint weight {}, shell {:?}, band {}; setup {:.0} ms",
         args.rig.rig,
         rig.units,
+        args.controls,
+        rig.controls.len(),
         settings.kind,
         settings.regions,
         settings.top_split,
@@ -147,6 +215,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         settings.distance,
         settings.weights,
         settings.constraint_weight,
+        settings.shell,
         rig.regions.band,
         setup_ms
     );
@@ -182,5 +251,75 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         "median ratio {median:.3}, max ratio {:.3}, noise gain {noise_gain:.2}",
         ratios.last().copied().unwrap_or(f64::NAN)
     );
+    Ok(())
+}
+
+/// `mimic eval --jitter REC...`: the jitter of each replayed recording on the rig.
+fn run_jitter(
+    args: &Args,
+    rig: &mimic_types::Rig,
+    basis: mimic_solve::Basis,
+    noise_gain: f64,
+) -> anyhow::Result<()> {
+    let basis = std::sync::Arc::new(basis);
+    let measured: Vec<bool> = rig.frozen.iter().map(|f| !f).collect();
+    let mut rows = Vec::new();
+    for path in &args.jitter {
+        let rec = mimic_capture::read_recording(path, None)?;
+        let layout = args
+            .rig
+            .config_dirs()
+            .load_layout_named(&rec.header.layout)?;
+        let settings = mimic_retarget::RetargetSettings {
+            filter: if args.no_filter {
+                None
+            } else {
+                mimic_retarget::RetargetSettings::default().filter
+            },
+            ..Default::default()
+        };
+        let mut r = mimic_retarget::Retargeter::new(rig, &layout, basis.clone(), settings)
+            .with_context(|| format!("{}: rig `{}`", path.display(), rig.name))?;
+        let j = jitter(&mut r, rec.frames.iter().map(|f| &f.frame), &measured);
+        rows.push((path.clone(), j, r.stats()));
+    }
+    if args.json {
+        let report = json!({
+            "rig": args.rig.rig,
+            "controls": args.controls,
+            "control_count": rig.controls.len(),
+            "filter": !args.no_filter,
+            "noise_gain": noise_gain,
+            "recordings": rows.iter().map(|(p, j, s)| json!({
+                "recording": p.display().to_string(), "jitter": j, "stats": s,
+            })).collect::<Vec<_>>(),
+        });
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "rig {} ({}), controls {} ({}), filter {}, noise gain {noise_gain:.2}",
+        args.rig.rig,
+        rig.units,
+        args.controls,
+        rig.controls.len(),
+        if args.no_filter { "off" } else { "on" }
+    );
+    println!(
+        "{:<40} {:>7} {:>12} {:>12} {:>12} {:>6}",
+        "recording", "triples", "median_d2", "p95_d2", "median_d1", "gated"
+    );
+    for (p, j, s) in &rows {
+        println!(
+            "{:<40} {:>7} {:>12.5} {:>12.5} {:>12.5} {:>6}",
+            p.file_name()
+                .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
+            j.triples,
+            j.median_second_difference,
+            j.p95_second_difference,
+            j.median_first_difference,
+            s.gated
+        );
+    }
     Ok(())
 }

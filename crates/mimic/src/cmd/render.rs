@@ -6,7 +6,7 @@ use glam::Vec3;
 use mimic_capture::RecordingReader;
 use mimic_render::{Camera, Deform, Image, Renderer, Shading, View};
 use mimic_retarget::RetargetSettings;
-use mimic_types::Fdp;
+use mimic_types::ControlName;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `mimic render`.
@@ -81,17 +81,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mut prepared = prepare_with(&args.rig, settings, &reader.header().layout)?;
     let rig = &prepared.rig;
     let look = rig_look(&args.rig, rig, args.hide.as_deref(), !args.no_materials)?;
-    let hidden = look.hidden;
-    let shown: Vec<[u32; 3]> = rig
-        .mesh
-        .triangles
-        .iter()
-        .filter(|t| {
-            !t.iter()
-                .any(|v| hidden.iter().any(|(a, b)| (*a..=*b).contains(v)))
-        })
-        .copied()
-        .collect();
     let (lo, hi) = rig.mesh.bounds().context("the rig's mesh is empty")?;
     let shading = match args.heat.as_deref() {
         None => Shading::Lit,
@@ -102,7 +91,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let name = s.strip_prefix("control:").with_context(|| {
                 format!("--heat `{s}`: expected `displacement` or `control:FDP` (e.g. control:8.3)")
             })?;
-            let fdp: Fdp = name
+            let fdp: ControlName = name
                 .parse()
                 .map_err(|e| anyhow::anyhow!("--heat `{s}`: {e}"))?;
             let control = rig
@@ -117,10 +106,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let renderer = Renderer::new(width, height)?;
     tracing::info!(adapter = renderer.adapter(), "renderer");
     let basis = prepared.retargeter.basis().clone();
-    let gpu = renderer.upload_rig(&rig.mesh.positions, &shown, Some(&basis))?;
-    if let Some(colors) = &look.colors {
-        renderer.set_albedo(&gpu, colors)?;
-    }
+    let gpu = mimic_view::upload_with_look(
+        &renderer,
+        &rig.mesh.positions,
+        &rig.mesh.triangles,
+        Some(&basis),
+        &look,
+    )?;
     let pivot = (lo + hi) * 0.5;
     let mut view = View::lit(Camera::front(lo, hi));
     view.shading = shading;

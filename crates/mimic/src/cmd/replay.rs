@@ -1,28 +1,30 @@
-//! `mimic replay`: a recorded performance onto a rig, written as OBJ frames, one binary file or
-//! one GLB (docs/gltf.md).
+//! `mimic replay`: a recorded performance (or a Live Link Face take, `replay/take.rs`) onto a
+//! rig, written as OBJ frames, one binary file or one GLB (docs/gltf.md); `--weights` writes the
+//! weights per frame (`replay/weights_out.rs`).
 
-use crate::cmd::setup::{
-    BlendshapeArgs, Mode, PipelineArgs, RigArgs, obj_frame_path, prepare_with,
-};
+mod sink;
+mod take;
+mod weights_out;
+
+use crate::cmd::setup::{BlendshapeArgs, Mode, PipelineArgs, RigArgs, prepare_with};
 use anyhow::{Context, bail};
-use glam::Vec3;
 use indicatif::{ProgressBar, ProgressStyle};
-use mimic_assets::{FramesWriter, ObjFrames, load_morph_targets};
+use mimic_assets::load_morph_targets;
 use mimic_capture::{FileSource, Pace, RecordingReader, Replay, ReplayOptions};
-use mimic_gltf::{
-    Interpolation, Take, basis_morphs, basis_weights, head_translation, target_morphs,
-};
+use mimic_gltf::{basis_morphs, basis_weights, head_translation, target_morphs};
 use mimic_retarget::frame_metrics::{max_vertex_motion, region_motion};
 use mimic_retarget::{
     BlendshapeFitter, FrameOutput, FrameStatus, StageSamples, WeightStats, WeightSummary,
     elapsed_ns,
 };
-use mimic_types::{Mesh, MorphTarget, Region, Rig};
+use mimic_types::{MorphTarget, Region, Rig};
 use serde_json::json;
+use sink::{Sink, write_frame};
 use std::fs::File;
 use std::io::{BufWriter, IsTerminal, Write};
 use std::path::{Path, PathBuf};
 use std::time::Instant;
+use weights_out::{WeightsFormat, WeightsOut};
 
 /// Output file format.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -39,7 +41,8 @@ pub enum OutFormat {
 /// Arguments of `mimic replay`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// Recording (v1 JSON Lines) to replay.
+    /// Recording (v1 JSON Lines) to replay, or a Live Link Face CSV take (its weights drive the
+    /// rig's morph targets through `--namemap`, at its `Timecode` pace).
     pub recording: PathBuf,
     #[command(flatten)]
     pub rig: RigArgs,
@@ -78,46 +81,25 @@ pub struct Args {
     /// Stop after this many frames.
     #[arg(long)]
     pub max_frames: Option<usize>,
+    /// Layout of `--weights`: mimic's (`frame,t_us,status,label,<targets>`) or a Live Link Face
+    /// take (`Timecode`, the 61 curves in the app's order; the rig's weights as ARKit curves).
+    #[arg(long, value_enum, default_value = "mimic")]
+    pub weights_format: WeightsFormat,
+    /// Name map between ARKit curves and the rig's morph targets, for Live Link takes and
+    /// `--weights-format livelink` (default: configs/namemaps/arkit.toml).
+    #[arg(long, value_name = "TOML")]
+    pub namemap: Option<PathBuf>,
     /// Print the summary as JSON.
     #[arg(long)]
     pub json: bool,
 }
 
-/// Where deformed frames go.
-enum Sink {
-    None,
-    Obj {
-        dir: PathBuf,
-        frames: ObjFrames,
-    },
-    Bin {
-        writer: FramesWriter<BufWriter<File>>,
-        path: PathBuf,
-        written: usize,
-    },
-    Glb(Box<GlbSink>),
-}
-
-/// The keys of a GLB being collected.
-struct GlbSink {
-    path: PathBuf,
-    take: Take,
-    /// Metres per rig unit.
-    scale: f32,
-    /// This frame's weights.
-    weights: Vec<f32>,
-    /// The head's last translation (metres), held over frames without one.
-    translation: Vec3,
-}
-
-impl Sink {
-    fn written(&self) -> usize {
-        match self {
-            Sink::None => 0,
-            Sink::Obj { frames, .. } => frames.written(),
-            Sink::Bin { written, .. } => *written,
-            Sink::Glb(g) => g.take.len(),
-        }
+impl Args {
+    /// The `--namemap` file, or the shipped ARKit map.
+    fn namemap_path(&self) -> PathBuf {
+        self.namemap
+            .clone()
+            .unwrap_or_else(|| self.rig.config_dirs().root.join("namemaps/arkit.toml"))
     }
 }
 
@@ -135,6 +117,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if (args.no_pose || args.step_keys) && args.format != OutFormat::Glb {
         bail!("--no-pose and --step-keys are options of --format glb");
     }
+    if mimic_trackers::take::is_take_file(&args.recording)? {
+        return take::run(&args);
+    }
     let mut reader = RecordingReader::open(&args.recording, None)?;
     // Normals are written by the binary and OBJ formats (a GLB's targets carry none).
     let settings = mimic_retarget::RetargetSettings {
@@ -145,7 +130,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut prepared = prepare_with(&args.rig, settings, &reader.header().layout)?;
     let rig = &prepared.rig;
-    let mut blend = Blend::new(&args.blend, &args.rig.rig_path(), rig)?;
+    let mut blend = Blend::new(&args, rig)?;
     let options = ReplayOptions {
         pace: if args.realtime {
             Pace::Recorded { speed: args.speed }
@@ -157,75 +142,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     reader.expect_points(prepared.layout.point_count)?;
     let mut replay = Replay::new(FileSource::from_reader(reader), options)?;
 
-    let mut sink = match (&args.out, args.format) {
-        (None, _) => Sink::None,
-        (Some(out), OutFormat::Glb) => {
-            let path = if out
-                .extension()
-                .is_some_and(|e| e.eq_ignore_ascii_case("glb"))
-            {
-                out.clone()
-            } else {
-                out.join("take.glb")
-            };
-            if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
-                std::fs::create_dir_all(dir)
-                    .with_context(|| format!("creating {}", dir.display()))?;
-            }
-            let scale = mimic_gltf::metres_per_unit(&rig.units).with_context(|| {
-                format!(
-                    "rig `{}`: units `{}` have no length in metres for glTF",
-                    rig.name, rig.units
-                )
-            })?;
-            let targets = match &blend {
-                Some(b) => b.fitter.target_count(),
-                None => 3 * rig.controls.len(),
-            };
-            let interpolation = if args.step_keys {
-                Interpolation::Step
-            } else {
-                Interpolation::Linear
-            };
-            Sink::Glb(Box::new(GlbSink {
-                path,
-                take: Take::new(targets, interpolation, !args.no_pose),
-                scale,
-                weights: vec![0.0; targets],
-                translation: Vec3::ZERO,
-            }))
-        }
-        (Some(dir), format) => {
-            std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
-            match format {
-                OutFormat::Obj => Sink::Obj {
-                    dir: dir.clone(),
-                    frames: ObjFrames::new(
-                        dir,
-                        &args.rig.rig_path(),
-                        &rig.name,
-                        rig.mesh.triangles.len(),
-                    )?,
-                },
-                OutFormat::Glb => unreachable!("matched above"),
-                OutFormat::Bin => {
-                    let path = dir.join("frames.bin");
-                    let file = File::create(&path).with_context(|| path.display().to_string())?;
-                    let writer = FramesWriter::new(
-                        BufWriter::new(file),
-                        rig.mesh.vertex_count(),
-                        &rig.mesh.triangles,
-                        true,
-                    )?;
-                    Sink::Bin {
-                        writer,
-                        path,
-                        written: 0,
-                    }
-                }
-            }
-        }
-    };
+    let mut sink = Sink::open(&args, rig, blend.as_ref().map(|b| b.fitter.target_count()))?;
     let mut metrics = match &args.metrics {
         Some(p) => {
             let mut w = BufWriter::new(File::create(p).with_context(|| p.display().to_string())?);
@@ -486,55 +403,20 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn write_frame(
-    sink: &mut Sink,
-    index: usize,
-    out: &FrameOutput,
-    mesh: &Mesh,
-    rig: &str,
-) -> anyhow::Result<()> {
-    match sink {
-        Sink::None | Sink::Glb(_) => {}
-        Sink::Obj { dir, frames } => {
-            let header = format!(
-                "mimic replay onto rig {rig}: frame {index}, t = {} us",
-                out.timestamp_us
-            );
-            let path = obj_frame_path(dir, index);
-            frames.write(&path, &header, &out.positions, &out.normals, mesh)?;
-        }
-        Sink::Bin {
-            writer,
-            path,
-            written,
-        } => {
-            writer
-                .write_frame(
-                    out.timestamp_us,
-                    status_code(out.status),
-                    &out.pose,
-                    &out.positions,
-                    &out.normals,
-                )
-                .with_context(|| path.display().to_string())?;
-            *written += 1;
-        }
-    }
-    Ok(())
-}
-
 /// The blendshape stage of a replay: fitter, weights CSV and running statistics.
 struct Blend {
     fitter: BlendshapeFitter,
     /// The rig's morph targets (written into a GLB).
     targets: Vec<MorphTarget>,
-    csv: Option<(PathBuf, BufWriter<File>)>,
+    csv: Option<WeightsOut>,
     stats: WeightStats,
 }
 
 impl Blend {
-    /// The blendshape stage for `rig` (loaded from `rig_path`), or `None` in free-form mode.
-    fn new(args: &BlendshapeArgs, rig_path: &Path, rig: &Rig) -> anyhow::Result<Option<Self>> {
+    /// The blendshape stage for `rig` (of `--rig`), or `None` in free-form mode.
+    fn new(replay: &Args, rig: &Rig) -> anyhow::Result<Option<Self>> {
+        let args: &BlendshapeArgs = &replay.blend;
+        let rig_path: &Path = &replay.rig.rig_path();
         if args.mode == Mode::Freeform {
             if args.weights.is_some() {
                 bail!("--weights needs --mode blendshapes");
@@ -545,16 +427,12 @@ impl Blend {
         let fitter = BlendshapeFitter::new(rig, &targets, &args.settings())
             .with_context(|| format!("blendshapes of rig `{}`", rig.name))?;
         let csv = match &args.weights {
-            Some(p) => {
-                let mut w =
-                    BufWriter::new(File::create(p).with_context(|| p.display().to_string())?);
-                write!(w, "frame,t_us,status,label")?;
-                for name in fitter.names() {
-                    write!(w, ",{name}")?;
-                }
-                writeln!(w)?;
-                Some((p.clone(), w))
-            }
+            Some(p) => Some(WeightsOut::create(
+                p,
+                replay.weights_format,
+                fitter.names(),
+                &replay.namemap_path(),
+            )?),
             None => None,
         };
         let stats = WeightStats::new(fitter.target_count());
@@ -580,24 +458,23 @@ impl Blend {
         if tracked {
             self.stats.push(w, elapsed_ns(started));
         }
-        if let Some((path, csv)) = self.csv.as_mut() {
-            let label = label.map(|l| l.to_string()).unwrap_or_default();
-            write!(csv, "{index},{},{status_code},{label}", out.timestamp_us)
-                .with_context(|| path.display().to_string())?;
-            for x in w {
-                write!(csv, ",{x:.4}")?;
-            }
-            writeln!(csv)?;
+        if let Some(csv) = self.csv.as_mut() {
+            csv.row(
+                index,
+                out.timestamp_us,
+                status_code,
+                label,
+                w,
+                out.pose.rotation,
+            )?;
         }
         Ok(())
     }
 
     /// Flushes the CSV; returns the summary (per target: mean and max weight over tracked frames).
     fn finish(mut self) -> anyhow::Result<WeightSummary> {
-        if let Some((path, csv)) = self.csv {
-            csv.into_inner()
-                .map_err(|e| e.into_error())
-                .with_context(|| path.display().to_string())?;
+        if let Some(csv) = self.csv {
+            csv.finish()?;
         }
         Ok(self
             .stats

@@ -26,6 +26,12 @@ pub struct Args {
     /// Rig name (default: the output file's stem).
     #[arg(long)]
     pub name: Option<String>,
+    /// Which controls the rig gets: `mpeg4` (the 38 FDPs placed by rules) or a layout's own
+    /// points registered from its template: `kinect121`, `ibug68`, `mediapipe478`
+    /// (docs/rigging.md, "Dense control sets"; the FDPs are placed first, as the landmarks the
+    /// registration aligns by).
+    #[arg(long, default_value = "mpeg4")]
+    pub controls: String,
 }
 
 fn parse_base(s: &str) -> Result<LandmarkBase, String> {
@@ -70,20 +76,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .output
             .file_stem()
             .map_or_else(|| "rig".into(), |s| s.to_string_lossy().into_owned());
-        let obj = out_dir.join(format!("{stem}.mesh.obj"));
-        let mut w = std::io::BufWriter::new(
-            std::fs::File::create(&obj).with_context(|| obj.display().to_string())?,
-        );
-        mimic_assets::write_obj(
-            &mut w,
-            &format!("from {} by mimic rig new", args.mesh.display()),
-            &mesh.positions,
-            None,
-            &mesh.triangles,
-        )
-        .with_context(|| obj.display().to_string())?;
-        std::io::Write::flush(&mut w).with_context(|| obj.display().to_string())?;
-        obj
+        // The OBJ copy keeps the glTF's UVs, materials and base colour textures (MTL map_Kd).
+        let (_, look) = mimic_rig::gltf_mesh::load_gltf_look(&args.mesh)?;
+        let header = format!("from {} by mimic rig new", args.mesh.display());
+        mimic_rig::gltf_mesh::write_obj_copy(&out_dir, &stem, &mesh, &look, &header)
+            .with_context(|| format!("writing {stem}.mesh.obj in {}", out_dir.display()))?
     } else {
         args.mesh.clone()
     };
@@ -91,8 +88,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let text = write_rig_toml(&rig, &mesh_rel, mesh.vertex_count());
     std::fs::write(&args.output, &text).with_context(|| args.output.display().to_string())?;
     // Read it back as every other command will.
-    let loaded = mimic_assets::load_rig(&args.output)
+    let mut loaded = mimic_assets::load_rig(&args.output)
         .with_context(|| format!("{}: the written rig does not load", args.output.display()))?;
+    if let Some(reg) = mimic_rig::register::apply_control_set(
+        &mut loaded,
+        &args.controls,
+        &mimic_assets::ConfigDirs::locate(None).root,
+        Some(&marks),
+        &mimic_rig::register::RegisterSettings::default(),
+    )
+    .with_context(|| format!("--controls {}", args.controls))?
+    {
+        let dense = mimic_rig::register::replace_controls_toml(&text, &loaded.controls, &reg);
+        std::fs::write(&args.output, &dense).with_context(|| args.output.display().to_string())?;
+        loaded = mimic_assets::load_rig(&args.output)
+            .with_context(|| format!("{}: the written rig does not load", args.output.display()))?;
+    }
     let c = rig.frozen_counts;
     println!(
         "wrote {}: {} controls, {} of {} vertices frozen ({} unused, {} in {} pieces with no control, {} far from the face), units {}, IOD {:.4}",

@@ -5,6 +5,7 @@ use anyhow::Context;
 use mimic_capture::{
     FileSource, Pace, RecordedFrame, RecordingReader, RecordingWriter, Replay, ReplayOptions,
 };
+use mimic_stream::pace::Pacer;
 use serde_json::Value;
 use std::io::{BufRead, BufReader, Read};
 use std::net::{Shutdown, TcpStream};
@@ -63,6 +64,11 @@ pub struct Args {
     /// Stop after this many frames.
     #[arg(long)]
     pub max_frames: Option<usize>,
+    /// Ask the server to forward this session's frames too (`vmc:HOST:PORT` or
+    /// `livelink:HOST:PORT`; a loopback address unless the server's `--forward-allow` lists it):
+    /// the hello's `"forward"` (docs/protocol.md).
+    #[arg(long, value_name = "KIND:ADDR")]
+    pub forward: Option<mimic_stream::forward::ForwardTarget>,
 }
 
 /// Longest reply line read from the server (its replies are short JSON lines); a longer one is
@@ -131,6 +137,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     if let Some(r) = &args.rig {
         header.extra.insert("rig".into(), Value::from(r.as_str()));
+    }
+    if let Some(f) = &args.forward {
+        header
+            .extra
+            .insert("forward".into(), Value::from(f.to_string()));
     }
     if let Some(t) = crate::cmd::setup::token_or_env(args.token.as_deref()) {
         header.extra.insert("token".into(), Value::from(t));
@@ -210,16 +221,10 @@ fn send_openseeface(
     };
     let socket = std::net::UdpSocket::bind(bind).context("binding a UDP socket")?;
     let first_t = rec.frames.first().map_or(0, |f| f.frame.timestamp_us);
-    let start = std::time::Instant::now();
+    let pace = Pacer::new(args.speed, args.fast);
     let mut sent = 0usize;
     for f in &rec.frames {
-        if !args.fast {
-            let due = (f.frame.timestamp_us - first_t).max(0) as f64 / 1e6 / args.speed;
-            let now = start.elapsed().as_secs_f64();
-            if due > now {
-                std::thread::sleep(Duration::from_secs_f64(due - now));
-            }
-        }
+        pace.wait(f.frame.timestamp_us - first_t);
         let packet = encode_packet(&[to_face(&f.frame, 0, 640.0, 480.0)]);
         socket
             .send_to(&packet, addr)
@@ -235,7 +240,7 @@ fn send_openseeface(
         .map_or(0, |f| f.frame.timestamp_us - first_t);
     println!(
         "sent {sent} OpenSeeFace datagrams to {addr} in {:.3} s (recording {:.3} s, speed {})",
-        start.elapsed().as_secs_f64(),
+        pace.elapsed_s(),
         span as f64 * 1e-6,
         args.speed
     );
@@ -332,27 +337,21 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
     if let Some(r) = &args.rig {
         hello["rig"] = Value::from(r.as_str());
     }
+    if let Some(f) = &args.forward {
+        hello["forward"] = Value::from(f.to_string());
+    }
     if let Some(t) = crate::cmd::setup::token_or_env(args.token.as_deref()) {
         hello["token"] = Value::from(t);
     }
     let (mut stream, reader) = connect(&args.to, None)?;
     stream.write_all(format!("{hello}\n").as_bytes())?;
-    let start = std::time::Instant::now();
-    let speed = if args.speed > 0.0 { args.speed } else { 1.0 };
+    let pace = Pacer::new(args.speed, args.fast);
     let mut sent = 0usize;
     let mut write_failed = None;
     let first_t = lines.first().map_or(0, |(t, _)| *t);
     // Sent once (`--loop` would repeat timestamps, which the server drops as late).
     for (t, line) in &lines {
-        if !args.fast {
-            let due = t.saturating_sub(first_t).max(0) as f64 / 1e6 / speed;
-            let now = start.elapsed().as_secs_f64();
-            if due > now {
-                let wait = Duration::try_from_secs_f64(due - now)
-                    .with_context(|| format!("t_us {t}: {due} s after the first frame"))?;
-                std::thread::sleep(wait);
-            }
-        }
+        pace.wait(t.saturating_sub(first_t));
         if let Err(e) = stream.write_all(line.as_bytes()) {
             write_failed = Some(anyhow::Error::from(e).context("sending a weight frame"));
             break;
@@ -381,14 +380,7 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
 
 /// Whether a weights CSV is a Live Link Face take (`Timecode` and `BlendShapeCount` columns).
 fn is_live_link_take(csv: &std::path::Path) -> anyhow::Result<bool> {
-    use std::io::BufRead;
-    let f = std::fs::File::open(csv).with_context(|| format!("{}: cannot open", csv.display()))?;
-    let mut first = String::new();
-    std::io::BufReader::new(f)
-        .take(64 * 1024)
-        .read_line(&mut first)
-        .with_context(|| format!("{}: cannot read", csv.display()))?;
-    Ok(mimic_trackers::take::is_take_header(&first))
+    Ok(mimic_trackers::take::is_take_file(csv)?)
 }
 
 /// `mimic send --weights TAKE.csv` for a Live Link Face take: its tracked rows through the name
@@ -412,6 +404,9 @@ fn send_take(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
     }
     if let Some(r) = &args.rig {
         hello["rig"] = Value::from(r.as_str());
+    }
+    if let Some(f) = &args.forward {
+        hello["forward"] = Value::from(f.to_string());
     }
     if let Some(t) = crate::cmd::setup::token_or_env(args.token.as_deref()) {
         hello["token"] = Value::from(t);
@@ -444,19 +439,12 @@ fn send_take(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
             names.join(", ")
         );
     }
-    let start = std::time::Instant::now();
+    let pace = Pacer::new(args.speed, args.fast);
     let mut sent = 0usize;
     let mut last_due = 0.0f64;
     let mut write_failed = None;
     for (_, t_us, w) in &tw.frames {
-        let due = *t_us as f64 / 1e6 / args.speed;
-        if !args.fast {
-            let now = start.elapsed().as_secs_f64();
-            if due > now {
-                std::thread::sleep(Duration::from_secs_f64(due - now));
-            }
-        }
-        last_due = due;
+        last_due = pace.wait(*t_us);
         let weights: serde_json::Map<String, Value> = kept
             .iter()
             .map(|&k| (tw.targets[k].clone(), Value::from(f64::from(w[k]))))
@@ -472,7 +460,7 @@ fn send_take(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
             break;
         }
     }
-    let paced = start.elapsed().as_secs_f64();
+    let paced = pace.elapsed_s();
     let _ = stream.shutdown(Shutdown::Write);
     stream.set_read_timeout(Some(Duration::from_secs(10)))?;
     let bye = reader.join().ok().flatten();
@@ -509,16 +497,10 @@ fn send_take_udp(
     };
     let socket = std::net::UdpSocket::bind(bind).context("binding a UDP socket")?;
     let subject = args.session.clone().unwrap_or_else(|| "mimic-send".into());
-    let start = std::time::Instant::now();
+    let pace = Pacer::new(args.speed, args.fast);
     let mut sent = 0usize;
     for row in take.rows.iter().filter(|r| r.tracked) {
-        if !args.fast {
-            let due = row.t_us as f64 / 1e6 / args.speed;
-            let now = start.elapsed().as_secs_f64();
-            if due > now {
-                std::thread::sleep(Duration::from_secs_f64(due - now));
-            }
-        }
+        pace.wait(row.t_us);
         let frames = row.t_us as f64 * 60.0 / 1e6;
         let packet = encode_packet(&LiveLinkPacket {
             device_id: "00000000-0000-4000-8000-6d696d696373".into(),
@@ -539,7 +521,7 @@ fn send_take_udp(
     }
     println!(
         "sent {sent} Live Link packets (subject `{subject}`) to {addr} in {:.3} s (take {:.3} s, speed {})",
-        start.elapsed().as_secs_f64(),
+        pace.elapsed_s(),
         take.duration_s(),
         args.speed
     );

@@ -2,8 +2,7 @@
 
 use crate::cmd::setup::{PipelineArgs, RigArgs, parse_seconds};
 use anyhow::Context;
-use mimic_assets::load_rig;
-use mimic_stream::{Catalog, DEFAULT_LISTEN, RigEntry, Server, ServerSettings, check_bind};
+use mimic_stream::{DEFAULT_LISTEN, Server, ServerSettings, check_bind};
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -39,9 +38,30 @@ pub struct Args {
     /// morph targets through `--namemap` (docs/trackers.md).
     #[arg(long, value_name = "ADDR")]
     pub livelink: Option<SocketAddr>,
-    /// Name map for Live Link curves (default: configs/namemaps/arkit.toml).
+    /// Also serve the browser viewer on this address (`PORT` alone means 127.0.0.1:PORT): the
+    /// sessions at `/`, a session in 3D at `/view/SESSION` (three.js, shipped in the binary),
+    /// its rig at `/rig/SESSION.glb`, frames over the WebSocket `/ws/SESSION` (docs/browser.md).
+    /// Off without this flag; beyond loopback it needs `--token` like every listener.
+    #[arg(long, value_name = "ADDR", value_parser = parse_http_addr)]
+    pub http: Option<SocketAddr>,
+    /// Name map for Live Link curves (default: configs/namemaps/arkit.toml); its inverse also
+    /// reads the rig's weights back as ARKit curves for `--forward`.
     #[arg(long, value_name = "TOML")]
     pub namemap: Option<PathBuf>,
+    /// Forward every session's frames (ARKit weights and head rotation) to a VMC receiver
+    /// (`vmc:HOST:PORT`, OSC over UDP, e.g. VSeeFace's 127.0.0.1:39539) or a Live Link Face
+    /// receiver (`livelink:HOST:PORT`, e.g. Unreal's 127.0.0.1:11111); repeatable. Any address
+    /// the operator names here is used (warned about beyond loopback); docs/protocol.md.
+    #[arg(long, value_name = "KIND:ADDR")]
+    pub forward: Vec<mimic_stream::forward::ForwardTarget>,
+    /// An address besides loopback that a tracker's own `"forward"` may name (repeatable);
+    /// without it trackers may forward only to loopback addresses.
+    #[arg(long, value_name = "IP")]
+    pub forward_allow: Vec<std::net::IpAddr>,
+    /// Name map from ARKit names to the names VMC receives (e.g.
+    /// configs/namemaps/vrm.toml for VRM presets); default: ARKit's names.
+    #[arg(long, value_name = "TOML")]
+    pub forward_vmc_names: Option<PathBuf>,
     /// Maximum tracker sessions at once.
     #[arg(long, default_value_t = ServerSettings::default().max_sessions)]
     pub max_sessions: usize,
@@ -83,8 +103,11 @@ pub struct Args {
     /// between their arrivals; further ahead it is refused (`future_timestamp`).
     #[arg(long, default_value_t = ServerSettings::default().max_time_jump.as_secs_f64(), value_parser = parse_seconds)]
     pub max_time_jump: f64,
-    /// Record every landmark session's accepted frames in this folder (created if missing), one
-    /// v1 recording per session (`<session>-<id>-<peer>-<UTC time>.jsonl`), flushed per frame.
+    /// Record every session's accepted frames in this folder (created if missing), one file per
+    /// session, flushed per frame: a v1 recording for landmark sessions
+    /// (`<session>-<id>-<peer>-<UTC time>.jsonl`), a weights CSV (`t_us` and the rig's
+    /// morph-target weights, `...weights.csv`, which `mimic send --weights` reads) for weights and
+    /// Live Link sessions.
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,
     /// With --record: a frame reaches viewers (and the `frames` count) only after it is
@@ -134,8 +157,16 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(addr) = args.livelink {
         check_bind("Live Link Face UDP", addr, token.as_deref())?;
     }
+    if let Some(addr) = args.http {
+        check_bind("HTTP", addr, token.as_deref())?;
+    }
     let dirs = args.rig.config_dirs();
-    let catalog = build_catalog(&args.rig, &args.also_rig)?;
+    let (catalog, rig_paths) = crate::cmd::setup::build_catalog(&args.rig, &args.also_rig)?;
+    let web = mimic_stream::HttpSettings {
+        skin: mimic_render::SKIN_ALBEDO,
+        rig_paths,
+        ..Default::default()
+    };
     let settings = ServerSettings {
         max_sessions: args.max_sessions,
         max_viewers: args.max_viewers,
@@ -167,6 +198,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             }
             None => None,
         },
+        forward: forward_settings(&args, &dirs.root)?,
         ..ServerSettings::default()
     };
     if !args.listen.ip().is_loopback() {
@@ -194,6 +226,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Some(u) => u.local_addr()?.to_string(),
             None => "off".to_string(),
         };
+        let http = match args.http {
+            Some(addr) => Some(
+                tokio::net::TcpListener::bind(addr)
+                    .await
+                    .with_context(|| format!("--http: binding {addr}"))?,
+            ),
+            None => None,
+        };
+        let http_addr = match &http {
+            Some(l) => format!(" http {}", l.local_addr()?),
+            None => String::new(),
+        };
         // The first stdout line says where to connect (tests and scripts read it).
         let livelink = settings.livelink.as_ref().map(|l| l.socket.clone());
         let trackers: String = [
@@ -220,7 +264,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .map(|u| format!(" nats {u}"))
             .unwrap_or_default();
         println!(
-            "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}{trackers}{nats}",
+            "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}{trackers}{nats}{http_addr}",
             catalog.rig_names()
         );
         std::io::stdout().flush()?;
@@ -232,7 +276,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let shutdown = async {
             let _ = tokio::signal::ctrl_c().await;
         };
-        anyhow::Ok(server.run(listener, udp, shutdown).await)
+        let web_task = http.map(|listener| {
+            let server = server.clone();
+            let stop = async {
+                let _ = tokio::signal::ctrl_c().await;
+            };
+            tokio::spawn(async move { server.serve_http(listener, web, stop).await })
+        });
+        let stats = server.run(listener, udp, shutdown).await;
+        if let Some(task) = web_task {
+            // Browser viewers end with the server's viewer queues; give them a moment.
+            let abort = task.abort_handle();
+            match tokio::time::timeout(Duration::from_secs(2), task).await {
+                Ok(Ok(Err(e))) => tracing::warn!("HTTP server: {e}"),
+                Err(_) => abort.abort(),
+                _ => {}
+            }
+        }
+        anyhow::Ok(stats)
     })?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&stats)?);
@@ -257,33 +318,41 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The rigs (`--rig` first, then `--also-rig`, each with its basis and morph targets) and every
-/// layout of the config folder, as a server (or a `mimic worker`) offers them.
-pub(crate) fn build_catalog(args_rig: &RigArgs, also_rig: &[String]) -> anyhow::Result<Catalog> {
-    let dirs = args_rig.config_dirs();
-    let mut entries = Vec::new();
-    for name in std::iter::once(&args_rig.rig).chain(also_rig) {
-        let rig_path = dirs.rig_path(name);
-        let rig = load_rig(&rig_path)?;
-        let (basis, _, took) = args_rig.build_basis(&rig)?;
-        tracing::info!(rig = %rig.name, ms = took.as_secs_f64() * 1e3, "basis built");
-        // Morph targets (for weights sessions), when the rig lists `[[morph_targets]]`.
-        let started = std::time::Instant::now();
-        let targets = mimic_assets::load_morph_targets(&rig_path, &rig)?;
-        if !targets.is_empty() {
-            let ms = started.elapsed().as_secs_f64() * 1e3;
-            tracing::info!(rig = %rig.name, targets = targets.len(), ms, "morph targets loaded");
+/// `--forward`, `--forward-allow` and the name maps forwarding reads.
+fn forward_settings(
+    args: &Args,
+    root: &std::path::Path,
+) -> anyhow::Result<mimic_stream::forward::ForwardSettings> {
+    use mimic_trackers::namemap::NameMap;
+    for t in &args.forward {
+        if !t.addr.ip().is_loopback() {
+            tracing::warn!(target = %t, "--forward beyond loopback, as asked");
         }
-        entries.push(RigEntry::new(rig, basis)?.with_morph_targets(targets)?);
     }
-    let mut entries = entries.into_iter();
-    let first = entries.next().context("no rig")?;
-    let mut catalog = Catalog::new(first);
-    entries.for_each(|e| catalog.add_rig(e));
-    for layout in layout_names(&dirs.root)? {
-        catalog.add_layout(dirs.load_layout_named(&layout)?);
+    let path = args
+        .namemap
+        .clone()
+        .unwrap_or_else(|| root.join("namemaps/arkit.toml"));
+    let namemap = Arc::new(NameMap::load(&path)?);
+    let vmc_names = match &args.forward_vmc_names {
+        Some(p) => Some(Arc::new(NameMap::load(p)?)),
+        None => None,
+    };
+    Ok(mimic_stream::forward::ForwardSettings {
+        targets: args.forward.clone(),
+        allow: args.forward_allow.clone(),
+        namemap,
+        vmc_names,
+    })
+}
+
+/// `--http`: an address, or a port alone for loopback (`8080` is `127.0.0.1:8080`).
+fn parse_http_addr(s: &str) -> Result<SocketAddr, String> {
+    if let Ok(port) = s.parse::<u16>() {
+        return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
     }
-    Ok(catalog)
+    s.parse()
+        .map_err(|_| format!("`{s}` is neither a port nor an address like 127.0.0.1:8080"))
 }
 
 /// A tracker's UDP socket bound at `addr` (warned about beyond loopback), for the server.
@@ -320,20 +389,4 @@ fn probe_writable(dir: &std::path::Path) -> anyhow::Result<PathBuf> {
         .open(&probe)
         .with_context(|| format!("--record: {} is not writable", dir.display()))?;
     Ok(probe)
-}
-
-/// Names of the layouts in `configs/layouts/`.
-fn layout_names(root: &std::path::Path) -> anyhow::Result<Vec<String>> {
-    let dir: PathBuf = root.join("layouts");
-    let mut names = Vec::new();
-    for e in std::fs::read_dir(&dir).with_context(|| dir.display().to_string())? {
-        let path = e?.path();
-        if path.extension().is_some_and(|x| x == "toml")
-            && let Some(stem) = path.file_stem()
-        {
-            names.push(stem.to_string_lossy().into_owned());
-        }
-    }
-    names.sort();
-    Ok(names)
 }

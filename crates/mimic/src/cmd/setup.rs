@@ -7,12 +7,14 @@ use mimic_fit::Candide3;
 use mimic_fit::capture::{CaptureFit, CaptureFrame, fit_capture};
 use mimic_retarget::{BlendshapeSettings, Neutral, OneEuroSettings, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
+use mimic_stream::{Catalog, RigEntry};
 use mimic_types::{
-    LaplacianWeights, Layout, MorphTarget, RbfDistance, RbfKernel, Rig, SolverKind, SolverSettings,
-    TopSplit,
+    LaplacianWeights, Layout, MorphTarget, RbfDistance, RbfKernel, Rig, Socket, SocketMode,
+    Sockets, SolverKind, SolverSettings, TopSplit,
 };
 use std::fs::File;
 use std::io::{BufWriter, Write};
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -23,6 +25,8 @@ pub enum SolverChoice {
     Rbf,
     /// Laplacian surface editing.
     Laplacian,
+    /// Thin shell: cotangent membrane + bending energy, controls hard (docs/quality.md).
+    Shell,
     /// Weights of the rig's morph targets fitted to the controls (`P0 + sum w dP`); `mimic eval`
     /// only (a replay takes `--mode blendshapes`).
     Blendshapes,
@@ -80,6 +84,7 @@ impl RigArgs {
             s.kind = match k {
                 SolverChoice::Rbf => SolverKind::Rbf,
                 SolverChoice::Laplacian => SolverKind::Laplacian,
+                SolverChoice::Shell => SolverKind::Shell,
                 SolverChoice::Blendshapes => s.kind,
             };
         }
@@ -153,6 +158,50 @@ pub enum WeightsArg {
     MeanValue,
     /// Cotangent.
     Cotangent,
+}
+
+/// Socket handling of the thin-shell solver, on the command line.
+#[derive(clap::ValueEnum, Clone, Copy, Debug)]
+pub enum SocketArg {
+    /// In the one shell solve.
+    Free,
+    /// Held still.
+    Frozen,
+    /// Their own screened solve from the rim (`--socket-decay`).
+    Decay,
+}
+
+/// Socket vertex ranges from the command line.
+#[derive(Clone, Debug)]
+pub struct SocketRanges(Vec<[u32; 2]>);
+
+/// Decay lengths from the command line.
+#[derive(Clone, Debug)]
+pub struct Decays(Vec<f64>);
+
+/// Parses socket vertex ranges (`11248-13293,13294-14061`), or `none`.
+fn parse_socket_vertices(text: &str) -> Result<SocketRanges, String> {
+    if text == "none" {
+        return Ok(SocketRanges(Vec::new()));
+    }
+    Ok(SocketRanges(
+        parse_ranges(text, false)?
+            .into_iter()
+            .map(|(a, b)| [a, b])
+            .collect(),
+    ))
+}
+
+/// Parses decay lengths, one for every socket or one per socket (`3,0.3`).
+fn parse_decays(text: &str) -> Result<Decays, String> {
+    text.split(',')
+        .map(|t| {
+            t.trim()
+                .parse::<f64>()
+                .map_err(|_| format!("`{t}` is not a decay length"))
+        })
+        .collect::<Result<_, _>>()
+        .map(Decays)
 }
 
 /// The longest duration an option takes: 10^6 s (about 11.6 days). Longer ones would overflow
@@ -253,6 +302,23 @@ pub struct SolverTuningArgs {
     /// Kernel of the lower (lid) half of the top split, as `--upper-kernel` (default: the rig's).
     #[arg(long, value_parser = parse_kernel)]
     pub lower_kernel: Option<KernelChoice>,
+    /// Thin shell: membrane weight `ks` in rig units^-2 (default: the rig's).
+    #[arg(long)]
+    pub shell_stiffness: Option<f64>,
+    /// Thin shell: cut its columns by region (default: the rig's `solver.shell.regions`).
+    #[arg(long, value_enum)]
+    pub shell_regions: Option<Switch>,
+    /// Thin shell: how the socket vertices move (default: the rig's).
+    #[arg(long, value_enum)]
+    pub sockets: Option<SocketArg>,
+    /// Thin shell: decay length of `--sockets decay` in rig units, one for all sockets or one per
+    /// socket (`3,0.3`) (default: the rig's).
+    #[arg(long, value_parser = parse_decays)]
+    pub socket_decay: Option<Decays>,
+    /// Thin shell: the sockets as vertex ranges (`11248-13293,13294-14061`), or `none`; decay 1
+    /// unless `--socket-decay` says (default: the rig's).
+    #[arg(long, value_parser = parse_socket_vertices)]
+    pub socket_vertices: Option<SocketRanges>,
 }
 
 impl SolverTuningArgs {
@@ -264,7 +330,7 @@ impl SolverTuningArgs {
     }
 
     /// `rig_args`' settings for `rig` with these options applied on top.
-    pub fn solver_settings(&self, rig_args: &RigArgs, rig: &Rig) -> SolverSettings {
+    pub fn solver_settings(&self, rig_args: &RigArgs, rig: &Rig) -> anyhow::Result<SolverSettings> {
         let mut s = rig_args.solver_settings(rig);
         if let Some(k) = self.kernel {
             let radius = rig_args.radius.or(s.kernel.radius()).unwrap_or(1.0);
@@ -316,7 +382,43 @@ impl SolverTuningArgs {
         if let Some(w) = self.constraint_weight {
             s.constraint_weight = w;
         }
-        s
+        if let Some(ks) = self.shell_stiffness {
+            s.shell.stiffness = ks;
+        }
+        if let Some(r) = self.shell_regions {
+            s.shell.regions = r == Switch::On;
+        }
+        if let Some(m) = self.sockets {
+            s.shell.socket_mode = match m {
+                SocketArg::Free => SocketMode::Free,
+                SocketArg::Frozen => SocketMode::Frozen,
+                SocketArg::Decay => SocketMode::Decay,
+            };
+        }
+        if let Some(SocketRanges(v)) = &self.socket_vertices {
+            let list: Vec<Socket> = v
+                .iter()
+                .map(|&vertices| Socket {
+                    vertices,
+                    decay: 1.0,
+                })
+                .collect();
+            s.shell.sockets = Sockets::try_from(list).map_err(anyhow::Error::msg)?;
+        }
+        if let Some(Decays(l)) = &self.socket_decay {
+            let sockets = s.shell.sockets.as_mut_slice();
+            if l.len() != 1 && l.len() != sockets.len() {
+                bail!(
+                    "--socket-decay: {} lengths for {} sockets (give one, or one per socket)",
+                    l.len(),
+                    sockets.len()
+                );
+            }
+            for (i, sock) in sockets.iter_mut().enumerate() {
+                sock.decay = l[i.min(l.len() - 1)];
+            }
+        }
+        Ok(s)
     }
 }
 
@@ -494,7 +596,7 @@ pub fn parse_hidden(
     }
 }
 
-/// Colours and hidden parts of the rig `rig_args` names, as its `[look]` says (`hide` and
+/// Colours, textures and hidden parts of the rig `rig_args` names, as its `[look]` says (`hide` and
 /// `materials` as `--hide` and not `--no-materials` give them).
 pub fn rig_look(
     rig_args: &RigArgs,
@@ -504,15 +606,19 @@ pub fn rig_look(
 ) -> anyhow::Result<mimic_view::Look> {
     let path = rig_args.rig_path();
     let look = mimic_assets::load_rig_look(&path)?;
-    let colors = if materials {
+    let (colors, textures) = if materials {
         let (p, t) = (&rig.mesh.positions, &rig.mesh.triangles);
-        mimic_assets::look_colors(&path, &look, p, t, mimic_render::SKIN_ALBEDO)?
+        (
+            mimic_assets::look_colors(&path, &look, p, t, mimic_render::SKIN_ALBEDO)?,
+            mimic_assets::load_rig_textures(&path, &rig.mesh)?,
+        )
     } else {
-        None
+        (None, None)
     };
     Ok(mimic_view::Look {
         colors,
         hidden: parse_hidden(hide, &look)?,
+        textures,
     })
 }
 
@@ -568,6 +674,57 @@ pub fn fit_candide3(
 pub fn token_or_env(flag: Option<&str>) -> Option<String> {
     flag.map(str::to_string)
         .or_else(|| std::env::var("MIMIC_TOKEN").ok())
+}
+
+/// The rigs (`--rig` first, then `--also-rig`, each with its basis and morph targets) and every
+/// layout of the config folder, as a server (or a `mimic worker`) offers them; and each rig's
+/// file by rig name (for the browser viewer's GLBs).
+pub(crate) fn build_catalog(
+    args_rig: &RigArgs,
+    also_rig: &[String],
+) -> anyhow::Result<(Catalog, BTreeMap<String, PathBuf>)> {
+    let dirs = args_rig.config_dirs();
+    let mut entries = Vec::new();
+    let mut rig_paths = BTreeMap::new();
+    for name in std::iter::once(&args_rig.rig).chain(also_rig) {
+        let rig_path = dirs.rig_path(name);
+        let rig = load_rig(&rig_path)?;
+        rig_paths.insert(rig.name.clone(), rig_path.clone());
+        let (basis, _, took) = args_rig.build_basis(&rig)?;
+        tracing::info!(rig = %rig.name, ms = took.as_secs_f64() * 1e3, "basis built");
+        // Morph targets (for weights sessions), when the rig lists `[[morph_targets]]`.
+        let started = std::time::Instant::now();
+        let targets = mimic_assets::load_morph_targets(&rig_path, &rig)?;
+        if !targets.is_empty() {
+            let ms = started.elapsed().as_secs_f64() * 1e3;
+            tracing::info!(rig = %rig.name, targets = targets.len(), ms, "morph targets loaded");
+        }
+        entries.push(RigEntry::new(rig, basis)?.with_morph_targets(targets)?);
+    }
+    let mut entries = entries.into_iter();
+    let first = entries.next().context("no rig")?;
+    let mut catalog = Catalog::new(first);
+    entries.for_each(|e| catalog.add_rig(e));
+    for layout in layout_names(&dirs.root)? {
+        catalog.add_layout(dirs.load_layout_named(&layout)?);
+    }
+    Ok((catalog, rig_paths))
+}
+
+/// Names of the layouts in `configs/layouts/`.
+fn layout_names(root: &std::path::Path) -> anyhow::Result<Vec<String>> {
+    let dir: PathBuf = root.join("layouts");
+    let mut names = Vec::new();
+    for e in std::fs::read_dir(&dir).with_context(|| dir.display().to_string())? {
+        let path = e?.path();
+        if path.extension().is_some_and(|x| x == "toml")
+            && let Some(stem) = path.file_stem()
+        {
+            names.push(stem.to_string_lossy().into_owned());
+        }
+    }
+    names.sort();
+    Ok(names)
 }
 
 #[cfg(test)]

@@ -111,7 +111,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     _ => Look::default(),
                 }
             });
-            Viewer::live(live, &args.session, look_for, options)
+            Viewer::live(live, &args.session, look_for, options).with_address(addr)
         }
         None => {
             let Some(recording) = &args.recording else {
@@ -127,7 +127,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             let mut other = first;
             other.kind = match first.kind {
                 SolverKind::Rbf => SolverKind::Laplacian,
-                SolverKind::Laplacian => SolverKind::Rbf,
+                SolverKind::Laplacian | SolverKind::Shell => SolverKind::Rbf,
             };
             // Lines the reader rejects are skipped, as `mimic render` does.
             reader.expect_points(layout.point_count)?;
@@ -144,6 +144,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 normals: false,
                 ..args.pipeline.settings()
             };
+            // The rig's morph targets go on the number keys 1-9.
+            let expressions = mimic_assets::load_morph_targets(&args.rig.rig_path(), &rig)?;
             let setup = LocalSetup {
                 rig,
                 layout,
@@ -152,6 +154,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 other,
                 frames,
                 look,
+                expressions,
             };
             Viewer::local(setup, options)?
         }

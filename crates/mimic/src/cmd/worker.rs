@@ -31,7 +31,7 @@ pub struct Args {
 /// Runs `mimic worker` until Ctrl-C.
 pub fn run(args: Args) -> anyhow::Result<()> {
     // The same rigs and layouts as the front doors (same configs and rig flags).
-    let catalog = Arc::new(crate::cmd::serve::build_catalog(&args.rig, &args.also_rig)?);
+    let catalog = Arc::new(crate::cmd::setup::build_catalog(&args.rig, &args.also_rig)?.0);
     let name = args
         .name
         .clone()

@@ -8,7 +8,7 @@ use super::slots::{Slot, Slots, general_slots, keepalive};
 use super::state::{Shared, lock};
 use super::udp::udp_loop;
 use super::viewer::viewer;
-use super::weights::Weights;
+use super::weights::{Weights, WeightsSession};
 use super::{HELLO_MAX_BYTES, Server};
 use crate::lines::{Line, LineReader};
 use crate::stats::ServerStats;
@@ -211,6 +211,7 @@ async fn connection(
             session::run::<Landmark>(shared, lines, w, hello, stop).await;
         }
         Ok(Hello::Weights(hello)) => {
+            let hello = WeightsSession::new(hello, peer);
             session::run::<Weights>(shared, lines, w, hello, stop).await;
         }
     }
@@ -218,7 +219,7 @@ async fn connection(
 
 /// Whether a hello's token is the server's (always, when the server has none); compared
 /// without an early exit.
-fn token_ok(server: Option<&str>, presented: Option<&str>) -> bool {
+pub(crate) fn token_ok(server: Option<&str>, presented: Option<&str>) -> bool {
     let Some(want) = server else { return true };
     let got = presented.unwrap_or_default().as_bytes();
     let want = want.as_bytes();

@@ -79,6 +79,9 @@ pub(crate) enum Refusal {
     /// The server has a token and the hello did not present it.
     #[error("this server needs a token: start the client with --token (or MIMIC_TOKEN)")]
     BadToken,
+    /// The hello's `"forward"` is not a target this server forwards to (`crate::forward`).
+    #[error("{0}")]
+    Forward(String),
     /// The session already has a tracker.
     #[error("session `{session}` already has a tracker")]
     SessionBusy {
@@ -93,7 +96,7 @@ impl Refusal {
         match self {
             Refusal::NoHello => ErrorCode::IdleTimeout,
             Refusal::HelloTooLong { .. } => ErrorCode::TooLong,
-            Refusal::BadHello(_) => ErrorCode::BadHello,
+            Refusal::BadHello(_) | Refusal::Forward(_) => ErrorCode::BadHello,
             Refusal::UnknownLayout { .. }
             | Refusal::PointCount { .. }
             | Refusal::LayoutUnusable(_) => ErrorCode::UnknownLayout,

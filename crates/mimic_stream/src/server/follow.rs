@@ -148,6 +148,11 @@ async fn follow(shared: Arc<Shared>, name: String, id: u64, mut rx: mpsc::Receiv
                     &f.out,
                     &mut f.positions,
                     |d, positions| rig.deform(d, scratch, positions),
+                    &super::session::WebFrame {
+                        arrival: std::time::Instant::now(),
+                        gated: 0,
+                        weights: false,
+                    },
                 );
             }
             Some(Followed::End) => {

@@ -7,15 +7,19 @@ use super::follow::read_result;
 use super::session::{LineOutcome, Protocol, Session, TrackerLine, future_line, is_blank};
 use super::state::{Shared, lock};
 use super::udp::Route;
+use super::weights::{count_forward, own_forward, start_forwarder};
 use crate::catalog::RigEntry;
+use crate::forward::{ForwardTarget, Forwarder};
 use crate::placement::{PlaceRequest, PlacedFrame, PlacementStatus, StepResult};
-use crate::record::{RecordCounters, Recorder, SessionLabel};
+use crate::record::{Entry, RecordCounters, RecordKind, Recorder, SessionLabel};
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
 use crate::timing::{FrameClock, TimeProblem};
 use glam::Vec3;
 use mimic_capture::{FrameProblem, RecordedFrame, RecordingHeader, parse_frame_line};
-use mimic_retarget::{FrameOutput, FrameStatus, RetargetSettings, Retargeter};
+use mimic_retarget::{
+    BlendshapeFitter, BlendshapeSettings, FrameOutput, FrameStatus, RetargetSettings, Retargeter,
+};
 use mimic_types::LandmarkFrame;
 use mimic_wire::SessionRequest;
 use serde_json::{Map, Value, json};
@@ -45,6 +49,8 @@ pub(crate) struct Admitted {
     layout: String,
     point_count: usize,
     retargeter: Retargeter,
+    /// The header's `"forward"`, checked.
+    own_forward: Option<ForwardTarget>,
 }
 
 /// What became of a frame handed to a session.
@@ -58,18 +64,22 @@ enum Outcome {
     Malformed,
 }
 
-/// A session's recording: off, on, or asked for but not started (its frames count as lost).
+/// A session's recording (landmark, weights and Live Link sessions): off, on, or asked for but
+/// not started (its frames count as lost).
 #[derive(Debug)]
-enum Recording {
+pub(crate) enum Recording {
+    /// The server does not record.
     Off,
+    /// Recording.
     On(Recorder),
+    /// Asked for, but the file could not be started.
     Failed(Arc<RecordCounters>),
 }
 
 impl Recording {
     /// Starts a session's recording when the server records; a failure is logged, and the
     /// session's accepted frames are then counted as `record_lost`.
-    async fn start(s: &Session, header: &RecordingHeader, peer: Option<SocketAddr>) -> Self {
+    pub(crate) async fn start(s: &Session, kind: RecordKind<'_>, peer: Option<SocketAddr>) -> Self {
         let settings = s.settings();
         let Some(dir) = settings.record_dir.as_ref() else {
             return Recording::Off;
@@ -82,7 +92,7 @@ impl Recording {
         };
         let started = Recorder::start(
             dir,
-            header,
+            kind,
             &who,
             settings.record_queue_frames,
             s.record.record.clone(),
@@ -102,9 +112,14 @@ impl Recording {
         }
     }
 
+    /// True when frames go (or were meant to go) to a file.
+    pub(crate) fn is_on(&self) -> bool {
+        !matches!(self, Recording::Off)
+    }
+
     /// `--record-sync`: writes an accepted frame and syncs it to the disk before returning;
     /// false when it could not be (then it is counted `record_lost` and must not be broadcast).
-    async fn frame_durable(&self, f: RecordedFrame) -> bool {
+    pub(crate) async fn frame_durable(&self, f: impl Into<Entry>) -> bool {
         match self {
             Recording::Off => true,
             Recording::On(r) => r.record_durable(f).await,
@@ -116,14 +131,18 @@ impl Recording {
     }
 
     /// Hands an accepted frame to the recording, if the server records.
-    async fn frame(&self, outcome: Outcome, f: RecordedFrame) {
-        if outcome != Outcome::Accepted {
-            return;
-        }
+    pub(crate) async fn frame(&self, f: impl Into<Entry>) {
         match self {
             Recording::Off => {}
             Recording::On(r) => r.record(f).await,
             Recording::Failed(c) => c.lost.bump(),
+        }
+    }
+
+    /// Waits until every queued frame is written, flushed and synced.
+    pub(crate) async fn finish(self) {
+        if let Recording::On(r) = self {
+            r.finish().await;
         }
     }
 }
@@ -224,6 +243,8 @@ pub(crate) struct Landmark {
     udp: mpsc::Receiver<(Instant, LandmarkFrame)>,
     /// Set when the server's placement steps this session.
     remote: Option<Remote>,
+    /// Live out: the forwarding and the blendshape fit of the rig's morph targets it sends.
+    forward: Option<Box<(Forwarder, BlendshapeFitter)>>,
 }
 
 impl Landmark {
@@ -281,6 +302,12 @@ impl Landmark {
             |d, positions| rig.deform(d, scratch, positions),
             arrival,
         );
+        if let Some(f) = self.forward.as_mut() {
+            let (forwarder, fitter) = &mut **f;
+            let w = fitter.fit(&self.out.displacements, self.out.timestamp_us);
+            let sent = forwarder.weights(self.out.timestamp_us, w, self.out.pose.rotation);
+            count_forward(s, sent);
+        }
     }
 
     /// A placement's answer: counted as the local step counts it and broadcast with the frame's
@@ -336,8 +363,8 @@ impl Landmark {
             if self.recording.frame_durable(f).await {
                 self.publish(s, arrival, udp);
             }
-        } else {
-            self.recording.frame(outcome, f).await;
+        } else if outcome == Outcome::Accepted {
+            self.recording.frame(f).await;
         }
     }
 
@@ -366,6 +393,32 @@ fn udp_key(shared: &Shared, id: u32) -> u32 {
     h.write_u32(id);
     h.write_u128(shared.started.elapsed().as_nanos());
     h.finish() as u32
+}
+
+/// A landmark session's forwarding: the blendshape fit of the rig's morph targets to its
+/// controls (`mimic_retarget::BlendshapeFitter`, default settings) feeds the forwarder; a rig
+/// without morph targets forwards nothing (logged).
+fn landmark_forward(
+    s: &Session,
+    own: Option<ForwardTarget>,
+) -> Option<Box<(Forwarder, BlendshapeFitter)>> {
+    if s.settings().forward.targets.is_empty() && own.is_none() {
+        return None;
+    }
+    let Some(morph) = s.rig.morph.as_ref() else {
+        tracing::warn!(session = %s.name, rig = s.rig.name(), "not forwarded: the rig has no [[morph_targets]] to fit weights of");
+        return None;
+    };
+    let fitter =
+        match BlendshapeFitter::new(&s.rig.rig, morph.targets(), &BlendshapeSettings::default()) {
+            Ok(f) => f,
+            Err(e) => {
+                tracing::warn!(session = %s.name, "not forwarded: {e}");
+                return None;
+            }
+        };
+    let forwarder = start_forwarder(s, own, &morph.names)?;
+    Some(Box::new((forwarder, fitter)))
 }
 
 impl Protocol for Landmark {
@@ -402,6 +455,7 @@ impl Protocol for Landmark {
         };
         let retargeter = Retargeter::new(&entry.rig, layout, entry.basis.clone(), retarget)
             .map_err(|e| Refusal::LayoutUnusable(e.to_string()))?;
+        let own_forward = own_forward(shared, header.extra.get("forward").and_then(Value::as_str))?;
         Ok(Admission {
             session: request.session,
             rig_message: entry.message.clone(),
@@ -413,6 +467,7 @@ impl Protocol for Landmark {
                 layout: layout.name.clone(),
                 point_count: layout.point_count,
                 retargeter,
+                own_forward,
             },
         })
     }
@@ -429,7 +484,7 @@ impl Protocol for Landmark {
         let settings = s.settings();
         let mut recorded_header = (*a.header).clone();
         recorded_header.point_count = Some(a.point_count);
-        let recording = Recording::start(s, &recorded_header, a.peer).await;
+        let recording = Recording::start(s, RecordKind::Landmarks(&recorded_header), a.peer).await;
         let key = udp_key(&s.shared, s.id);
         let (udp_tx, udp) = mpsc::channel(settings.udp_queue_frames.max(1));
         lock(&s.shared.routes).insert(
@@ -475,6 +530,7 @@ impl Protocol for Landmark {
             }
             None => None,
         };
+        let forward = landmark_forward(s, a.own_forward);
         let landmark = Landmark {
             positions: s.rig.rig.mesh.positions.clone(),
             scratch: Vec::new(),
@@ -491,6 +547,7 @@ impl Protocol for Landmark {
             recording,
             udp,
             remote,
+            forward,
         };
         (landmark, welcome)
     }
@@ -576,9 +633,7 @@ impl Protocol for Landmark {
         }
         // Every accepted frame is in the recording (written, flushed, synced) before the session
         // is reported ended.
-        if let Recording::On(r) = self.recording {
-            r.finish().await;
-        }
+        self.recording.finish().await;
     }
 
     fn summary(settings: &ServerSettings, end: &SessionSnapshot, bye: bool) -> Map<String, Value> {

@@ -55,8 +55,8 @@ pub(crate) struct LiveLink {
 }
 
 impl LiveLink {
-    /// Maps, poses and broadcasts one packet.
-    fn accept(&mut self, s: &Session, p: &LiveLinkPacket, arrival: Instant) {
+    /// Maps, poses, broadcasts and records one packet.
+    async fn accept(&mut self, s: &Session, p: &LiveLinkPacket, arrival: Instant) {
         self.last_packet = arrival;
         let Some(morph) = s.rig.morph.as_ref() else {
             return;
@@ -87,7 +87,12 @@ impl LiveLink {
         } else {
             Quat::IDENTITY
         };
-        self.frame.send(s, morph, t_us, rotation, true, arrival);
+        if let Some(c) = self.frame.curves.as_mut() {
+            **c = p.curves;
+        }
+        self.frame
+            .keep(s, morph, t_us, rotation, true, arrival)
+            .await;
     }
 }
 
@@ -162,13 +167,16 @@ impl Protocol for LiveLink {
                 s.rig.name(), lacking.len(), mapping.targets.len(), lacking.join(", "));
         }
         tracing::info!(session = %s.name, id = s.id, subject = %hello.subject, peer = %hello.peer, "livelink session started");
+        let mut frame = MorphFrame::start(s, Some(hello.peer), None).await;
+        // Forwarded as they came: every curve, also those the rig lacks.
+        frame.curves = Some(Box::new([0.0; mimic_trackers::livelink::CURVES]));
         let proto = LiveLink {
             mapped: vec![0.0; mapping.targets.len()],
             mapping,
             namemap,
             routes,
             values: [0.0; BLENDSHAPES],
-            frame: MorphFrame::new(s),
+            frame,
             clock: s.clock(),
             first_us: None,
             started: Instant::now(),
@@ -189,10 +197,12 @@ impl Protocol for LiveLink {
         format!("packet longer than {limit} bytes")
     }
 
-    async fn finish(self, _: &Session) {}
+    async fn finish(self, _: &Session) {
+        self.frame.finish().await;
+    }
 
-    fn summary(_: &ServerSettings, end: &SessionSnapshot, _bye: bool) -> Map<String, Value> {
-        weights_summary(end)
+    fn summary(settings: &ServerSettings, end: &SessionSnapshot, bye: bool) -> Map<String, Value> {
+        weights_summary(settings, end, bye)
     }
 }
 
@@ -236,7 +246,7 @@ async fn livelink_loop(
                 }
             }
         };
-        live.proto.accept(&live.session, &p, arrival);
+        live.proto.accept(&live.session, &p, arrival).await;
     }
     end_all(&mut subjects).await;
     drop(done);

@@ -14,7 +14,7 @@ use super::intake::{Idle, Live, end_all, end_idle, idle_tick, open_live, tokio_s
 use super::session::{LineOutcome, Protocol, Session, TrackerLine};
 use super::state::{Shared, lock};
 use crate::catalog::RigEntry;
-use crate::record::{Recorder, SessionLabel};
+use crate::record::{RecordKind, Recorder, SessionLabel};
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
 use crate::timing::FrameClock;
@@ -168,7 +168,7 @@ impl Protocol for OpenSeeFace {
             };
             match Recorder::start(
                 dir,
-                &header,
+                RecordKind::Landmarks(&header),
                 &who,
                 settings.record_queue_frames,
                 s.record.record.clone(),

@@ -174,7 +174,13 @@ impl Session {
         fill: impl FnOnce(&[Vec3], &mut [Vec3]),
         arrival: Instant,
     ) {
-        push_frame(&self.shared, &self.name, seq, out, positions, fill);
+        // Weights sessions (TCP and Live Link) carry the layout `weights`.
+        let web = WebFrame {
+            arrival,
+            gated: self.record.gated.get(),
+            weights: self.record.layout == "weights",
+        };
+        push_frame(&self.shared, &self.name, seq, out, positions, fill, &web);
         let us = u64::try_from(arrival.elapsed().as_micros()).unwrap_or(u64::MAX);
         tracing::trace!(session = %self.name, seq, us, "broadcast");
         lock(&self.record.latency).record(us);
@@ -220,17 +226,29 @@ pub(crate) fn push_frame(
     out: &FrameOutput,
     positions: &mut [Vec3],
     fill: impl FnOnce(&[Vec3], &mut [Vec3]),
+    web: &WebFrame,
 ) {
-    let (want_d, want_positions) = {
+    let (want_d, want_positions, want_web) = {
         let hubs = lock(&shared.hubs);
-        hubs.get(name).map_or((false, false), |h| {
+        hubs.get(name).map_or((false, false, false), |h| {
             (
-                h.viewers.iter().any(|v| !v.positions),
+                h.viewers.iter().any(|v| !v.positions && !v.web),
                 h.viewers.iter().any(|v| v.positions),
+                h.viewers.iter().any(|v| v.web),
             )
         })
     };
     let d_message = want_d.then(|| Arc::new(encode_frame(seq, out, None)));
+    // Browser viewers (`server/http`): their own layout, with the arrival time.
+    let web_message = want_web.then(|| {
+        Arc::new(super::http::encode_web_frame(
+            seq,
+            out,
+            web.arrival,
+            web.gated,
+            web.weights,
+        ))
+    });
     let p_message = want_positions.then(|| {
         fill(&out.displacements, positions);
         Arc::new(encode_frame(seq, out, Some(positions)))
@@ -238,12 +256,28 @@ pub(crate) fn push_frame(
     let hubs = lock(&shared.hubs);
     if let Some(h) = hubs.get(name) {
         for v in &h.viewers {
-            let m = if v.positions { &p_message } else { &d_message };
+            let m = if v.web {
+                &web_message
+            } else if v.positions {
+                &p_message
+            } else {
+                &d_message
+            };
             if let Some(m) = m {
                 v.queue.push_frame(m.clone());
             }
         }
     }
+}
+
+/// What a browser viewer's frame carries beyond the TCP viewers' one.
+pub(crate) struct WebFrame {
+    /// When the frame arrived from the tracker (at this front door).
+    pub(crate) arrival: Instant,
+    /// The session's gated-frame count so far.
+    pub(crate) gated: u64,
+    /// True for weights sessions (the frame carries the weights).
+    pub(crate) weights: bool,
 }
 
 /// The error line answering a frame from the future.

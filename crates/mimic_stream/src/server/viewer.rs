@@ -19,6 +19,9 @@ pub(crate) struct Viewer {
     pub(crate) id: u64,
     pub(crate) session: String,
     pub(crate) positions: bool,
+    /// A browser viewer (`/ws/SESSION`): its queue gets the WebSocket frame layout
+    /// (`http::ws::encode_web_frame`) instead of the TCP FRAME message.
+    pub(crate) web: bool,
     pub(crate) queue: ViewerQueue,
     pub(crate) connected: AtomicBool,
 }
@@ -38,6 +41,70 @@ impl Viewer {
     }
 }
 
+/// Takes a viewer slot and attaches a new viewer of `session` to its hub (it gets the session
+/// and rig messages at once when the session is live); `TooManyViewers` when every slot is
+/// taken. TCP and browser viewers alike; [`detach`] undoes it.
+pub(crate) fn attach(
+    shared: &Arc<Shared>,
+    session: &str,
+    positions: bool,
+    web: bool,
+) -> Result<Arc<Viewer>, Refusal> {
+    let settings = &shared.settings;
+    if shared.viewers_active.fetch_add(1, Ordering::AcqRel) >= settings.max_viewers {
+        shared.viewers_active.fetch_sub(1, Ordering::AcqRel);
+        shared.refused.bump();
+        return Err(Refusal::TooManyViewers {
+            max: settings.max_viewers,
+        });
+    }
+    let v = Arc::new(Viewer {
+        id: shared.next_viewer.fetch_add(1, Ordering::Relaxed),
+        session: session.to_string(),
+        positions,
+        web,
+        queue: ViewerQueue::new(settings.viewer_queue_frames),
+        connected: AtomicBool::new(true),
+    });
+    let mut hubs = lock(&shared.hubs);
+    let hub = hubs.entry(session.to_string()).or_default();
+    if let Some(live) = &hub.live {
+        v.queue.push_control(live.session_message.clone(), true);
+        v.queue.push_control(live.rig_message.clone(), false);
+        lock(&live.record.viewers).attach(v.clone());
+    } else if let Some((session_message, rig_message)) = &hub.remote {
+        v.queue.push_control(session_message.clone(), true);
+        v.queue.push_control(rig_message.clone(), false);
+    }
+    hub.viewers.push(v.clone());
+    // A session hosted by another front door of the cluster reaches this hub's viewers too.
+    super::follow::start_following(shared, hub, session);
+    Ok(v)
+}
+
+/// Marks viewer `v` gone, takes it off its hub (a hub left with neither viewers nor tracker
+/// goes) and frees its slot.
+pub(crate) fn detach(shared: &Shared, v: &Arc<Viewer>) {
+    v.connected.store(false, Ordering::Release);
+    {
+        let mut hubs = lock(&shared.hubs);
+        if let Some(hub) = hubs.get_mut(&v.session) {
+            hub.viewers.retain(|x| !Arc::ptr_eq(x, v));
+            if hub.viewers.is_empty() && hub.live.is_none() {
+                hubs.remove(&v.session);
+            }
+        }
+    }
+    shared.viewers_active.fetch_sub(1, Ordering::AcqRel);
+}
+
+/// True when `session` has a live tracker now (here, or at another front door it is followed from).
+pub(crate) fn is_live(shared: &Shared, session: &str) -> bool {
+    lock(&shared.hubs)
+        .get(session)
+        .is_some_and(|h| h.live.is_some() || h.remote.is_some())
+}
+
 /// A viewer: attach to the hub, forward its queue, detach.
 pub(crate) async fn viewer(
     shared: Arc<Shared>,
@@ -47,37 +114,13 @@ pub(crate) async fn viewer(
     positions: bool,
 ) {
     let settings = &shared.settings;
-    if shared.viewers_active.fetch_add(1, Ordering::AcqRel) >= settings.max_viewers {
-        shared.viewers_active.fetch_sub(1, Ordering::AcqRel);
-        shared.refused.bump();
-        let refusal = Refusal::TooManyViewers {
-            max: settings.max_viewers,
-        };
-        write_and_close(&mut w, &encode_json(KIND_ERROR, &refusal.json())).await;
-        return;
-    }
-    let v = Arc::new(Viewer {
-        id: shared.next_viewer.fetch_add(1, Ordering::Relaxed),
-        session: session.clone(),
-        positions,
-        queue: ViewerQueue::new(settings.viewer_queue_frames),
-        connected: AtomicBool::new(true),
-    });
-    {
-        let mut hubs = lock(&shared.hubs);
-        let hub = hubs.entry(session.clone()).or_default();
-        if let Some(live) = &hub.live {
-            v.queue.push_control(live.session_message.clone(), true);
-            v.queue.push_control(live.rig_message.clone(), false);
-            lock(&live.record.viewers).attach(v.clone());
-        } else if let Some((session_message, rig_message)) = &hub.remote {
-            v.queue.push_control(session_message.clone(), true);
-            v.queue.push_control(rig_message.clone(), false);
+    let v = match attach(&shared, &session, positions, false) {
+        Ok(v) => v,
+        Err(refusal) => {
+            write_and_close(&mut w, &encode_json(KIND_ERROR, &refusal.json())).await;
+            return;
         }
-        hub.viewers.push(v.clone());
-        // A session hosted by another front door of the cluster reaches this hub's viewers too.
-        super::follow::start_following(&shared, hub, &session);
-    }
+    };
     tracing::info!(viewer = v.id, session = %session, positions, "viewer joined");
     // The viewer sends nothing after its hello; reading (and discarding, through the reader's
     // fixed buffer) tells us when it goes away.
@@ -98,10 +141,7 @@ pub(crate) async fn viewer(
             Ok(Some(m)) => m,
             Ok(None) => break,
             Err(_) => {
-                let live = lock(&shared.hubs)
-                    .get(&session)
-                    .is_some_and(|h| h.live.is_some() || h.remote.is_some());
-                if live {
+                if is_live(&shared, &session) {
                     continue;
                 }
                 let secs = settings.viewer_idle_timeout.as_secs_f64();
@@ -126,17 +166,7 @@ pub(crate) async fn viewer(
     }
     let _ = timeout(std::time::Duration::from_secs(1), w.shutdown()).await;
     watcher.abort();
-    v.connected.store(false, Ordering::Release);
-    {
-        let mut hubs = lock(&shared.hubs);
-        if let Some(hub) = hubs.get_mut(&session) {
-            hub.viewers.retain(|x| !Arc::ptr_eq(x, &v));
-            if hub.viewers.is_empty() && hub.live.is_none() {
-                hubs.remove(&session);
-            }
-        }
-    }
-    shared.viewers_active.fetch_sub(1, Ordering::AcqRel);
+    detach(&shared, &v);
     tracing::info!(
         viewer = v.id,
         session = %session,

@@ -4,19 +4,24 @@
 //! or as positions `P0 + sum_k w_k dP_k`.
 
 use super::admission::{Admission, Refusal, find_rig};
+use super::landmark::Recording;
 use super::session::{LineOutcome, Protocol, Session, TrackerLine, future_line, is_blank};
 use super::state::Shared;
 use crate::catalog::{MorphSet, RigEntry};
+use crate::forward::{ForwardTarget, Forwarder, Sent};
+use crate::record::{Entry, RecordKind};
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
 use crate::timing::{FrameClock, TimeProblem};
 use glam::{Quat, Vec3};
 use mimic_retarget::{FrameOutput, FrameStatus};
+use mimic_trackers::livelink::CURVES;
 use mimic_types::HeadPose;
 use mimic_wire::{ErrorCode, WeightsHello, parse_weight_frame, warning_line};
 use serde_json::{Map, Value, json};
 use std::collections::HashSet;
 use std::convert::Infallible;
+use std::net::SocketAddr;
 use std::time::Instant;
 
 /// Distinct unknown weight names a session remembers (and warns about once each).
@@ -24,19 +29,65 @@ const UNKNOWN_NAMES_KEPT: usize = 256;
 
 /// The frame path every weights session shares (named weights over TCP here, Live Link Face
 /// packets in `livelink.rs`): one weight per rig morph target, the frame viewers get (`d` as the
-/// morph basis's controls, the head rotation as its pose) and the blended positions.
+/// morph basis's controls, the head rotation as its pose), the blended positions and the
+/// session's recording (`--record`: the weights as a weights CSV, `crate::record`).
 #[derive(Debug)]
 pub(crate) struct MorphFrame {
-    /// One weight per morph target of the session's rig, set by the protocol before [`Self::send`].
+    /// One weight per morph target of the session's rig, set by the protocol before [`Self::keep`].
     pub(crate) weights: Vec<f32>,
     out: FrameOutput,
     positions: Vec<Vec3>,
+    recording: Recording,
+    /// `--record-sync` with a recording: a frame is broadcast (and counted) only once it is on
+    /// disk.
+    durable: bool,
+    /// Live out (`--forward`, a hello's `"forward"`).
+    forward: Option<Forwarder>,
+    /// The Live Link curves of this frame as they came (forwarded as they are), if any.
+    pub(crate) curves: Option<Box<[f32; CURVES]>>,
+}
+
+/// The forwarding of session `s` (the server's `--forward` targets and `own`, the tracker's),
+/// or `None` without targets; a socket that cannot be opened is logged and forwards nothing.
+pub(crate) fn start_forwarder(
+    s: &Session,
+    own: Option<ForwardTarget>,
+    rig_names: &[String],
+) -> Option<Forwarder> {
+    let settings = &s.settings().forward;
+    let targets: Vec<ForwardTarget> = settings.targets.iter().copied().chain(own).collect();
+    match Forwarder::new(settings, &targets, rig_names, &s.name) {
+        Ok(Some(f)) => {
+            let list: Vec<String> = f.targets().map(ToString::to_string).collect();
+            tracing::info!(session = %s.name, "forwarding to {}", list.join(", "));
+            Some(f)
+        }
+        Ok(None) => None,
+        Err(e) => {
+            tracing::error!(session = %s.name, "not forwarded: {e}");
+            None
+        }
+    }
+}
+
+/// Counts what a forward did in the session's `forwarded` and `forward_dropped`.
+pub(crate) fn count_forward(s: &Session, sent: Sent) {
+    s.record.forwarded.add(sent.sent);
+    s.record.forward_dropped.add(sent.dropped);
 }
 
 impl MorphFrame {
-    /// All weights zero, the rig's rest positions, no head rotation.
-    pub(crate) fn new(s: &Session) -> Self {
+    /// All weights zero, the rig's rest positions, no head rotation; the recording started when
+    /// the server records (one column per rig morph target).
+    pub(crate) async fn start(
+        s: &Session,
+        peer: Option<SocketAddr>,
+        own_forward: Option<ForwardTarget>,
+    ) -> Self {
         let k = s.rig.morph.as_ref().map_or(0, MorphSet::len);
+        let names = s.rig.morph.as_ref().map_or(&[][..], |m| &m.names[..]);
+        let recording = Recording::start(s, RecordKind::Weights(names), peer).await;
+        let forward = start_forwarder(s, own_forward, names);
         Self {
             weights: vec![0.0; k],
             out: FrameOutput {
@@ -51,12 +102,71 @@ impl MorphFrame {
                 times: Default::default(),
             },
             positions: s.rig.rig.mesh.positions.clone(),
+            durable: s.settings().record_sync && recording.is_on(),
+            recording,
+            forward,
+            curves: None,
         }
+    }
+
+    /// Broadcasts ([`Self::send`]) and forwards the current frame.
+    fn publish(
+        &mut self,
+        s: &Session,
+        morph: &MorphSet,
+        t_us: i64,
+        rotation: Quat,
+        udp: bool,
+        arrival: Instant,
+    ) {
+        self.send(s, morph, t_us, rotation, udp, arrival);
+        if let Some(f) = self.forward.as_mut() {
+            let sent = match &self.curves {
+                Some(c) => f.curves(t_us, c, rotation),
+                None => f.weights(t_us, &self.weights, rotation),
+            };
+            count_forward(s, sent);
+        }
+    }
+
+    /// Keeps the current weights as an accepted frame at `t_us`: broadcast ([`Self::send`]) and
+    /// recorded; under `--record-sync` broadcast only once on disk (never, if it cannot be
+    /// written).
+    pub(crate) async fn keep(
+        &mut self,
+        s: &Session,
+        morph: &MorphSet,
+        t_us: i64,
+        rotation: Quat,
+        udp: bool,
+        arrival: Instant,
+    ) {
+        if !self.recording.is_on() {
+            self.publish(s, morph, t_us, rotation, udp, arrival);
+            return;
+        }
+        let entry = Entry::Weights {
+            t_us,
+            weights: self.weights.clone(),
+        };
+        if self.durable {
+            if self.recording.frame_durable(entry).await {
+                self.publish(s, morph, t_us, rotation, udp, arrival);
+            }
+        } else {
+            self.publish(s, morph, t_us, rotation, udp, arrival);
+            self.recording.frame(entry).await;
+        }
+    }
+
+    /// Waits until every recorded frame is on disk.
+    pub(crate) async fn finish(self) {
+        self.recording.finish().await;
     }
 
     /// Counts the current weights as an accepted frame at `t_us` (`udp` when it came as a
     /// packet) and broadcasts it with head rotation `rotation`; allocates nothing.
-    pub(crate) fn send(
+    fn send(
         &mut self,
         s: &Session,
         morph: &MorphSet,
@@ -107,10 +217,19 @@ pub(crate) fn describe_weights(
     })
 }
 
-/// What a weights session's end summary adds: the unknown weight names it was sent.
-pub(crate) fn weights_summary(end: &SessionSnapshot) -> Map<String, Value> {
+/// What a weights session's end summary adds: the unknown weight names it was sent, and (in
+/// the tracker's `bye`) the frames recorded, `null` when the server does not record.
+pub(crate) fn weights_summary(
+    settings: &ServerSettings,
+    end: &SessionSnapshot,
+    bye: bool,
+) -> Map<String, Value> {
     let mut m = Map::new();
     m.insert("unknown_weights".into(), json!(end.unknown_weights));
+    if bye {
+        let recorded = settings.record_dir.is_some().then_some(end.recorded);
+        m.insert("recorded".into(), json!(recorded));
+    }
     m
 }
 
@@ -126,7 +245,7 @@ pub(crate) struct Weights {
 impl Weights {
     /// Maps, orders and broadcasts one weight frame; replies with a warning for each name never
     /// seen (or the error line of a frame from the future).
-    fn accept(
+    async fn accept(
         &mut self,
         s: &Session,
         t_us: i64,
@@ -171,21 +290,58 @@ impl Weights {
             }
         }
         self.frame
-            .send(s, morph, t_us, Quat::IDENTITY, false, arrival);
+            .keep(s, morph, t_us, Quat::IDENTITY, false, arrival)
+            .await;
     }
 }
 
+/// A weights tracker's hello and where it came from (named in its recording).
+#[derive(Debug)]
+pub(crate) struct WeightsSession {
+    /// The hello.
+    pub(crate) hello: WeightsHello,
+    /// The tracker's address.
+    pub(crate) peer: Option<SocketAddr>,
+    /// The hello's `"forward"`, once admission checked it.
+    own_forward: Option<ForwardTarget>,
+}
+
+impl WeightsSession {
+    /// A hello from `peer`.
+    pub(crate) fn new(hello: WeightsHello, peer: Option<SocketAddr>) -> Self {
+        Self {
+            hello,
+            peer,
+            own_forward: None,
+        }
+    }
+}
+
+/// A hello's `"forward"` checked against the server's rules: loopback or `--forward-allow`.
+pub(crate) fn own_forward(
+    shared: &Shared,
+    text: Option<&str>,
+) -> Result<Option<ForwardTarget>, Refusal> {
+    text.map(|t| shared.settings.forward.check_session_target(t))
+        .transpose()
+        .map_err(|e| Refusal::Forward(e.to_string()))
+}
+
 impl Protocol for Weights {
-    type Hello = WeightsHello;
-    type Admitted = WeightsHello;
+    type Hello = WeightsSession;
+    type Admitted = WeightsSession;
     type Event = Infallible;
     const KIND: &'static str = "weights";
 
-    fn admit(shared: &Shared, hello: WeightsHello) -> Result<Admission<WeightsHello>, Refusal> {
-        let rig = find_rig(shared, hello.request.rig.clone())?;
+    fn admit(
+        shared: &Shared,
+        mut hello: WeightsSession,
+    ) -> Result<Admission<WeightsSession>, Refusal> {
+        let rig = find_rig(shared, hello.hello.request.rig.clone())?;
         let morph = morph_targets(&rig)?;
+        hello.own_forward = own_forward(shared, hello.hello.forward.as_deref())?;
         Ok(Admission {
-            session: hello.request.session.clone(),
+            session: hello.hello.request.session.clone(),
             rig_message: morph.message.clone(),
             rig,
             layout: "weights".into(),
@@ -193,11 +349,12 @@ impl Protocol for Weights {
         })
     }
 
-    fn describe(hello: &WeightsHello, rig: &RigEntry, name: &str, id: u32) -> Value {
-        describe_weights(rig, name, id, json!(hello.source), json!(hello.rate_hz))
+    fn describe(hello: &WeightsSession, rig: &RigEntry, name: &str, id: u32) -> Value {
+        let h = &hello.hello;
+        describe_weights(rig, name, id, json!(h.source), json!(h.rate_hz))
     }
 
-    async fn start(_: WeightsHello, s: &Session) -> (Self, Value) {
+    async fn start(hello: WeightsSession, s: &Session) -> (Self, Value) {
         let settings = s.settings();
         let names = s.rig.morph.as_ref().map_or(&[][..], |m| &m.names[..]);
         let k = names.len();
@@ -207,11 +364,8 @@ impl Protocol for Weights {
             "max_message_bytes": settings.max_message_bytes,
         });
         tracing::info!(session = %s.name, id = s.id, rig = s.rig.name(), targets = k, "weights session started");
-        if settings.record_dir.is_some() {
-            tracing::info!(session = %s.name, "weights sessions are not recorded (recordings hold landmark frames)");
-        }
         let weights = Weights {
-            frame: MorphFrame::new(s),
+            frame: MorphFrame::start(s, hello.peer, hello.own_forward).await,
             scratch: vec![0.0; k],
             clock: s.clock(),
             reported: HashSet::new(),
@@ -233,7 +387,8 @@ impl Protocol for Weights {
         }
         match parse_weight_frame(line.text) {
             Ok(f) => {
-                self.accept(s, f.timestamp_us, &f.weights, line.arrival, line.number);
+                self.accept(s, f.timestamp_us, &f.weights, line.arrival, line.number)
+                    .await;
                 LineOutcome::Frame
             }
             Err(e) => LineOutcome::Malformed(e.code(), e.to_string()),
@@ -244,9 +399,11 @@ impl Protocol for Weights {
         format!("line longer than {limit} bytes")
     }
 
-    async fn finish(self, _: &Session) {}
+    async fn finish(self, _: &Session) {
+        self.frame.finish().await;
+    }
 
-    fn summary(_: &ServerSettings, end: &SessionSnapshot, _bye: bool) -> Map<String, Value> {
-        weights_summary(end)
+    fn summary(settings: &ServerSettings, end: &SessionSnapshot, bye: bool) -> Map<String, Value> {
+        weights_summary(settings, end, bye)
     }
 }

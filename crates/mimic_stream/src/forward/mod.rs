@@ -1,0 +1,310 @@
+//! Live out (`mimic serve --forward vmc:ADDR | livelink:ADDR`, or a tracker hello's
+//! `"forward"`): each accepted frame of a session, as the 52 ARKit blendshape curves and the head
+//! rotation, sent on to a VMC receiver (OSC bundles, [`vmc`]) or a Live Link Face receiver (its
+//! UDP packet, `mimic_trackers::livelink::encode_packet`). Weights and Live Link sessions
+//! forward what drove the rig (Live Link: the curves as they came); landmark sessions the
+//! blendshape fit of their controls.
+//!
+//! Bounded: every send is non-blocking; one the socket would block on (or that fails) is
+//! dropped and counted (`forward_dropped` in `/stats`), never waited for.
+//!
+//! Never an open relay: the operator's `--forward` targets may be any address (warned about
+//! beyond loopback), a tracker's own `"forward"` only a loopback address or one the operator
+//! allowed (`--forward-allow IP`).
+
+pub mod vmc;
+
+use glam::Quat;
+use mimic_retarget::WeightMap;
+use mimic_trackers::livelink::{
+    BLENDSHAPES, CURVE_NAMES, CURVES, HEAD_YAW, LiveLinkPacket, encode_packet, head_angles,
+};
+use mimic_trackers::namemap::{Inverse, Mapping, NameMap};
+use std::net::{IpAddr, SocketAddr, UdpSocket};
+use std::str::FromStr;
+use std::sync::Arc;
+
+/// What a forward target receives.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ForwardKind {
+    /// VMC (OSC over UDP).
+    Vmc,
+    /// Live Link Face UDP packets.
+    LiveLink,
+}
+
+/// One place frames are forwarded to: `vmc:ADDR` or `livelink:ADDR`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct ForwardTarget {
+    /// The protocol.
+    pub kind: ForwardKind,
+    /// The receiver's UDP address.
+    pub addr: SocketAddr,
+}
+
+/// A forward target that does not parse.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+#[error("forward target `{0}`: expected vmc:HOST:PORT or livelink:HOST:PORT (an IP address)")]
+pub struct ForwardTargetError(pub String);
+
+impl FromStr for ForwardTarget {
+    type Err = ForwardTargetError;
+    fn from_str(s: &str) -> Result<Self, Self::Err> {
+        let bad = || ForwardTargetError(s.to_string());
+        let (kind, addr) = s.split_once(':').ok_or_else(bad)?;
+        let kind = match kind.to_ascii_lowercase().as_str() {
+            "vmc" => ForwardKind::Vmc,
+            "livelink" => ForwardKind::LiveLink,
+            _ => return Err(bad()),
+        };
+        let addr = addr.parse().map_err(|_| bad())?;
+        Ok(Self { kind, addr })
+    }
+}
+
+impl std::fmt::Display for ForwardTarget {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let kind = match self.kind {
+            ForwardKind::Vmc => "vmc",
+            ForwardKind::LiveLink => "livelink",
+        };
+        write!(f, "{kind}:{}", self.addr)
+    }
+}
+
+/// Why a tracker's `"forward"` is refused.
+#[derive(Debug, thiserror::Error, PartialEq, Eq)]
+pub enum ForwardRefusal {
+    /// It does not parse.
+    #[error(transparent)]
+    Parse(#[from] ForwardTargetError),
+    /// Not loopback and not allowed by the operator.
+    #[error(
+        "forward to {0}: a tracker may forward only to loopback addresses or to those `mimic serve --forward-allow` lists"
+    )]
+    NotAllowed(SocketAddr),
+}
+
+/// The server's forwarding settings.
+#[derive(Clone, Debug, Default)]
+pub struct ForwardSettings {
+    /// Where every session's frames go (`--forward`).
+    pub targets: Vec<ForwardTarget>,
+    /// Addresses besides loopback a tracker's own `"forward"` may name (`--forward-allow`).
+    pub allow: Vec<IpAddr>,
+    /// ARKit curves <-> the rig's morph targets (`configs/namemaps/arkit.toml`): its inverse
+    /// reads a rig's weights back as curves.
+    pub namemap: Arc<NameMap>,
+    /// VMC blendshape names from ARKit names (`--forward-vmc-names`, e.g.
+    /// `configs/namemaps/vrm.toml`); `None`: the ARKit names.
+    pub vmc_names: Option<Arc<NameMap>>,
+}
+
+impl ForwardSettings {
+    /// A tracker's `"forward"` value checked: a loopback address, or one in [`Self::allow`].
+    pub fn check_session_target(&self, text: &str) -> Result<ForwardTarget, ForwardRefusal> {
+        let t: ForwardTarget = text.parse()?;
+        let ip = t.addr.ip();
+        if ip.is_loopback() || self.allow.contains(&ip) {
+            Ok(t)
+        } else {
+            Err(ForwardRefusal::NotAllowed(t.addr))
+        }
+    }
+}
+
+/// What one forward of a frame did: datagrams sent and dropped.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub struct Sent {
+    /// Datagrams handed to the socket.
+    pub sent: u64,
+    /// Datagrams dropped (the socket would block, or the send failed).
+    pub dropped: u64,
+}
+
+/// A session's forwarding: one non-blocking socket per target, the rig's weights read back as
+/// ARKit curves, the VMC names.
+#[derive(Debug)]
+pub struct Forwarder {
+    targets: Vec<(ForwardTarget, UdpSocket)>,
+    namemap: Arc<NameMap>,
+    /// Rig weights -> the 52 curves (built for the session's rig).
+    inverse: Option<Inverse>,
+    /// VMC names of the 52 curves and the mapping onto them.
+    vmc: Option<(Arc<NameMap>, Mapping)>,
+    vmc_names: Vec<String>,
+    vmc_values: Vec<f32>,
+    curves: [f32; CURVES],
+    subject: String,
+    buf: Vec<u8>,
+    /// The first forwarded frame's time: Live Link frame times count from it.
+    first_us: Option<i64>,
+}
+
+/// A non-blocking UDP socket to send to `addr` from (loopback for a loopback receiver).
+fn socket_for(addr: SocketAddr) -> std::io::Result<UdpSocket> {
+    let bind: SocketAddr = match (addr.is_ipv4(), addr.ip().is_loopback()) {
+        (true, true) => "127.0.0.1:0",
+        (true, false) => "0.0.0.0:0",
+        (false, true) => "[::1]:0",
+        (false, false) => "[::]:0",
+    }
+    .parse()
+    .map_err(std::io::Error::other)?;
+    let s = UdpSocket::bind(bind)?;
+    s.set_nonblocking(true)?;
+    Ok(s)
+}
+
+impl Forwarder {
+    /// The forwarding of session `subject` on a rig whose morph targets are `rig_names` (none:
+    /// only curves given as they came can be forwarded) to `targets`; `None` without targets.
+    pub fn new(
+        settings: &ForwardSettings,
+        targets: &[ForwardTarget],
+        rig_names: &[String],
+        subject: &str,
+    ) -> std::io::Result<Option<Self>> {
+        if targets.is_empty() {
+            return Ok(None);
+        }
+        let mut socks = Vec::with_capacity(targets.len());
+        for t in targets {
+            socks.push((*t, socket_for(t.addr)?));
+        }
+        let inverse = (!rig_names.is_empty()).then(|| {
+            let rig = WeightMap::new(rig_names);
+            let mut probe = vec![0.0f32; rig_names.len()];
+            settings
+                .namemap
+                .inverse(&CURVE_NAMES[..BLENDSHAPES], |t: &str| {
+                    rig.apply([(t, 1.0)], &mut probe);
+                    probe.iter().position(|w| *w > 0.0)
+                })
+        });
+        // ARKit's own spelling (`jawOpen`): the stream's name with its first letter lower case.
+        let arkit: Vec<String> = CURVE_NAMES[..BLENDSHAPES]
+            .iter()
+            .map(|n| {
+                let mut c = n.chars();
+                c.next()
+                    .map(|f| f.to_ascii_lowercase().to_string() + c.as_str())
+                    .unwrap_or_default()
+            })
+            .collect();
+        let (vmc, vmc_names) = match &settings.vmc_names {
+            Some(map) => {
+                let refs: Vec<&str> = arkit.iter().map(String::as_str).collect();
+                let m = map.resolve(&refs);
+                let names = m.targets.clone();
+                (Some((map.clone(), m)), names)
+            }
+            None => (None, arkit),
+        };
+        Ok(Some(Self {
+            targets: socks,
+            namemap: settings.namemap.clone(),
+            inverse,
+            vmc_values: vec![0.0; vmc_names.len()],
+            vmc,
+            vmc_names,
+            curves: [0.0; CURVES],
+            subject: subject.to_string(),
+            buf: Vec::new(),
+            first_us: None,
+        }))
+    }
+
+    /// The targets, for logs.
+    pub fn targets(&self) -> impl Iterator<Item = &ForwardTarget> {
+        self.targets.iter().map(|(t, _)| t)
+    }
+
+    /// Forwards a frame given as the rig's weights (read back as ARKit curves) and the head
+    /// rotation.
+    pub fn weights(&mut self, t_us: i64, rig_weights: &[f32], head: Quat) -> Sent {
+        match &self.inverse {
+            Some(inv) => inv.apply(&self.namemap, rig_weights, &mut self.curves[..BLENDSHAPES]),
+            None => self.curves[..BLENDSHAPES].fill(0.0),
+        }
+        self.curves[BLENDSHAPES..].fill(0.0);
+        self.curves[HEAD_YAW..HEAD_YAW + 3].copy_from_slice(&head_angles(head));
+        self.send(t_us, head)
+    }
+
+    /// Forwards a frame given as the 61 Live Link curves (as they came) and the head rotation.
+    pub fn curves(&mut self, t_us: i64, curves: &[f32; CURVES], head: Quat) -> Sent {
+        self.curves = *curves;
+        self.send(t_us, head)
+    }
+
+    /// Sends the current curves to every target.
+    fn send(&mut self, t_us: i64, head: Quat) -> Sent {
+        let mut out = Sent::default();
+        for (t, sock) in &self.targets {
+            match t.kind {
+                ForwardKind::Vmc => {
+                    match &self.vmc {
+                        Some((map, m)) => {
+                            m.apply(map, &self.curves[..BLENDSHAPES], &mut self.vmc_values)
+                        }
+                        None => self.vmc_values.copy_from_slice(&self.curves[..BLENDSHAPES]),
+                    }
+                    vmc::encode_frame(&self.vmc_names, &self.vmc_values, head, &mut self.buf);
+                }
+                ForwardKind::LiveLink => {
+                    // 60 fps frame times from the first forwarded frame (a recording's clock
+                    // may be Unix time, past an i32 of frames).
+                    let t0 = *self.first_us.get_or_insert(t_us);
+                    let frames = t_us.saturating_sub(t0).max(0) as f64 * 60.0 / 1e6;
+                    self.buf = encode_packet(&LiveLinkPacket {
+                        device_id: "00000000-0000-4000-8000-6d696d696373".into(),
+                        subject: self.subject.clone(),
+                        frame: frames.floor().min(f64::from(i32::MAX)) as i32,
+                        subframe: frames.fract() as f32,
+                        rate_numerator: 60,
+                        rate_denominator: 1,
+                        curves: self.curves,
+                    });
+                }
+            }
+            match sock.send_to(&self.buf, t.addr) {
+                Ok(_) => out.sent += 1,
+                Err(_) => out.dropped += 1,
+            }
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn targets_parse_and_sessions_may_forward_only_to_loopback_or_allowed() {
+        let t: ForwardTarget = "vmc:127.0.0.1:39539".parse().unwrap();
+        assert_eq!(t.kind, ForwardKind::Vmc);
+        assert_eq!(t.to_string(), "vmc:127.0.0.1:39539");
+        let t: ForwardTarget = "livelink:[::1]:11111".parse().unwrap();
+        assert_eq!(t.kind, ForwardKind::LiveLink);
+        for bad in [
+            "vmc",
+            "osc:127.0.0.1:1",
+            "vmc:localhost:1",
+            "livelink:1.2.3.4",
+        ] {
+            assert!(bad.parse::<ForwardTarget>().is_err(), "{bad}");
+        }
+        let mut s = ForwardSettings::default();
+        assert!(s.check_session_target("vmc:127.0.0.1:39539").is_ok());
+        assert_eq!(
+            s.check_session_target("vmc:192.168.1.5:39539"),
+            Err(ForwardRefusal::NotAllowed(
+                "192.168.1.5:39539".parse().unwrap()
+            ))
+        );
+        s.allow.push("192.168.1.5".parse().unwrap());
+        assert!(s.check_session_target("vmc:192.168.1.5:39539").is_ok());
+    }
+}

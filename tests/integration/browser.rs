@@ -1,0 +1,387 @@
+//! The browser viewer (`mimic serve --http`, docs/browser.md): a recording replayed into the
+//! server with `mimic send`, `/view/SESSION` opened in headless Chromium (tools/browser-check,
+//! playwright-core driving /usr/bin/chromium with WebGL2 on SwiftShader), and the face checked
+//! from two screenshots; plus the HTTP routes and the token, over raw sockets. The Chromium test
+//! skips, saying why, only when Chromium or Node is not installed.
+
+use crate::{mimic, repo, text};
+use serde_json::Value;
+use std::io::{BufRead, BufReader, Read, Write};
+use std::net::TcpStream;
+use std::path::Path;
+use std::process::{Child, ChildStdout, Command, Stdio};
+use std::time::{Duration, Instant};
+
+/// A `mimic serve --http 127.0.0.1:0` child; killed when dropped.
+struct WebServe {
+    child: Child,
+    _stdout: BufReader<ChildStdout>,
+    tcp: String,
+    http: String,
+}
+
+impl WebServe {
+    fn start(args: &[&str]) -> WebServe {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_mimic"))
+            .args([
+                "serve",
+                "--rig",
+                "ict-face",
+                "--listen",
+                "127.0.0.1:0",
+                "--no-udp",
+            ])
+            .args(["--http", "127.0.0.1:0"])
+            .args(args)
+            .current_dir(repo())
+            .env_remove("RUST_LOG")
+            .env_remove("MIMIC_TOKEN")
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("spawn mimic serve");
+        let mut stdout = BufReader::new(child.stdout.take().unwrap());
+        let mut first = String::new();
+        stdout.read_line(&mut first).unwrap();
+        // "mimic serve: tcp ADDR udp off rigs [...] http ADDR"
+        let words: Vec<&str> = first.split_whitespace().collect();
+        let after = |key: &str| {
+            let k = words.iter().position(|w| *w == key);
+            k.and_then(|k| words.get(k + 1)).map(|s| s.to_string())
+        };
+        let (Some(tcp), Some(http)) = (after("tcp"), after("http")) else {
+            panic!("serve said: {first:?}");
+        };
+        WebServe {
+            child,
+            _stdout: stdout,
+            tcp,
+            http,
+        }
+    }
+
+    /// `GET path` on the HTTP address: (status, body).
+    fn get(&self, path: &str) -> (u16, Vec<u8>) {
+        http_get(&self.http, path)
+    }
+}
+
+impl Drop for WebServe {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// One HTTP/1.1 GET with `Connection: close`: (status, body). Generous timeouts: they only
+/// guard hangs.
+fn http_get(addr: &str, path: &str) -> (u16, Vec<u8>) {
+    http_request(
+        addr,
+        &format!("GET {path} HTTP/1.1\r\nHost: {addr}\r\nConnection: close\r\n\r\n"),
+    )
+}
+
+fn http_request(addr: &str, request: &str) -> (u16, Vec<u8>) {
+    let mut s = TcpStream::connect(addr).unwrap();
+    s.set_read_timeout(Some(Duration::from_secs(120))).unwrap();
+    s.write_all(request.as_bytes()).unwrap();
+    let mut all = Vec::new();
+    // A 101 upgrade keeps the connection open: read the head only.
+    let mut buf = [0u8; 65536];
+    loop {
+        let n = s.read(&mut buf).unwrap_or(0);
+        if n == 0 {
+            break;
+        }
+        all.extend_from_slice(&buf[..n]);
+        if complete(&all) {
+            break;
+        }
+    }
+    let head_end = all
+        .windows(4)
+        .position(|w| w == b"\r\n\r\n")
+        .expect("an HTTP head");
+    let head = String::from_utf8_lossy(&all[..head_end]).into_owned();
+    let status: u16 = head.split_whitespace().nth(1).unwrap().parse().unwrap();
+    let mut body = all[head_end + 4..].to_vec();
+    if head
+        .to_ascii_lowercase()
+        .contains("transfer-encoding: chunked")
+    {
+        body = unchunk(&body);
+    }
+    (status, body)
+}
+
+/// Whether `all` holds a whole response: a 101 head (the connection stays open), or a head
+/// with a `Content-Length` and that many body bytes (a kept-alive connection does not close).
+fn complete(all: &[u8]) -> bool {
+    let Some(end) = all.windows(4).position(|w| w == b"\r\n\r\n") else {
+        return false;
+    };
+    if all.starts_with(b"HTTP/1.1 101") {
+        return true;
+    }
+    let head = String::from_utf8_lossy(&all[..end]).to_ascii_lowercase();
+    head.lines()
+        .find_map(|l| l.strip_prefix("content-length:"))
+        .and_then(|v| v.trim().parse::<usize>().ok())
+        .is_some_and(|len| all.len() >= end + 4 + len)
+}
+
+/// A chunked body, joined.
+fn unchunk(mut b: &[u8]) -> Vec<u8> {
+    let mut out = Vec::new();
+    while let Some(eol) = b.windows(2).position(|w| w == b"\r\n") {
+        let size =
+            usize::from_str_radix(std::str::from_utf8(&b[..eol]).unwrap().trim(), 16).unwrap();
+        if size == 0 {
+            break;
+        }
+        out.extend_from_slice(&b[eol + 2..eol + 2 + size]);
+        b = &b[eol + 2 + size + 2..];
+    }
+    out
+}
+
+/// `mimic send REC --to ADDR --session S --loop` in the background (killed when dropped).
+struct Sender(Child);
+
+impl Sender {
+    fn start(rec: &str, to: &str, session: &str, extra: &[&str]) -> Sender {
+        let child = Command::new(env!("CARGO_BIN_EXE_mimic"))
+            .args(["send", rec, "--to", to, "--session", session])
+            .args(extra)
+            .current_dir(repo())
+            .env_remove("MIMIC_TOKEN")
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("spawn mimic send");
+        Sender(child)
+    }
+}
+
+impl Drop for Sender {
+    fn drop(&mut self) {
+        let _ = self.0.kill();
+        let _ = self.0.wait();
+    }
+}
+
+/// Polls `/sessions` until session `name` is live with frames (or fails after a generous wait).
+fn wait_live(serve: &WebServe, name: &str, query: &str) -> Value {
+    let deadline = Instant::now() + Duration::from_secs(120);
+    loop {
+        let (status, body) = serve.get(&format!("/sessions{query}"));
+        assert_eq!(status, 200, "{}", String::from_utf8_lossy(&body));
+        let v: Value = serde_json::from_slice(&body).unwrap();
+        let s = v["sessions"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|s| s["name"] == name && s["active"] == true && s["frames"].as_u64() > Some(0))
+            .cloned();
+        if let Some(s) = s {
+            return s;
+        }
+        assert!(
+            Instant::now() < deadline,
+            "session {name} never went live: {v}"
+        );
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Whether Chromium and the Node check are there; prints why the test skips when not.
+fn chromium_ready() -> bool {
+    let chromium = std::env::var("MIMIC_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
+    if !Path::new(&chromium).exists() {
+        println!(
+            "SKIPPED: no Chromium at {chromium} (Debian: apt-get install chromium chromium-driver)"
+        );
+        return false;
+    }
+    match Command::new("node").arg("--version").output() {
+        Ok(o) if o.status.success() => {}
+        _ => {
+            println!("SKIPPED: `node` is not installed (Debian: apt-get install nodejs npm)");
+            return false;
+        }
+    }
+    let tools = repo().join("tools/browser-check");
+    if !tools.join("node_modules/playwright-core").is_dir() {
+        let o = Command::new("npm")
+            .args(["ci", "--no-audit", "--no-fund"])
+            .current_dir(&tools)
+            .output()
+            .expect("run npm ci in tools/browser-check");
+        assert!(
+            o.status.success(),
+            "npm ci in tools/browser-check failed: {:?}",
+            text(&o)
+        );
+    }
+    true
+}
+
+#[test]
+fn the_page_draws_the_live_face_and_it_moves() {
+    if !chromium_ready() {
+        return;
+    }
+    let serve = WebServe::start(&[]);
+    let _send = Sender::start(
+        "recordings/a_yn_question.kinect121.jsonl",
+        &serve.tcp,
+        "web",
+        &["--loop"],
+    );
+    wait_live(&serve, "web", "");
+    let out = tempfile::tempdir().unwrap();
+    let url = format!("http://{}/view/web", serve.http);
+    let o = Command::new("node")
+        .arg(repo().join("tools/browser-check/check.mjs"))
+        .args(["--url", &url, "--out"])
+        .arg(out.path())
+        .args(["--frames", "20"])
+        .output()
+        .expect("run node check.mjs");
+    let (stdout, stderr) = text(&o);
+    let report: Value = serde_json::from_str(stdout.trim())
+        .unwrap_or_else(|e| panic!("check.mjs said no JSON ({e}): {stdout}\n{stderr}"));
+    assert!(o.status.success(), "check.mjs failed: {report}\n{stderr}");
+    println!("WebGL renderer: {}", report["webgl"]);
+    println!("readout: {}", report["readout"]);
+    println!("pixels: {}", report["pixels"]);
+
+    // No errors in the browser: console errors and uncaught exceptions.
+    assert_eq!(report["console_errors"], serde_json::json!([]), "{report}");
+    assert_eq!(report["page_errors"], serde_json::json!([]), "{report}");
+    // The readout reports frames received, from the live session on the ict-face rig.
+    let state = &report["state"];
+    assert!(state["framesReceived"].as_u64().unwrap() > 0, "{state}");
+    assert_eq!(state["rig"], "ict-face", "{state}");
+    assert_eq!(state["errors"], serde_json::json!([]), "{state}");
+    let readout = report["readout"].as_str().unwrap();
+    let frames_line = readout.lines().find(|l| l.starts_with("frames ")).unwrap();
+    let shown: u64 = frames_line
+        .split_whitespace()
+        .nth(1)
+        .unwrap()
+        .parse()
+        .unwrap();
+    assert!(shown > 0, "{readout}");
+
+    // The face is drawn: the head framed by the page's camera fills a good part of the picture
+    // (mimic render's framing: the whole head fits a 30 degree view with a 4% margin; the face
+    // alone covers about a fifth of the image). A blank or black canvas has none.
+    let px = &report["pixels"];
+    let n = px["pixels"].as_f64().unwrap();
+    for drawn in px["drawn"].as_array().unwrap() {
+        let share = drawn.as_f64().unwrap() / n;
+        assert!(
+            share > 0.05,
+            "only {:.1}% of the pixels differ from the background: {px}",
+            share * 100.0
+        );
+    }
+    // It moves: the shots are 20 or more frames apart (2/3 s of a yes/no question, head nods and
+    // brows). SwiftShader draws the same scene to the same pixels, so a still face would change
+    // none; antialiasing of a moving silhouette and the expression change at least 0.1% of the
+    // face's pixels by more than 16 levels.
+    let seqs: Vec<u64> = report["shots"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| s["seq"].as_u64().unwrap())
+        .collect();
+    assert!(seqs[1] >= seqs[0] + 20, "{seqs:?}");
+    let face = px["drawn"][0].as_f64().unwrap();
+    let changed = px["changed"].as_f64().unwrap();
+    assert!(
+        changed > 0.001 * face,
+        "only {changed} pixels changed between the shots: {px}"
+    );
+
+    // The WebSocket viewer was counted in the stats like a TCP viewer.
+    let (status, body) = serve.get("/stats");
+    assert_eq!(status, 200);
+    let stats: Value = serde_json::from_slice(&body).unwrap();
+    let web = stats["sessions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|s| s["name"] == "web")
+        .unwrap();
+    assert!(web["viewers_total"].as_u64().unwrap() >= 1, "{web}");
+    assert!(web["viewer_frames_sent"].as_u64().unwrap() > 0, "{web}");
+}
+
+#[test]
+fn http_routes_serve_the_page_the_glb_and_want_the_token() {
+    let serve = WebServe::start(&["--token", "s3cret/+"]);
+    let q = "?token=s3cret%2F%2B";
+    let _send = Sender::start(
+        "recordings/a_yn_question.kinect121.jsonl",
+        &serve.tcp,
+        "tok",
+        &["--loop", "--token", "s3cret/+"],
+    );
+    wait_live(&serve, "tok", q);
+    // Without the token (or with another) every route but /static/ answers 401.
+    for path in [
+        "/",
+        "/sessions",
+        "/view/tok",
+        "/rig/tok.glb",
+        "/stats",
+        "/ws/tok",
+    ] {
+        assert_eq!(serve.get(path).0, 401, "{path}");
+        assert_eq!(serve.get(&format!("{path}?token=s3cret")).0, 401, "{path}");
+    }
+    let (status, page) = serve.get(&format!("/view/tok{q}"));
+    assert_eq!(status, 200);
+    assert!(String::from_utf8_lossy(&page).contains("/static/view.js"));
+    let (status, js) = serve.get("/static/three/three.core.js");
+    assert_eq!(status, 200);
+    assert!(String::from_utf8_lossy(&js[..200]).contains("Three.js Authors"));
+    // The GLB: glTF 2.0's binary container, 114 morph targets (38 controls x 3 axes).
+    let (status, glb) = serve.get(&format!("/rig/tok.glb{q}"));
+    assert_eq!(status, 200);
+    assert_eq!(&glb[..4], b"glTF");
+    let total = u32::from_le_bytes(glb[8..12].try_into().unwrap()) as usize;
+    assert_eq!(total, glb.len());
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let gltf: Value = serde_json::from_slice(&glb[20..20 + json_len]).unwrap();
+    let names = gltf["meshes"][0]["extras"]["targetNames"]
+        .as_array()
+        .unwrap();
+    assert_eq!(names.len(), 114);
+    assert_eq!(serve.get(&format!("/rig/nosuch.glb{q}")).0, 404);
+    // The WebSocket handshake with the token switches protocols.
+    let upgrade = |path: &str| {
+        http_request(
+            &serve.http,
+            &format!(
+                "GET {path} HTTP/1.1\r\nHost: {}\r\nConnection: Upgrade\r\nUpgrade: websocket\r\n\
+                 Sec-WebSocket-Version: 13\r\nSec-WebSocket-Key: dGhlIHNhbXBsZSBub25jZQ==\r\n\r\n",
+                serve.http
+            ),
+        )
+        .0
+    };
+    assert_eq!(upgrade(&format!("/ws/tok{q}")), 101);
+    assert_eq!(upgrade("/ws/tok?token=wrong"), 401);
+}
+
+#[test]
+fn http_beyond_loopback_needs_a_token() {
+    let o = mimic(&["serve", "--rig", "ict-face", "--http", "0.0.0.0:0"]);
+    assert!(!o.status.success());
+    let (_, err) = text(&o);
+    assert!(err.contains("HTTP") && err.contains("--token"), "{err}");
+}
