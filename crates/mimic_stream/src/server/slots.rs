@@ -123,7 +123,9 @@ impl Slots {
             let (mut r, mut w) = socket.into_split();
             let mut first = [0u8; 1024];
             let mut n = 0;
-            let _ = tokio::time::timeout(Duration::from_millis(500), async {
+            // Long enough for a hello written right after connecting to arrive on a loaded
+            // machine (a viewer must get its refusal as a viewer message, not a JSON line).
+            let _ = tokio::time::timeout(REFUSAL_HELLO_WAIT, async {
                 while n < first.len() && !first[..n].contains(&b'\n') {
                     match r.read(&mut first[n..]).await {
                         Ok(0) | Err(_) => break,
@@ -146,6 +148,9 @@ impl Slots {
         });
     }
 }
+
+/// How long a refused connection has to send its hello (to answer it in its own protocol).
+const REFUSAL_HELLO_WAIT: Duration = Duration::from_secs(2);
 
 /// Connection slots of the shared pool: every session and viewer, plus 16 for connections
 /// that have not said hello yet and stats requests.
