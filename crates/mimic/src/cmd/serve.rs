@@ -165,7 +165,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let web = mimic_stream::HttpSettings {
         skin: mimic_render::SKIN_ALBEDO,
         rig_paths,
-        ..Default::default()
     };
     let settings = ServerSettings {
         max_sessions: args.max_sessions,

@@ -12,9 +12,9 @@ use mimic_types::{
     LaplacianWeights, Layout, MorphTarget, RbfDistance, RbfKernel, Rig, Socket, SocketMode,
     Sockets, SolverKind, SolverSettings, TopSplit,
 };
+use std::collections::BTreeMap;
 use std::fs::File;
 use std::io::{BufWriter, Write};
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
