@@ -20,7 +20,7 @@ pub struct Args {
     /// Maximum sessions at once; past it, placements go to other workers.
     #[arg(long, default_value_t = 64)]
     pub max_sessions: usize,
-    /// This worker's name in leases, logs and front doors' stats (default: worker-<pid>).
+    /// This worker's name in leases, logs and front doors' stats (default: `worker-<pid>`).
     #[arg(long)]
     pub name: Option<String>,
     /// Print the final counters as JSON on exit.
