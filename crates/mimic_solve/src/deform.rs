@@ -238,7 +238,6 @@ impl MovingDeform {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     unsafe fn deform_avx2(&self, d: &[Vec3], compact: &mut [Vec3A], positions: &mut [Vec3]) {
-        use std::arch::x86_64::*;
         const L: usize = 8;
         let mut spare = [Vec3A::ZERO; BLOCK];
         let dp = d.as_ptr().cast::<f32>();
@@ -253,39 +252,14 @@ impl MovingDeform {
             let values = &self.values[kept.start * BLOCK..kept.end * BLOCK];
             let cols = &self.cols[kept];
             let rest = &self.rest[b * 3 * BLOCK..][..3 * BLOCK];
-            // SAFETY: `values` holds BLOCK weights per kept column, read 24 at a time from
-            // `col`, which advances by BLOCK per column; each kept column is < control_count ==
-            // d.len(), so `dp` reads 3 f32 of one Vec3 (repr(C) x, y, z); `rest` holds
-            // 3 * BLOCK values; `dst` points at BLOCK Vec3A (the block's compact rows when full,
+            // SAFETY: `values` holds BLOCK weights per kept column; each kept column is <
+            // control_count == d.len(), so `dp` reads 3 f32 of one Vec3 (repr(C) x, y, z);
+            // `rest` holds 3 * BLOCK values (`block_rows`' contract); `dst` points at BLOCK Vec3A (the block's compact rows when full,
             // else `spare`); a run's 24 positions lie below vertex_count <= positions.len().
             unsafe {
-                let mut col = values.as_ptr();
-                let mut acc = [_mm256_setzero_ps(); 9];
-                for &j in cols {
-                    let c = [
-                        _mm256_loadu_ps(col),
-                        _mm256_loadu_ps(col.add(L)),
-                        _mm256_loadu_ps(col.add(2 * L)),
-                    ];
-                    let dj = dp.add(3 * j as usize);
-                    let dv = [
-                        _mm256_broadcast_ss(&*dj),
-                        _mm256_broadcast_ss(&*dj.add(1)),
-                        _mm256_broadcast_ss(&*dj.add(2)),
-                    ];
-                    for g in 0..3 {
-                        for a in 0..3 {
-                            acc[3 * g + a] = _mm256_fmadd_ps(c[g], dv[a], acc[3 * g + a]);
-                        }
-                    }
-                    col = col.add(BLOCK);
-                }
-                let rp = rest.as_ptr();
+                let rows = block_rows(values, cols, dp, rest);
                 let run = self.runs[b];
-                for g in 0..3 {
-                    let [x, y, z] = [0, 1, 2].map(|a| {
-                        _mm256_add_ps(_mm256_loadu_ps(rp.add(a * BLOCK + g * L)), acc[3 * g + a])
-                    });
+                for (g, &[x, y, z]) in rows.iter().enumerate() {
                     store_vec3a8(dst.add(g * 4 * L), x, y, z);
                     if run != SCATTERED {
                         let p = positions.as_mut_ptr().cast::<f32>();
@@ -316,7 +290,6 @@ impl MovingDeform {
     #[cfg(target_arch = "x86_64")]
     #[target_feature(enable = "avx2,fma")]
     unsafe fn deform_packed_avx2(&self, d: &[Vec3], compact: &mut [f32], positions: &mut [Vec3]) {
-        use std::arch::x86_64::*;
         const L: usize = 8;
         let mut spare = [0f32; 3 * BLOCK];
         let dp = d.as_ptr().cast::<f32>();
@@ -334,33 +307,9 @@ impl MovingDeform {
             // SAFETY: as in `deform_avx2`; `dst` points at 3 * BLOCK floats (the block's packed
             // compact rows when full, else `spare`).
             unsafe {
-                let mut col = values.as_ptr();
-                let mut acc = [_mm256_setzero_ps(); 9];
-                for &j in cols {
-                    let c = [
-                        _mm256_loadu_ps(col),
-                        _mm256_loadu_ps(col.add(L)),
-                        _mm256_loadu_ps(col.add(2 * L)),
-                    ];
-                    let dj = dp.add(3 * j as usize);
-                    let dv = [
-                        _mm256_broadcast_ss(&*dj),
-                        _mm256_broadcast_ss(&*dj.add(1)),
-                        _mm256_broadcast_ss(&*dj.add(2)),
-                    ];
-                    for g in 0..3 {
-                        for a in 0..3 {
-                            acc[3 * g + a] = _mm256_fmadd_ps(c[g], dv[a], acc[3 * g + a]);
-                        }
-                    }
-                    col = col.add(BLOCK);
-                }
-                let rp = rest.as_ptr();
+                let rows = block_rows(values, cols, dp, rest);
                 let run = self.runs[b];
-                for g in 0..3 {
-                    let [x, y, z] = [0, 1, 2].map(|a| {
-                        _mm256_add_ps(_mm256_loadu_ps(rp.add(a * BLOCK + g * L)), acc[3 * g + a])
-                    });
+                for (g, &[x, y, z]) in rows.iter().enumerate() {
                     crate::basis::store_xyz8(dst.add(g * 3 * L), x, y, z);
                     if run != SCATTERED {
                         let p = positions.as_mut_ptr().cast::<f32>();
@@ -377,6 +326,56 @@ impl MovingDeform {
                 }
             }
         }
+    }
+}
+
+/// One block's 24 rows of [`MovingDeform`]: `rest + sum_j B[., j] d_j` over the block's kept
+/// columns `cols` (BLOCK weights each in `values`), as x, y, z registers of its three groups of 8.
+///
+/// # Safety
+/// The CPU must support AVX2 and FMA; `values.len() == BLOCK * cols.len()`, `rest.len() == 3 *
+/// BLOCK`, and `dp` points at `3 * (max(cols) + 1)` f32 (the controls' `Vec3`s).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+unsafe fn block_rows(
+    values: &[f32],
+    cols: &[u32],
+    dp: *const f32,
+    rest: &[f32],
+) -> [[std::arch::x86_64::__m256; 3]; 3] {
+    use std::arch::x86_64::*;
+    const L: usize = 8;
+    // SAFETY: `values` holds BLOCK weights per column, read 24 at a time from `col`, which
+    // advances by BLOCK per column; `dp` reads 3 f32 per column below its bound; `rest` holds
+    // 3 * BLOCK values (caller).
+    unsafe {
+        let mut col = values.as_ptr();
+        let mut acc = [_mm256_setzero_ps(); 9];
+        for &j in cols {
+            let c = [
+                _mm256_loadu_ps(col),
+                _mm256_loadu_ps(col.add(L)),
+                _mm256_loadu_ps(col.add(2 * L)),
+            ];
+            let dj = dp.add(3 * j as usize);
+            let dv = [
+                _mm256_broadcast_ss(&*dj),
+                _mm256_broadcast_ss(&*dj.add(1)),
+                _mm256_broadcast_ss(&*dj.add(2)),
+            ];
+            for g in 0..3 {
+                for a in 0..3 {
+                    acc[3 * g + a] = _mm256_fmadd_ps(c[g], dv[a], acc[3 * g + a]);
+                }
+            }
+            col = col.add(BLOCK);
+        }
+        let rp = rest.as_ptr();
+        [0, 1, 2].map(|g| {
+            [0, 1, 2]
+                .map(|a| _mm256_add_ps(_mm256_loadu_ps(rp.add(a * BLOCK + g * L)), acc[3 * g + a]))
+        })
     }
 }
 
