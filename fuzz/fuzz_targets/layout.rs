@@ -1,13 +1,6 @@
 //! Fuzzes the landmark layout TOML loader.
+//! The body is `mimic_fuzz::layout` (crates/mimic_fuzz), which the workspace tests also run on
+//! this target's seed corpus.
 #![no_main]
 
-use std::path::Path;
-
-use libfuzzer_sys::fuzz_target;
-
-fuzz_target!(|data: &[u8]| {
-    let Ok(text) = std::str::from_utf8(data) else {
-        return;
-    };
-    let _ = mimic_assets::parse_layout(Path::new("fuzz_layout.toml"), text);
-});
+libfuzzer_sys::fuzz_target!(|data: &[u8]| mimic_fuzz::layout(data));

@@ -1,0 +1,70 @@
+//! Asset files: OBJ meshes, landmark layouts, rigs and morph data files.
+
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+/// The OBJ mesh parser: every triangle index of an accepted mesh is in range.
+pub fn obj(data: &[u8]) {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return;
+    };
+    if let Ok(mesh) = mimic_assets::parse_obj(Path::new("fuzz.obj"), text) {
+        let n = mesh.vertex_count();
+        assert!(
+            mesh.triangles.iter().flatten().all(|&i| (i as usize) < n),
+            "triangle index out of range"
+        );
+    }
+}
+
+/// The landmark layout TOML loader.
+pub fn layout(data: &[u8]) {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return;
+    };
+    let _ = mimic_assets::parse_layout(Path::new("fuzz_layout.toml"), text);
+}
+
+/// Scratch folder with a 4-vertex mesh `tri.obj` (the corpus rigs name it), made once per
+/// process; `None` where the temporary folder cannot be written.
+fn rig_path() -> Option<&'static PathBuf> {
+    static DIR: OnceLock<Option<PathBuf>> = OnceLock::new();
+    DIR.get_or_init(|| {
+        let dir = std::env::temp_dir().join(format!("mimic-fuzz-rig-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).ok()?;
+        std::fs::write(
+            dir.join("tri.obj"),
+            "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 1 1 0\nf 1 2 3\nf 2 4 3\n",
+        )
+        .ok()?;
+        Some(dir.join("rig.toml"))
+    })
+    .as_ref()
+}
+
+/// The rig TOML loader; the rig's mesh resolves in a scratch folder holding `tri.obj`.
+pub fn rig(data: &[u8]) {
+    let Ok(text) = std::str::from_utf8(data) else {
+        return;
+    };
+    // Only meshes inside the scratch folder: a fuzzed `mesh = "/dev/zero"` would read forever.
+    if text.contains('/') || text.contains('\\') || text.contains("..") {
+        return;
+    }
+    if let Some(path) = rig_path() {
+        let _ = mimic_assets::parse_rig(path, text);
+    }
+}
+
+/// The morph data file reader (`docs/morph-format.md`): as many normal deltas as position deltas.
+pub fn morph(data: &[u8]) {
+    if let Ok(targets) = mimic_assets::read_morph_file(data, Path::new("fuzz.morph.txt")) {
+        for t in &targets {
+            assert_eq!(
+                t.position_deltas.len(),
+                t.normal_deltas.len(),
+                "position and normal deltas differ in count"
+            );
+        }
+    }
+}
