@@ -196,7 +196,9 @@ mod tests {
                 0.09 * (a * 1.7).sin(),
                 -0.06 * (1.0 - a.cos().abs()) + 0.01 * rng.next_f32(),
             );
-            frame.points.push(rot * local + Vec3::new(0.02, -0.03, -0.8));
+            frame
+                .points
+                .push(rot * local + Vec3::new(0.02, -0.03, -0.8));
         }
         frame.valid[66] = false;
         let face = to_face(&frame, 0, 640.0, 480.0);

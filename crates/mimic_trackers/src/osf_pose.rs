@@ -65,7 +65,12 @@ impl Camera {
     /// not in front of the camera.
     pub fn project(&self, p: DVec3) -> Option<[f64; 2]> {
         let d = -p.z;
-        (d > 1e-9).then(|| [self.cx + self.focal * p.x / d, self.cy - self.focal * p.y / d])
+        (d > 1e-9).then(|| {
+            [
+                self.cx + self.focal * p.x / d,
+                self.cy - self.focal * p.y / d,
+            ]
+        })
     }
 }
 

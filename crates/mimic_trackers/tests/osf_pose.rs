@@ -12,8 +12,8 @@ use glam::{DQuat, DVec3, EulerRot, Vec3};
 use mimic_trackers::openseeface::{OsfFace, decode_packet, encode_packet, read_capture};
 use mimic_trackers::osf_frames::{POINT_COUNT, to_frame, to_recording};
 use mimic_trackers::osf_pose::{
-    Camera, Correspondences, FIT_POINTS, HeadPose, fit_points, head_pose, osf_pose_fields,
-    refine, seed_pose,
+    Camera, Correspondences, FIT_POINTS, HeadPose, fit_points, head_pose, osf_pose_fields, refine,
+    seed_pose,
 };
 use std::path::{Path, PathBuf};
 
@@ -53,7 +53,13 @@ fn angles(q: DQuat) -> [f64; 3] {
 /// from the eye corners' (36, 39, 42, 45) midpoint along the eye line and across it (down), over
 /// the inter-ocular distance, and the eye line's angle (the image-right eye higher: > 0).
 fn angles_2d(f: &OsfFace) -> [f64; 3] {
-    let p = |i: usize| DVec3::new(f64::from(f.points_2d[i][0]), f64::from(f.points_2d[i][1]), 0.0);
+    let p = |i: usize| {
+        DVec3::new(
+            f64::from(f.points_2d[i][0]),
+            f64::from(f.points_2d[i][1]),
+            0.0,
+        )
+    };
     let mean = |r: std::ops::Range<usize>| r.clone().map(p).sum::<DVec3>() / r.len() as f64;
     let eye_line = mean(42..48) - mean(36..42);
     let iod = eye_line.length();
@@ -111,7 +117,10 @@ fn a_packet_from_a_known_rotation_decodes_to_it() {
             .unwrap()
             .rotation
             .angle_between(sent.rotation);
-        assert!(seed_err <= tol, "{case}: the seed is the sent pose ({seed_err})");
+        assert!(
+            seed_err <= tol,
+            "{case}: the seed is the sent pose ({seed_err})"
+        );
         let err = fit.pose.rotation.angle_between(truth.rotation);
         assert!(err <= tol, "{case}: rotation off by {err} rad (tol {tol})");
         let t_err = (fit.pose.translation - truth.translation).length();
