@@ -26,8 +26,11 @@ use glam::{DMat3, DQuat, DVec3, Quat, Vec3};
 
 /// Points the pose is fitted on: OpenSeeFace's 66 landmarks (not the pupils).
 pub const FIT_POINTS: usize = 66;
-/// Levenberg-Marquardt iterations at most (it converges in under 10 on `megamind.osf`).
+/// Levenberg-Marquardt iterations at most.
 pub const MAX_ITERATIONS: usize = 40;
+/// The refinement stops when a step lowers the RMS error by under this fraction of it (a
+/// millionth: some 1e-5 px on `megamind.osf`).
+pub const STOP_GAIN: f64 = 1e-6;
 
 /// A pinhole camera in image pixels (x right, y down) looking down the recording's -z.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -330,7 +333,7 @@ pub fn refine(
                 pose = trial;
                 err = e;
                 lambda = (lambda * 0.1).max(1e-12);
-                if gain <= 1e-9 * err.max(1e-9) {
+                if gain <= STOP_GAIN * err.max(1e-9) {
                     break;
                 }
             }
