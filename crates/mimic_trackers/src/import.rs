@@ -149,7 +149,8 @@ pub fn import_osf(
     );
     header.description = Some(
         "OpenSeeFace's pose-free 3D points 0-67 (x, -y, -z as packed) turned to the recording \
-         convention: (-x, -y, -z) * 0.15/0.91 m"
+         convention, (-x, -y, -z) * 0.15/0.91 m, and placed with the head pose (the quaternion \
+         depth-mirrored to a proper in-front pose, refined on the 2D landmarks)"
             .to_string()
             + if times.is_some() {
                 "; times from a frame-times CSV"

@@ -9,6 +9,8 @@
 //! - [`namemap`]: blendshape spellings (ARKit, Live Link, MediaPipe) to a rig's morph-target
 //!   names with per-target gain, offset and clamp, kept as data (`configs/namemaps/*.toml`);
 //! - [`osf_frames`]: an OpenSeeFace face as an `openseeface68` landmark frame;
+//! - [`osf_pose`]: its head pose in the recording convention (the quaternion corrected, refined
+//!   on the 2D landmarks);
 //! - [`import`]: a `.osf` capture as a v1 recording (`mimic import openseeface`).
 //!
 //! Errors name the packet (by number or byte offset) or the file and line.
@@ -21,6 +23,7 @@ pub mod livelink;
 pub mod namemap;
 pub mod openseeface;
 pub mod osf_frames;
+pub mod osf_pose;
 pub mod take;
 
 pub use error::{PacketError, TrackerError};

@@ -1,10 +1,11 @@
 //! OpenSeeFace UDP intake (`mimic serve --openseeface ADDR`): OpenSeeFace's own datagrams
 //! (`mimic_trackers::openseeface`), one session per face id, named `openseeface-<id>`, opened on
 //! that face's first packet with the `openseeface68` layout and the server's default rig, ended
-//! after the idle timeout (or at shutdown). Each face's pose-free 3D points become a landmark
-//! frame (`mimic_trackers::osf_frames`) timed by the datagram's timestamp from the session's first,
-//! retargeted, broadcast to the session's viewers and, with a record folder, recorded, as a
-//! landmark session's UDP frames are. Every packet is counted: a frame accepted (`frames`), late
+//! after the idle timeout (or at shutdown). Each face's pose-free 3D points, placed with its head
+//! pose (`mimic_trackers::osf_pose`: the quaternion corrected and refined on the 2D landmarks),
+//! become a landmark frame (`mimic_trackers::osf_frames`) timed by the datagram's timestamp from
+//! the session's first, retargeted, broadcast to the session's viewers and, with a record folder,
+//! recorded, as a landmark session's UDP frames are. Every packet is counted: a frame accepted (`frames`), late
 //! or from the future (`late`, `future`) or refused by the pipeline (`malformed`) in its session,
 //! an undecodable datagram in the server's `udp_bad_packets`. OpenSeeFace sends no hello and reads
 //! no reply, so nothing is sent back.
