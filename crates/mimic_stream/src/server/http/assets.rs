@@ -15,6 +15,9 @@ const FILES: &[(&str, &str, &[u8])] = &[
     ("index.js", JS, web!("index.js")),
     ("view.js", JS, web!("view.js")),
     ("wire.js", JS, web!("wire.js")),
+    ("expressions.js", JS, web!("expressions.js")),
+    ("heat.js", JS, web!("heat.js")),
+    ("keys.js", JS, web!("keys.js")),
     ("style.css", "text/css; charset=utf-8", web!("style.css")),
     (
         "three/three.module.js",
@@ -30,6 +33,11 @@ const FILES: &[(&str, &str, &[u8])] = &[
         "three/addons/loaders/GLTFLoader.js",
         JS,
         web!("vendor/three/addons/loaders/GLTFLoader.js"),
+    ),
+    (
+        "three/addons/controls/OrbitControls.js",
+        JS,
+        web!("vendor/three/addons/controls/OrbitControls.js"),
     ),
     (
         "three/addons/utils/BufferGeometryUtils.js",
