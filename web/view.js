@@ -59,6 +59,7 @@ const state = {
   pose: usePose,
   heatScaleUnits: null,
   expressionNames: [],
+  expressionTargets: [],
   expressionWeights: [],
   expressionsSettled: true,
   renders: 0,
@@ -213,11 +214,21 @@ function onSession(info) {
   expressionsFrom = info.expressions?.first_target ?? 0;
   state.expressionNames = expressions.names;
   buildBars(info.mode === 'weights' ? info.target_names ?? [] : []);
-  loading = loadRig(info).catch((e) => fail(`cannot load the rig: ${e.message}`));
+  loading = loadRig(info)
+    .then(mapExpressions)
+    .catch((e) => fail(`cannot load the rig: ${e.message}`));
 }
 
 let expressions = new Expressions([]);
 let expressionsFrom = 0;
+
+/** The GLB target each number key drives (its name in the mesh's morphTargetDictionary), for the
+ * readout's state and the test; a key past the mesh's targets drives none. */
+function mapExpressions() {
+  const dict = model?.meshes[0]?.morphTargetDictionary ?? {};
+  const byIndex = Object.fromEntries(Object.entries(dict).map(([name, j]) => [j, name]));
+  state.expressionTargets = expressions.names.map((_, k) => byIndex[expressionsFrom + k] ?? null);
+}
 
 let bars = [];
 function buildBars(names) {

@@ -358,6 +358,8 @@ fn the_keys_and_the_mouse_work(i: &Value, pixels: f64) {
     let names = rig_target_names("ict-face");
     let keys: Vec<String> = names.iter().take(9).cloned().collect();
     assert_eq!(i["expression_names"], serde_json::json!(keys), "{i}");
+    // ... and each key drives the GLB's target of that name (after the 114 basis columns).
+    assert_eq!(i["expression_targets"], serde_json::json!(keys), "{i}");
     // Key 1 (jawOpen: the chin drops by about 2 cm, the mouth opens) changes at least 1% of the
     // face's pixels by more than 16 levels (measured: about 9%).
     assert!(pair(0, 1) > 0.01 * face, "key 1 changed too little: {i}");

@@ -313,6 +313,7 @@ async function interact(page, report) {
     ms: Date.now() - started,
     legend: { box: legendBox, bar: legendBar, text: legendText, ...legendData },
     expression_names: state.expressionNames,
+    expression_targets: state.expressionTargets,
     // Frames drawn when paused and at the last shot (the same: the frame was held).
     frames_shown: [shownAtPause, state.framesShown],
     frames_received: state.framesReceived,
