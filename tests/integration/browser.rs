@@ -366,8 +366,14 @@ fn the_keys_and_the_mouse_work(i: &Value, pixels: f64) {
     // Blended out again, the same frame draws the same pixels as before (SwiftShader is
     // deterministic; measured: 0 changed); so does the heat map switched off.
     let same = face / 1000.0;
-    assert!(pair(0, 4) <= same, "key 1 out did not restore the face: {i}");
-    assert!(pair(1, 3) <= same, "h off did not restore the lit face: {i}");
+    assert!(
+        pair(0, 4) <= same,
+        "key 1 out did not restore the face: {i}"
+    );
+    assert!(
+        pair(1, 3) <= same,
+        "h off did not restore the lit face: {i}"
+    );
 
     // The heat map: nearly every face pixel has a hue of render.wgsl's ramp (the pixel over its
     // largest channel within 0.1 of the ramp's; measured: 99%), none of the lit shots does (the
@@ -376,7 +382,10 @@ fn the_keys_and_the_mouse_work(i: &Value, pixels: f64) {
     let heat = shot(2, "drawn");
     assert!(shot(2, "on_ramp") >= 0.9 * heat, "{i}");
     for k in [0, 1, 3, 4] {
-        assert!(shot(k, "on_ramp") <= 0.01 * shot(k, "drawn"), "shot {k}: {i}");
+        assert!(
+            shot(k, "on_ramp") <= 0.01 * shot(k, "drawn"),
+            "shot {k}: {i}"
+        );
     }
     let hist = |b: usize| i["shots"][2]["ramp_histogram"][b].as_f64().unwrap();
     assert!(hist(0) >= 0.5 * heat, "{i}");
@@ -398,7 +407,10 @@ fn the_keys_and_the_mouse_work(i: &Value, pixels: f64) {
     let full_cm: f64 = legend["fullScaleCm"].as_str().unwrap().parse().unwrap();
     assert!((full - want).abs() <= 1e-5 * want, "{full} vs {want}");
     assert!((full_cm - want).abs() <= 1e-5 * want, "{full_cm} vs {want}");
-    assert!(legend["text"].as_str().unwrap().contains("(cm)"), "{legend}");
+    assert!(
+        legend["text"].as_str().unwrap().contains("(cm)"),
+        "{legend}"
+    );
 
     // The drag turned the view: a 100 px drag at OrbitControls' default speed turns it by
     // 2 pi 100 / 480 = 75 degrees, so most face pixels change and the face's box moves by more
