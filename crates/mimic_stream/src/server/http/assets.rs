@@ -89,4 +89,31 @@ mod tests {
         assert!(asset("three/three.core.js").is_some());
         assert!(asset("../Cargo.toml").is_none());
     }
+
+    #[test]
+    fn every_module_the_viewer_imports_is_embedded() {
+        let (_, js) = asset("view.js").unwrap();
+        let js = std::str::from_utf8(js).unwrap();
+        let mut seen = 0;
+        for line in js.lines().filter(|l| l.starts_with("import ")) {
+            let Some(spec) = line.split('\'').nth(1) else {
+                continue;
+            };
+            let path = if let Some(p) = spec.strip_prefix("/static/") {
+                p.to_string()
+            } else if let Some(p) = spec.strip_prefix("three/addons/") {
+                format!("three/addons/{p}")
+            } else {
+                assert_eq!(spec, "three", "{line}");
+                "three/three.module.js".to_string()
+            };
+            assert!(
+                asset(&path).is_some(),
+                "{path} (imported by view.js) is not embedded"
+            );
+            seen += 1;
+        }
+        // three, GLTFLoader, OrbitControls, wire, expressions, heat, keys.
+        assert_eq!(seen, 7);
+    }
 }
