@@ -1,21 +1,33 @@
 // The browser viewer of one live session (docs/browser.md): loads the session's rig once as a GLB
 // (three.js GLTFLoader, its materials kept), then applies the newest frame's `d` (or weights) as
-// morph-target influences and its head rotation, at the browser's frame rate.
+// morph-target influences and its head rotation, at the browser's frame rate. Orbit controls
+// (drag, wheel, `r`), number keys that blend the rig's morph targets in and out, a heat map of
+// |P - P0| with its legend (`h`), and a pause that holds the frame on screen (space).
 import * as THREE from 'three';
 import { GLTFLoader } from 'three/addons/loaders/GLTFLoader.js';
+import { OrbitControls } from 'three/addons/controls/OrbitControls.js';
 import { parseFrame, STATUS } from '/static/wire.js';
+import { Expressions } from '/static/expressions.js';
+import { DEFAULT_SCALE_OF_DIAGONAL, drawLegend, heatUniforms, patchHeat } from '/static/heat.js';
+import { actionFor, HELP } from '/static/keys.js';
 
 const params = new URLSearchParams(location.search);
 const token = params.get('token');
 const q = token ? `?token=${encodeURIComponent(token)}` : '';
 // `?pose=0`: keep the head still (as `mimic render` without --pose).
-const usePose = params.get('pose') !== '0';
+let usePose = params.get('pose') !== '0';
+// `?heat_scale=X`: the heat map's full scale in rig units (as `--heat-scale`); default 5% of the
+// rest mesh's bounding-box diagonal.
+const heatScaleParam = Number(params.get('heat_scale'));
 const session = decodeURIComponent(location.pathname.split('/').pop() ?? '');
 document.title = `mimic: ${session}`;
 
 const readout = document.getElementById('readout');
 const weightsBox = document.getElementById('weights');
 const message = document.getElementById('message');
+const legend = document.getElementById('legend');
+const help = document.getElementById('help');
+help.textContent = HELP.join('\n');
 
 /** The browser clock, ms since the Unix epoch (high resolution). */
 const nowMs = () => performance.timeOrigin + performance.now();
@@ -41,6 +53,16 @@ const state = {
   clockErrorMs: null,
   errors: [],
   ended: null,
+  // The keys' state: held frame, heat map, head pose, the number keys' eased weights.
+  paused: false,
+  heat: false,
+  pose: usePose,
+  heatScaleUnits: null,
+  expressionNames: [],
+  expressionTargets: [],
+  expressionWeights: [],
+  expressionsSettled: true,
+  renders: 0,
 };
 window.mimicViewer = state;
 
@@ -61,6 +83,13 @@ const sun = new THREE.DirectionalLight(0xffffff, 0.75 * Math.PI);
 sun.position.set(-0.4, 0.5, 1.0);
 camera.add(sun);
 camera.add(sun.target);
+
+// Drag to orbit about the rest mesh's centre, wheel to zoom, right drag to pan; `r` resets to
+// the framing below. No damping: the view stops where the mouse leaves it.
+const controls = new OrbitControls(camera, renderer.domElement);
+controls.enableDamping = false;
+let framedRadius = 1;
+controls.addEventListener('change', clip);
 
 window.addEventListener('resize', () => {
   camera.aspect = container.clientWidth / container.clientHeight;
@@ -92,9 +121,20 @@ function frame(box) {
   }
   camera.position.copy(target).addScaledVector(dir, distance);
   camera.lookAt(target);
-  const radius = box.getSize(new THREE.Vector3()).length() / 2;
-  camera.near = Math.max(distance - radius * 1.01, distance * 0.01);
-  camera.far = distance + radius * 1.01;
+  framedRadius = box.getSize(new THREE.Vector3()).length() / 2;
+  controls.target.copy(target);
+  controls.minDistance = framedRadius * 0.3;
+  controls.maxDistance = distance * 10;
+  controls.update();
+  controls.saveState();
+  clip();
+}
+
+/** Near and far planes around the rest mesh's sphere from where the camera is now. */
+function clip() {
+  const distance = camera.position.distanceTo(controls.target);
+  camera.near = Math.max(distance - framedRadius * 1.01, distance * 0.01);
+  camera.far = distance + framedRadius * 1.01;
   camera.updateProjectionMatrix();
 }
 
@@ -141,12 +181,21 @@ async function loadRig(info) {
       o.visible = false;
       return;
     }
+    for (const m of mats) patchHeat(m);
     if (o.morphTargetInfluences) meshes.push(o);
   });
   const head = root.getObjectByName('head') ?? root;
   scene.add(root);
   root.updateMatrixWorld(true);
-  frame(restBox(root));
+  const box = restBox(root);
+  frame(box);
+  // The heat map's full scale, in the GLB's metres.
+  const s = info.metres_per_unit ?? 1;
+  const diagonal = box.getSize(new THREE.Vector3()).length();
+  const scaleMetres = heatScaleParam > 0 ? heatScaleParam * s : DEFAULT_SCALE_OF_DIAGONAL * diagonal;
+  heatUniforms.mimicHeatScale.value = scaleMetres;
+  state.heatScaleUnits = scaleMetres / s;
+  drawLegend(legend, { scaleMetres, metresPerUnit: s, units: info.rig_units ?? 'rig units', defaulted: !(heatScaleParam > 0) });
   model = { root, head, meshes, key };
   message.textContent = '';
 }
@@ -161,8 +210,24 @@ function onSession(info) {
   state.rig = info.rig;
   state.mode = info.mode ?? 'landmarks';
   state.lastSeq = -1;
+  expressions = new Expressions(info.expressions?.names ?? []);
+  expressionsFrom = info.expressions?.first_target ?? 0;
+  state.expressionNames = expressions.names;
   buildBars(info.mode === 'weights' ? info.target_names ?? [] : []);
-  loading = loadRig(info).catch((e) => fail(`cannot load the rig: ${e.message}`));
+  loading = loadRig(info)
+    .then(mapExpressions)
+    .catch((e) => fail(`cannot load the rig: ${e.message}`));
+}
+
+let expressions = new Expressions([]);
+let expressionsFrom = 0;
+
+/** The GLB target each number key drives (its name in the mesh's morphTargetDictionary), for the
+ * readout's state and the test; a key past the mesh's targets drives none. */
+function mapExpressions() {
+  const dict = model?.meshes[0]?.morphTargetDictionary ?? {};
+  const byIndex = Object.fromEntries(Object.entries(dict).map(([name, j]) => [j, name]));
+  state.expressionTargets = expressions.names.map((_, k) => byIndex[expressionsFrom + k] ?? null);
 }
 
 let bars = [];
@@ -267,29 +332,47 @@ const latencies = [];
 let fpsCount = 0;
 let fpsSince = performance.now();
 
+/** Sets the morph-target influences from frame `f` (`d` in metres, or the weights), the number
+ * keys' expressions added on top, and the head's rotation. */
 function apply(f) {
   if (!model || !sessionInfo) return false;
   const weights = sessionInfo.mode === 'weights';
   const s = sessionInfo.metres_per_unit ?? 1;
   for (const mesh of model.meshes) {
     const inf = mesh.morphTargetInfluences;
+    inf.fill(0);
     if (weights) {
       for (let j = 0; j < inf.length && j < f.k; j++) inf[j] = f.weights[j];
     } else {
       for (let i = 0; i < inf.length && i < f.d.length; i++) inf[i] = f.d[i] * s;
     }
+    for (let k = 0; k < expressions.names.length && expressionsFrom + k < inf.length; k++) {
+      inf[expressionsFrom + k] += expressions.eased(k);
+    }
   }
   if (usePose) model.head.quaternion.set(f.rotation[0], f.rotation[1], f.rotation[2], f.rotation[3]);
+  else model.head.quaternion.identity();
   for (let j = 0; j < bars.length && j < f.k; j++) bars[j].style.width = `${Math.max(0, Math.min(1, f.weights[j])) * 100}%`;
   state.status = STATUS[f.status] ?? String(f.status);
   return true;
 }
 
+let held = null; // the frame on screen (kept while paused, re-applied as expressions ease)
+let lastTick = performance.now();
+
 function tick() {
   requestAnimationFrame(tick);
-  const f = pending;
+  const t = performance.now();
+  expressions.advance((t - lastTick) / 1000);
+  lastTick = t;
+  state.expressionWeights = expressions.names.map((_, k) => expressions.eased(k));
+  state.expressionsSettled = expressions.settled();
+  const f = state.paused ? null : pending;
   const shown = f && apply(f);
+  if (shown) held = f;
+  else if (held) apply(held);
   renderer.render(scene, camera);
+  state.renders++;
   if (shown) {
     pending = null;
     state.pending = false;
@@ -321,9 +404,45 @@ function showReadout() {
     `fps ${state.fps.toFixed(0)} · latency ${lat}${err}`,
     `frames ${state.framesReceived} · shown ${state.framesShown} · missed ${state.missed}`,
     `status ${state.status}${state.gatedNow ? ' · GATED' : ''} · gated ${state.gated}`,
+    `${state.paused ? 'PAUSED (space) · ' : ''}${expressions.label()}`,
   ].join('\n');
   readout.dataset.frames = String(state.framesReceived);
 }
+
+// --- keys ---------------------------------------------------------------------------------
+function onKey(ev) {
+  if (ev.ctrlKey || ev.metaKey || ev.altKey || ev.repeat) return;
+  const a = actionFor(ev.key);
+  if (!a) return;
+  ev.preventDefault();
+  switch (a.action) {
+    case 'expression':
+      expressions.toggle(a.index);
+      break;
+    case 'pause':
+      state.paused = !state.paused;
+      break;
+    case 'heat':
+      state.heat = !state.heat;
+      heatUniforms.mimicHeatOn.value = state.heat ? 1 : 0;
+      legend.hidden = !state.heat;
+      break;
+    case 'pose':
+      usePose = !usePose;
+      state.pose = usePose;
+      break;
+    case 'reset':
+      controls.reset();
+      clip();
+      break;
+    case 'help':
+      help.hidden = !help.hidden;
+      break;
+    default:
+      break;
+  }
+}
+window.addEventListener('keydown', onKey);
 
 connect();
 requestAnimationFrame(tick);

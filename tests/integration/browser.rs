@@ -1,8 +1,9 @@
 //! The browser viewer (`mimic serve --http`, docs/browser.md): a recording replayed into the
 //! server with `mimic send`, `/view/SESSION` opened in headless Chromium (tools/browser-check,
 //! playwright-core driving /usr/bin/chromium with WebGL2 on SwiftShader), and the face checked
-//! from two screenshots; plus the HTTP routes and the token, over raw sockets. The Chromium test
-//! skips, saying why, only when Chromium or Node is not installed.
+//! from two screenshots, then its keys and mouse on the same page (paused: number key 1, the heat
+//! map and its legend, a drag and the reset); plus the HTTP routes and the token, over raw
+//! sockets. The Chromium test skips, saying why, only when Chromium or Node is not installed.
 
 use crate::{mimic, repo, text};
 use serde_json::Value;
@@ -246,7 +247,7 @@ fn the_page_draws_the_live_face_and_it_moves() {
         .arg(repo().join("tools/browser-check/check.mjs"))
         .args(["--url", &url, "--out"])
         .arg(out.path())
-        .args(["--frames", "20"])
+        .args(["--frames", "20", "--interact"])
         .output()
         .expect("run node check.mjs");
     let (stdout, stderr) = text(&o);
@@ -318,6 +319,109 @@ fn the_page_draws_the_live_face_and_it_moves() {
         .unwrap();
     assert!(web["viewers_total"].as_u64().unwrap() >= 1, "{web}");
     assert!(web["viewer_frames_sent"].as_u64().unwrap() > 0, "{web}");
+
+    the_keys_and_the_mouse_work(&report["interact"], px["pixels"].as_f64().unwrap());
+}
+
+/// The rig's `[[morph_targets]]` names, in order, from its TOML file.
+fn rig_target_names(rig: &str) -> Vec<String> {
+    let path = repo().join(format!("configs/rigs/{rig}.toml"));
+    let v: toml::Value = toml::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    v["morph_targets"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| t["name"].as_str().unwrap().to_string())
+        .collect()
+}
+
+/// What check.mjs `--interact` measured on the paused page (shots: 0 held frame, 1 key `1` in,
+/// 2 heat map on, 3 heat map off, 4 key `1` out, 5 after a 100 px drag, 6 after `r`).
+fn the_keys_and_the_mouse_work(i: &Value, pixels: f64) {
+    println!("interact: {i}");
+    let shot = |k: usize, what: &str| i["shots"][k][what].as_f64().unwrap();
+    let pair = |a: u64, b: u64| {
+        i["pairs"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|p| p["shots"] == serde_json::json!([a, b]))
+            .unwrap()["changed"]
+            .as_f64()
+            .unwrap()
+    };
+    // The frame was held: no frame drawn between the first and the last shot.
+    assert_eq!(i["frames_shown"][0], i["frames_shown"][1], "{i}");
+    let face = shot(0, "drawn");
+    assert!(face > 0.05 * pixels, "{i}");
+    // The number keys carry the rig's first nine morph targets (ict-face has eight).
+    let names = rig_target_names("ict-face");
+    let keys: Vec<String> = names.iter().take(9).cloned().collect();
+    assert_eq!(i["expression_names"], serde_json::json!(keys), "{i}");
+    // ... and each key drives the GLB's target of that name (after the 114 basis columns).
+    assert_eq!(i["expression_targets"], serde_json::json!(keys), "{i}");
+    // Key 1 (jawOpen: the chin drops by about 2 cm, the mouth opens) changes at least 1% of the
+    // face's pixels by more than 16 levels (measured: about 9%).
+    assert!(pair(0, 1) > 0.01 * face, "key 1 changed too little: {i}");
+    // Blended out again, the same frame draws the same pixels as before (SwiftShader is
+    // deterministic; measured: 0 changed); so does the heat map switched off.
+    let same = face / 1000.0;
+    assert!(
+        pair(0, 4) <= same,
+        "key 1 out did not restore the face: {i}"
+    );
+    assert!(
+        pair(1, 3) <= same,
+        "h off did not restore the lit face: {i}"
+    );
+
+    // The heat map: nearly every face pixel has a hue of render.wgsl's ramp (the pixel over its
+    // largest channel within 0.1 of the ramp's; measured: 99%), none of the lit shots does (the
+    // skin's hue is 0.3 or more off the ramp); most of the head is still (the cold fifth of the
+    // ramp: measured 84%) and the open jaw is hot (the top fifth: measured 6.5%).
+    let heat = shot(2, "drawn");
+    assert!(shot(2, "on_ramp") >= 0.9 * heat, "{i}");
+    for k in [0, 1, 3, 4] {
+        assert!(
+            shot(k, "on_ramp") <= 0.01 * shot(k, "drawn"),
+            "shot {k}: {i}"
+        );
+    }
+    let hist = |b: usize| i["shots"][2]["ramp_histogram"][b].as_f64().unwrap();
+    assert!(hist(0) >= 0.5 * heat, "{i}");
+    assert!(hist(4) >= 0.01 * heat, "no hot jaw: {i}");
+    assert!(pair(2, 3) > 0.5 * face, "{i}");
+    // The legend's bar is the ramp, pixel for pixel, to within two 8-bit levels (the page and
+    // the check encode the same linear colours; measured: 0).
+    let bar = &i["bar"];
+    assert_eq!(bar["samples"], 200, "{i}");
+    assert!(bar["max_diff"].as_f64().unwrap() <= 2.0, "legend: {bar}");
+    // Its scale: mimic view's default, 5% of the rest mesh's bounding-box diagonal, in cm (the
+    // rig's units); the page measured the GLB's vertices in metres, so f32 rounding only.
+    let rig = mimic_assets::load_rig(&repo().join("configs/rigs/ict-face.toml")).unwrap();
+    assert_eq!(rig.units, "cm");
+    let (lo, hi) = rig.mesh.bounds().unwrap();
+    let want = 0.05 * f64::from((hi - lo).length());
+    let legend = &i["legend"];
+    let full: f64 = legend["fullScale"].as_str().unwrap().parse().unwrap();
+    let full_cm: f64 = legend["fullScaleCm"].as_str().unwrap().parse().unwrap();
+    assert!((full - want).abs() <= 1e-5 * want, "{full} vs {want}");
+    assert!((full_cm - want).abs() <= 1e-5 * want, "{full_cm} vs {want}");
+    assert!(
+        legend["text"].as_str().unwrap().contains("(cm)"),
+        "{legend}"
+    );
+
+    // The drag turned the view: a 100 px drag at OrbitControls' default speed turns it by
+    // 2 pi 100 / 480 = 75 degrees, so most face pixels change and the face's box moves by more
+    // than 5% of the width (measured: 84% and 41 px); `r` brings the framing back exactly.
+    assert!(pair(4, 5) > 0.3 * face, "the drag turned nothing: {i}");
+    let (b4, b5) = (&i["shots"][4]["bbox"], &i["shots"][5]["bbox"]);
+    let moved = (0..4)
+        .map(|k| (b4[k].as_f64().unwrap() - b5[k].as_f64().unwrap()).abs())
+        .fold(0.0, f64::max);
+    assert!(moved > 0.05 * pixels.sqrt(), "{b4} vs {b5}");
+    assert!(pair(0, 6) <= same, "r did not reset the view: {i}");
 }
 
 #[test]
@@ -349,7 +453,8 @@ fn http_routes_serve_the_page_the_glb_and_want_the_token() {
     let (status, js) = serve.get("/static/three/three.core.js");
     assert_eq!(status, 200);
     assert!(String::from_utf8_lossy(&js[..200]).contains("Three.js Authors"));
-    // The GLB: glTF 2.0's binary container, 114 morph targets (38 controls x 3 axes).
+    // The GLB: glTF 2.0's binary container, 114 morph targets (38 controls x 3 axes), then the
+    // number keys' targets: the rig's first nine `[[morph_targets]]` (ict-face has eight).
     let (status, glb) = serve.get(&format!("/rig/tok.glb{q}"));
     assert_eq!(status, 200);
     assert_eq!(&glb[..4], b"glTF");
@@ -360,7 +465,22 @@ fn http_routes_serve_the_page_the_glb_and_want_the_token() {
     let names = gltf["meshes"][0]["extras"]["targetNames"]
         .as_array()
         .unwrap();
-    assert_eq!(names.len(), 114);
+    let keys = rig_target_names("ict-face");
+    assert_eq!(names.len(), 114 + keys.len().min(9));
+    for (j, name) in names[..114].iter().enumerate() {
+        let axis = ["x", "y", "z"][j % 3];
+        assert!(name.as_str().unwrap().ends_with(axis), "{j}: {name}");
+    }
+    for (name, key) in names[114..].iter().zip(&keys) {
+        assert_eq!(name, key);
+    }
+    // Positions only, as the basis columns (a NORMAL on some targets would make three.js take
+    // the rest normal as the others' normal delta).
+    for prim in gltf["meshes"][0]["primitives"].as_array().unwrap() {
+        let targets = prim["targets"].as_array().unwrap();
+        assert_eq!(targets.len(), names.len());
+        assert!(targets.iter().all(|t| t.get("NORMAL").is_none()), "{prim}");
+    }
     assert_eq!(serve.get(&format!("/rig/nosuch.glb{q}")).0, 404);
     // The WebSocket handshake with the token switches protocols.
     let upgrade = |path: &str| {

@@ -15,6 +15,9 @@ const FILES: &[(&str, &str, &[u8])] = &[
     ("index.js", JS, web!("index.js")),
     ("view.js", JS, web!("view.js")),
     ("wire.js", JS, web!("wire.js")),
+    ("expressions.js", JS, web!("expressions.js")),
+    ("heat.js", JS, web!("heat.js")),
+    ("keys.js", JS, web!("keys.js")),
     ("style.css", "text/css; charset=utf-8", web!("style.css")),
     (
         "three/three.module.js",
@@ -30,6 +33,11 @@ const FILES: &[(&str, &str, &[u8])] = &[
         "three/addons/loaders/GLTFLoader.js",
         JS,
         web!("vendor/three/addons/loaders/GLTFLoader.js"),
+    ),
+    (
+        "three/addons/controls/OrbitControls.js",
+        JS,
+        web!("vendor/three/addons/controls/OrbitControls.js"),
     ),
     (
         "three/addons/utils/BufferGeometryUtils.js",
@@ -80,5 +88,32 @@ mod tests {
         );
         assert!(asset("three/three.core.js").is_some());
         assert!(asset("../Cargo.toml").is_none());
+    }
+
+    #[test]
+    fn every_module_the_viewer_imports_is_embedded() {
+        let (_, js) = asset("view.js").unwrap();
+        let js = std::str::from_utf8(js).unwrap();
+        let mut seen = 0;
+        for line in js.lines().filter(|l| l.starts_with("import ")) {
+            let Some(spec) = line.split('\'').nth(1) else {
+                continue;
+            };
+            let path = if let Some(p) = spec.strip_prefix("/static/") {
+                p.to_string()
+            } else if let Some(p) = spec.strip_prefix("three/addons/") {
+                format!("three/addons/{p}")
+            } else {
+                assert_eq!(spec, "three", "{line}");
+                "three/three.module.js".to_string()
+            };
+            assert!(
+                asset(&path).is_some(),
+                "{path} (imported by view.js) is not embedded"
+            );
+            seen += 1;
+        }
+        // three, GLTFLoader, OrbitControls, wire, expressions, heat, keys.
+        assert_eq!(seen, 7);
     }
 }

@@ -1,6 +1,6 @@
 //! The rigs as GLB files for the browser viewer, built once per rig and kind and kept.
 
-use super::HttpSettings;
+use super::{EXPRESSION_KEYS, HttpSettings};
 use crate::server::state::{Shared, lock};
 use axum::body::Bytes;
 use mimic_gltf::{basis_morphs, target_morphs, write_rig_glb};
@@ -12,7 +12,8 @@ use tokio::sync::OnceCell;
 type Slot = Arc<OnceCell<Result<Bytes, String>>>;
 
 /// GLBs by (rig, weights session): free-form (one morph target per control and axis, the
-/// columns of the server's basis `B`, weights `d` in metres) or the rig's own morph targets
+/// columns of the server's basis `B`, weights `d` in metres, then the rig's first
+/// [`EXPRESSION_KEYS`] morph targets for the page's number keys) or the rig's own morph targets
 /// (weights sessions, weights as they are).
 #[derive(Debug)]
 pub(super) struct GlbCache {
@@ -65,6 +66,27 @@ impl GlbCache {
     }
 }
 
+/// The rig's first [`EXPRESSION_KEYS`] morph targets (the catalog's, as weights sessions use
+/// them) as glTF targets after the basis columns: positions only, like the basis columns (a
+/// normal delta on some targets would make three.js's GLTFLoader take the rest normal as the
+/// delta of every target without one).
+fn expression_morphs(
+    entry: &crate::catalog::RigEntry,
+    r: &mimic_types::Rig,
+) -> Result<Vec<mimic_gltf::Morph>, String> {
+    let Some(set) = entry.morph.as_ref() else {
+        return Ok(Vec::new());
+    };
+    let scale = mimic_gltf::metres_per_unit(&r.units)
+        .ok_or_else(|| format!("rig units `{}` have no length in metres", r.units))?;
+    let keys = &set.targets()[..set.len().min(EXPRESSION_KEYS)];
+    let mut morphs = target_morphs(keys, scale);
+    for m in &mut morphs {
+        m.normals.clear();
+    }
+    Ok(morphs)
+}
+
 /// Writes the GLB of `rig` with mimic_gltf's writer.
 fn build(shared: &Shared, web: &HttpSettings, rig: &str, weights: bool) -> Result<Bytes, String> {
     let entry = shared
@@ -83,7 +105,9 @@ fn build(shared: &Shared, web: &HttpSettings, rig: &str, weights: bool) -> Resul
         target_morphs(&targets, scale)
     } else {
         let names: Vec<String> = r.controls.iter().map(|c| c.fdp.to_string()).collect();
-        basis_morphs(&entry.basis, &names)
+        let mut morphs = basis_morphs(&entry.basis, &names);
+        morphs.extend(expression_morphs(entry, r)?);
+        morphs
     };
     let mut out = Vec::new();
     write_rig_glb(path, r, &morphs, None, web.skin, &mut out).map_err(|e| e.to_string())?;

@@ -40,6 +40,9 @@ pub struct HttpSettings {
     pub skin: [f32; 3],
 }
 
+/// Morph targets on the page's number keys 1-9 (as `mimic view`'s): the rig's first nine.
+const EXPRESSION_KEYS: usize = 9;
+
 /// State of the HTTP routes.
 #[derive(Debug)]
 struct App {
@@ -222,8 +225,8 @@ fn session_rig(shared: &Shared, name: &str) -> Option<(String, bool)> {
         .map(|s| of(s))
 }
 
-/// `/rig/SESSION.glb`: the session's rig as a GLB (morph targets: the basis columns, or the
-/// rig's own targets for a weights session).
+/// `/rig/SESSION.glb`: the session's rig as a GLB (morph targets: the basis columns and the
+/// number keys' targets, or the rig's own targets for a weights session).
 async fn rig_glb(
     State(app): AppState,
     Path(file): Path<String>,

@@ -3,6 +3,7 @@
 //! `session`, `end`, `error`, `clock`) and one binary message per frame ([`encode_web_frame`],
 //! layout in docs/protocol.md, "Browser viewer").
 
+use super::EXPRESSION_KEYS;
 use crate::server::state::Shared;
 use crate::server::viewer::{attach, detach, is_live};
 use axum::body::Bytes;
@@ -108,11 +109,29 @@ fn transcode(shared: &Shared, m: &[u8]) -> Out {
             if let (Value::Object(o), Some(entry)) = (&mut v, entry) {
                 let scale = mimic_gltf::metres_per_unit(&entry.rig.units);
                 o.insert("metres_per_unit".into(), json!(scale));
+                o.insert("rig_units".into(), json!(entry.rig.units));
                 o.insert("glb".into(), json!(format!("/rig/{name}.glb")));
-                if o.get("mode").and_then(Value::as_str) == Some("weights") {
+                let weights = o.get("mode").and_then(Value::as_str) == Some("weights");
+                if weights {
                     let names = entry.morph.as_ref().map(|s| s.names.clone());
                     o.insert("target_names".into(), json!(names.unwrap_or_default()));
                 }
+                // The number keys' morph targets: the rig's first nine, in the GLB after the
+                // basis columns (landmarks) or as its own targets (weights).
+                let names: Vec<&String> = entry
+                    .morph
+                    .as_ref()
+                    .map(|s| s.names.iter().take(EXPRESSION_KEYS).collect())
+                    .unwrap_or_default();
+                let first = if weights {
+                    0
+                } else {
+                    3 * entry.basis.control_count()
+                };
+                o.insert(
+                    "expressions".into(),
+                    json!({"first_target": first, "names": names}),
+                );
             }
             Out::Text(v.to_string(), false)
         }
