@@ -113,6 +113,21 @@ fn a_take_with_dropouts_sends_only_its_tracked_rows() {
         "{stdout}"
     );
     assert!(stdout.contains("server: 1662 frames, 0 late"), "{stdout}");
+    // `--loop`: the take again with later times, none late.
+    let o = mimic(&[
+        "send",
+        "--weights",
+        csv.to_str().unwrap(),
+        "--to",
+        &server.tcp,
+        "--fast",
+        "--loop",
+        "--max-frames",
+        "2000",
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}{stderr}");
+    assert!(stdout.contains("server: 2000 frames, 0 late"), "{stdout}");
     server.stop();
 }
 

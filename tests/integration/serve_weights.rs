@@ -287,6 +287,27 @@ fn send_weights_csv_drives_a_weights_session() {
     let s = serve.wait_for("the csv session", |s| s["sessions"][0]["active"] == false);
     assert_eq!(s["sessions"][0]["name"], "csv");
     assert_eq!(s["sessions"][0]["tracked"], 3);
+    // `--loop` sends the CSV again with later times: 7 frames of 3 rows, none late.
+    let out = crate::mimic(&[
+        "send",
+        "--weights",
+        csv.to_str().unwrap(),
+        "--to",
+        &serve.tcp,
+        "--session",
+        "looped",
+        "--fast",
+        "--loop",
+        "--max-frames",
+        "7",
+    ]);
+    let (stdout, stderr) = crate::text(&out);
+    assert!(out.status.success(), "{stderr}");
+    assert!(
+        stdout.contains("sent 7 weight frames")
+            && stdout.contains("server: 7 frames, 0 late, 0 malformed"),
+        "{stdout}"
+    );
     // A bad cell is an error naming the line and column.
     std::fs::write(&csv, "jawOpen\n0.5\nwide\n").unwrap();
     let out = crate::mimic(&[

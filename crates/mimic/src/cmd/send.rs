@@ -273,8 +273,11 @@ const NOT_WEIGHTS: [&str; 6] = [
     "blendshapecount",
 ];
 
-/// Weight frame lines (`{"t_us", "weights"}`) of a weights CSV, with their times.
-fn weight_lines(csv: &std::path::Path, rate: f64) -> anyhow::Result<Vec<(i64, String)>> {
+/// The weight frames of a weights CSV: each row's time and its `weights` object.
+type WeightRows = Vec<(i64, serde_json::Map<String, Value>)>;
+
+/// Weight frames (`t_us` and the `weights` object of a frame line) of a weights CSV.
+fn weight_lines(csv: &std::path::Path, rate: f64) -> anyhow::Result<WeightRows> {
     let table = mimic_capture::named_csv::read_named_csv(csv)?;
     let header: Vec<&str> = table.header.iter().map(String::as_str).collect();
     let time_col = header.iter().position(|h| h.eq_ignore_ascii_case("t_us"));
@@ -318,9 +321,7 @@ fn weight_lines(csv: &std::path::Path, rate: f64) -> anyhow::Result<Vec<(i64, St
                 })?;
             weights.insert(header[c].to_string(), Value::from(v));
         }
-        let mut l = serde_json::json!({"t_us": t_us, "weights": weights}).to_string();
-        l.push('\n');
-        out.push((t_us, l));
+        out.push((t_us, weights));
     }
     Ok(out)
 }
@@ -349,17 +350,34 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
     let mut sent = 0usize;
     let mut write_failed = None;
     let first_t = lines.first().map_or(0, |(t, _)| *t);
-    // Sent once (`--loop` would repeat timestamps, which the server drops as late).
-    for (t, line) in &lines {
-        pace.wait(t.saturating_sub(first_t));
-        if let Err(e) = stream.write_all(line.as_bytes()) {
-            write_failed = Some(anyhow::Error::from(e).context("sending a weight frame"));
+    let last_t = lines.last().map_or(0, |(t, _)| *t);
+    // `--loop`: each pass again, its times shifted past the previous pass by one frame interval
+    // (the mean of the CSV's, else 1 / --rate), so the server never sees a repeated time.
+    let gap = if lines.len() >= 2 {
+        ((last_t - first_t) / (lines.len() as i64 - 1)).max(1)
+    } else {
+        (1e6 / args.rate).round().max(1.0) as i64
+    };
+    let mut offset = 0i64;
+    'passes: loop {
+        for (t, weights) in &lines {
+            let t_us = t.saturating_add(offset);
+            pace.wait(t_us.saturating_sub(first_t));
+            let mut line = serde_json::json!({"t_us": t_us, "weights": weights}).to_string();
+            line.push('\n');
+            if let Err(e) = stream.write_all(line.as_bytes()) {
+                write_failed = Some(anyhow::Error::from(e).context("sending a weight frame"));
+                break 'passes;
+            }
+            sent += 1;
+            if args.max_frames.is_some_and(|m| sent >= m) {
+                break 'passes;
+            }
+        }
+        if !args.looping || lines.is_empty() {
             break;
         }
-        sent += 1;
-        if args.max_frames.is_some_and(|m| sent >= m) {
-            break;
-        }
+        offset = offset.saturating_add(last_t - first_t + gap);
     }
     let _ = stream.shutdown(Shutdown::Write);
     stream.set_read_timeout(Some(Duration::from_secs(10)))?;
@@ -443,22 +461,34 @@ fn send_take(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
     let mut sent = 0usize;
     let mut last_due = 0.0f64;
     let mut write_failed = None;
-    for (_, t_us, w) in &tw.frames {
-        last_due = pace.wait(*t_us);
-        let weights: serde_json::Map<String, Value> = kept
-            .iter()
-            .map(|&k| (tw.targets[k].clone(), Value::from(f64::from(w[k]))))
-            .collect();
-        let mut line = serde_json::json!({"t_us": t_us, "weights": weights}).to_string();
-        line.push('\n');
-        if let Err(e) = stream.write_all(line.as_bytes()) {
-            write_failed = Some(anyhow::Error::from(e).context("sending a weight frame"));
+    // `--loop`: each pass shifted past the previous one by one frame of the take's rate.
+    let first_t = tw.frames.first().map_or(0, |f| f.1);
+    let last_t = tw.frames.last().map_or(0, |f| f.1);
+    let gap = (1e6 / rate).round().max(1.0) as i64;
+    let mut offset = 0i64;
+    'passes: loop {
+        for (_, t, w) in &tw.frames {
+            let t_us = t.saturating_add(offset);
+            last_due = pace.wait(t_us);
+            let weights: serde_json::Map<String, Value> = kept
+                .iter()
+                .map(|&k| (tw.targets[k].clone(), Value::from(f64::from(w[k]))))
+                .collect();
+            let mut line = serde_json::json!({"t_us": t_us, "weights": weights}).to_string();
+            line.push('\n');
+            if let Err(e) = stream.write_all(line.as_bytes()) {
+                write_failed = Some(anyhow::Error::from(e).context("sending a weight frame"));
+                break 'passes;
+            }
+            sent += 1;
+            if args.max_frames.is_some_and(|m| sent >= m) {
+                break 'passes;
+            }
+        }
+        if !args.looping || tw.frames.is_empty() {
             break;
         }
-        sent += 1;
-        if args.max_frames.is_some_and(|m| sent >= m) {
-            break;
-        }
+        offset = offset.saturating_add(last_t - first_t + gap);
     }
     let paced = pace.elapsed_s();
     let _ = stream.shutdown(Shutdown::Write);
