@@ -428,7 +428,7 @@ def ms(v):
 
 def print_table(rows):
     print("| W | doors | S | load | accepted/s | to viewers/s | tracker->viewer p50 / p99 ms "
-          "| arrival->viewer p50 / p99 ms | arrival->broadcast p50 / p99 ms | lost | "
+          "| arrival->viewer p50 / p99 ms | arrival->broadcast p50 / p99 ms | lost / seq gaps / dropped | "
           "CPU % front / workers / nats | busy % |")
     print("|---|---|---|---|---|---|---|---|---|---|---|---|")
     for r in rows:
@@ -438,7 +438,7 @@ def print_table(rows):
               f"| {ms(r['e2e_p50_us'])} / {ms(r['e2e_p99_us'])} "
               f"| {ms(r['arrival_viewer_p50_us'])} / {ms(r['arrival_viewer_p99_us'])} "
               f"| {ms(r['server_p50_us'])} / {ms(r['server_p99_us'])} "
-              f"| {r['lost'] + r['viewer_seq_gaps']} "
+              f"| {r['lost']} / {r['viewer_seq_gaps']} / {r['viewer_dropped']} "
               f"| {c.get('front', 0):.0f} / {c.get('worker', 0):.0f} / {c.get('nats', 0):.0f} "
               f"| {r['machine_busy_pct']:.0f} |")
 
