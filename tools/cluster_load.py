@@ -408,6 +408,8 @@ def summarize(workers, doors, sessions, rate, s0, s1, cpu, mach, window, load, v
         "retargeted_per_s": round(delta(lambda x: cl(x, "retargeted", x["frames"])) / dt, 1),
         "viewer_per_s": round(len(e2e) / dt, 1),
         "lost": delta(lambda x: cl(x, "lost", 0)),
+        # Placements past each session's first: failovers (a worker's lease expired).
+        "failovers": total(s1, lambda x: max(0, cl(x, "placements", 1) - 1)),
         "viewer_dropped": dropped,
         "viewer_seq_gaps": sum(sm[i + 3] for i in win),
         "e2e_p50_us": us(pct(e2e, 0.5)), "e2e_p99_us": us(pct(e2e, 0.99)),
