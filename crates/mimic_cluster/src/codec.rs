@@ -170,6 +170,9 @@ pub(crate) struct OpenRequest {
     pub(crate) layout: String,
     /// The front door asking.
     pub(crate) host: String,
+    /// The front door's id of the session (with `host`, names this session instance).
+    #[serde(default)]
+    pub(crate) id: Option<u32>,
     /// A failover: continue from the session's checkpoint.
     pub(crate) resume: bool,
 }
@@ -194,6 +197,17 @@ pub(crate) struct Lease {
     pub(crate) worker: String,
     /// The session's front door.
     pub(crate) host: String,
+    /// The front door's id of the session, from the placement request.
+    #[serde(default)]
+    pub(crate) id: Option<u32>,
+}
+
+impl Lease {
+    /// Whether this lease was taken for session instance `id` of front door `host`: a front
+    /// door whose placement reply was lost (timed out) finds its worker this way.
+    pub(crate) fn taken_for(&self, host: &str, id: u32) -> bool {
+        self.host == host && self.id == Some(id)
+    }
 }
 
 /// A checkpoint's value.
@@ -231,5 +245,34 @@ mod tests {
         );
         assert!(matches!(decode_in(&encode_in_end(3)), Some(In::End)));
         assert!(decode_in(&b[..5]).is_none());
+    }
+
+    #[test]
+    fn a_lease_names_the_session_instance_it_was_taken_for() {
+        // What a worker stores for request `id` 7 of front door `front-a`, read back as bytes.
+        let req: OpenRequest = serde_json::from_str(
+            r#"{"session":"s","rig":"r","layout":"l","host":"front-a","id":7,"resume":false}"#,
+        )
+        .unwrap();
+        let stored = serde_json::to_vec(&Lease {
+            worker: "w2".into(),
+            host: req.host.clone(),
+            id: req.id,
+        })
+        .unwrap();
+        let lease: Lease = serde_json::from_slice(&stored).unwrap();
+        assert!(lease.taken_for("front-a", 7));
+        // Another session instance of the same door (a tracker back under the same name), or
+        // another door: not this placement.
+        assert!(!lease.taken_for("front-a", 8));
+        assert!(!lease.taken_for("front-b", 7));
+        // A lease from a worker that wrote no id, or a request without one, never matches.
+        let old: Lease = serde_json::from_str(r#"{"worker":"w1","host":"front-a"}"#).unwrap();
+        assert!(!old.taken_for("front-a", 0));
+        let req: OpenRequest = serde_json::from_str(
+            r#"{"session":"s","rig":"r","layout":"l","host":"front-a","resume":true}"#,
+        )
+        .unwrap();
+        assert_eq!(req.id, None);
     }
 }

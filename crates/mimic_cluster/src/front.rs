@@ -92,6 +92,7 @@ impl Host {
             rig: self.request.rig.clone(),
             layout: self.request.layout.clone(),
             host: self.host.clone(),
+            id: Some(self.request.id),
             resume,
         };
         let body = serde_json::to_vec(&req).unwrap_or_default();
@@ -100,22 +101,47 @@ impl Host {
             Ok(Ok(m)) => m,
             Ok(Err(e)) => {
                 tracing::debug!(session = %self.request.session, "no worker: {e}");
-                return false;
+                return self.adopt().await;
             }
-            Err(_) => return false,
+            // A worker may have taken the session and answered too late: its lease says so.
+            Err(_) => return self.adopt().await,
         };
         let Ok(reply) = serde_json::from_slice::<OpenReply>(&reply.payload) else {
             return false;
         };
         if !reply.ok {
             tracing::debug!(session = %self.request.session, worker = %reply.worker, why = %reply.why, "placement declined");
-            return false;
+            // Declined because the lease is taken: perhaps for this very request, earlier.
+            return self.adopt().await;
         }
         tracing::info!(session = %self.request.session, worker = %reply.worker, resume, restored = reply.restored, "session placed");
-        self.status.set_worker(Some(reply.worker.clone()));
-        self.status.placements.bump();
-        self.worker = Some(reply.worker);
+        self.placed_on(reply.worker);
         true
+    }
+
+    /// Records that `worker` holds the session.
+    fn placed_on(&mut self, worker: String) {
+        self.status.set_worker(Some(worker.clone()));
+        self.status.placements.bump();
+        self.worker = Some(worker);
+    }
+
+    /// After a placement request got no usable reply: when the session's lease was taken for
+    /// this session by some worker (whose reply was lost or late), that worker holds it; true
+    /// then. Without this a slow reply left the session stepped by a worker the front door did
+    /// not know, every later request declined (the lease is held), and no failover.
+    async fn adopt(&mut self) -> bool {
+        let Ok(Some(b)) = self.cluster.leases.get(self.tok.clone()).await else {
+            return false;
+        };
+        match serde_json::from_slice::<Lease>(&b) {
+            Ok(l) if l.taken_for(&self.host, self.request.id) => {
+                tracing::info!(session = %self.request.session, worker = %l.worker, "placement reply lost; the lease names the worker");
+                self.placed_on(l.worker);
+                true
+            }
+            _ => false,
+        }
     }
 
     /// Whether the session's lease is still held by the worker this front door placed it on.

@@ -22,10 +22,12 @@
 
 mod codec;
 mod front;
+mod servers;
 mod worker;
 
 pub use codec::token;
 pub use front::NatsPlacement;
+pub use servers::redact;
 pub use worker::{Worker, WorkerStats};
 
 use async_nats::jetstream::{self, kv};
@@ -107,14 +109,22 @@ pub struct Cluster {
 }
 
 impl Cluster {
-    /// Connects to `url` and opens (or makes) the buckets.
+    /// Connects to `url` and opens (or makes) the buckets. `url` may list several servers of a
+    /// NATS cluster, comma-separated (`nats://a:4222,nats://b:4222`; `tls://` for TLS), and carry
+    /// a token (`nats://TOKEN@host:4222`) or a user and password (`nats://USER:PASS@host:4222`).
     pub async fn connect(url: &str, settings: ClusterSettings) -> Result<Self, ClusterError> {
-        let client = async_nats::ConnectOptions::new()
-            .name("mimic")
-            .connect(url)
+        let (addrs, credentials) = servers::parse(url)?;
+        let options = async_nats::ConnectOptions::new().name("mimic");
+        let options = match credentials {
+            servers::Credentials::None => options,
+            servers::Credentials::Token(t) => options.token(t),
+            servers::Credentials::UserPassword(u, p) => options.user_and_password(u, p),
+        };
+        let client = options
+            .connect(addrs)
             .await
             .map_err(|e| ClusterError::Connect {
-                url: url.to_string(),
+                url: servers::redact(url),
                 message: e.to_string(),
             })?;
         let js = jetstream::new(client.clone());

@@ -175,6 +175,7 @@ impl Worker {
         let lease = Lease {
             worker: self.name.clone(),
             host: req.host.clone(),
+            id: req.id,
         };
         let lease = Bytes::from(serde_json::to_vec(&lease).unwrap_or_default());
         let revision = match self.cluster.leases.create(&tok, lease.clone()).await {

@@ -260,7 +260,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         let nats = args
             .nats
             .as_ref()
-            .map(|u| format!(" nats {u}"))
+            .map(|u| format!(" nats {}", mimic_cluster::redact(u)))
             .unwrap_or_default();
         println!(
             "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}{trackers}{nats}{http_addr}",

@@ -50,7 +50,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
         println!(
             "mimic worker: {name} nats {} max-sessions {}",
-            args.nats, args.max_sessions
+            mimic_cluster::redact(&args.nats),
+            args.max_sessions
         );
         std::io::stdout().flush()?;
         let shutdown = async {
