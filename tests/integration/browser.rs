@@ -414,13 +414,15 @@ fn the_keys_and_the_mouse_work(i: &Value, pixels: f64) {
 
     // The drag turned the view: a 100 px drag at OrbitControls' default speed turns it by
     // 2 pi 100 / 480 = 75 degrees, so most face pixels change and the face's box moves by more
-    // than 5% of the width (measured: 84% and 41 px); `r` brings the framing back exactly.
+    // than 2.5% of the width (measured: 84% and 41 px; 24 px on a loaded machine, where
+    // Chromium coalesces the drag's moves into fewer, so it turns less); `r` brings the framing
+    // back exactly.
     assert!(pair(4, 5) > 0.3 * face, "the drag turned nothing: {i}");
     let (b4, b5) = (&i["shots"][4]["bbox"], &i["shots"][5]["bbox"]);
     let moved = (0..4)
         .map(|k| (b4[k].as_f64().unwrap() - b5[k].as_f64().unwrap()).abs())
         .fold(0.0, f64::max);
-    assert!(moved > 0.05 * pixels.sqrt(), "{b4} vs {b5}");
+    assert!(moved > 0.025 * pixels.sqrt(), "{b4} vs {b5}");
     assert!(pair(0, 6) <= same, "r did not reset the view: {i}");
 }
 
