@@ -30,6 +30,8 @@ pub struct Options {
     pub heat_scale: Option<f32>,
     /// Build the other solver's basis in the foreground when toggled (headless runs: reproducible).
     pub blocking_builds: bool,
+    /// Headless images carry the overlay too (the window always draws it).
+    pub headless_overlay: bool,
 }
 
 /// A local replay: recording frames, the rig and one retargeter per solver.
@@ -169,6 +171,7 @@ pub struct Viewer {
     heat: bool,
     pose: bool,
     heat_scale: Option<f32>,
+    headless_overlay: bool,
     playing: bool,
     bounds: (Vec3, Vec3),
     shown_d: Vec<Vec3>,
@@ -223,6 +226,7 @@ impl Viewer {
             heat: options.heat,
             pose: options.pose,
             heat_scale: options.heat_scale,
+            headless_overlay: options.headless_overlay,
             playing: true,
             bounds,
             shown_d: Vec::new(),
@@ -684,6 +688,11 @@ impl Viewer {
             weights: &self.weights,
         };
         self.hud.build(&state, screen)
+    }
+
+    /// Whether headless images carry the overlay ([`Options::headless_overlay`]).
+    pub fn headless_overlay(&self) -> bool {
+        self.headless_overlay
     }
 
     /// The overlay last built by [`Viewer::build_overlay`].
