@@ -179,3 +179,78 @@ fn bad_arguments_are_explained() {
     let o = mimic(&["render", "recordings/a_affirmative.jsonl", "-o", "x"]);
     assert!(text(&o).1.contains("nothing to render"), "{}", text(&o).1);
 }
+
+#[test]
+fn the_legend_is_opt_in_and_only_touches_its_corner() {
+    if skip() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let shot = |legend: bool| {
+        let out = dir.path().join(if legend { "legend" } else { "plain" });
+        let mut a = vec![
+            "render",
+            "recordings/a_yn_question.jsonl",
+            "--rig",
+            "ict-face",
+            "--frames",
+            "300",
+            "--size",
+            "200x200",
+            "--heat",
+            "displacement",
+            "-o",
+            out.to_str().unwrap(),
+        ];
+        if legend {
+            a.push("--legend");
+        }
+        let o = mimic(&a);
+        assert!(o.status.success(), "{}", text(&o).1);
+        Image::load_png(&out.join("frame_000300.png")).unwrap()
+    };
+    let (plain, with) = (shot(false), shot(true));
+    // The legend's panel is at the bottom-right, within 8 pixels of the corner: scale 1 under
+    // 640 pixels, a ramp 30% of 200 = 60 high; its panel is at most 100 x 100 pixels.
+    let px = |img: &Image, x: u32, y: u32| {
+        let at = ((y * img.width + x) * 4) as usize;
+        [img.rgba[at], img.rgba[at + 1], img.rgba[at + 2]]
+    };
+    let mut changed = 0;
+    for y in 0..200 {
+        for x in 0..200 {
+            if px(&plain, x, y) != px(&with, x, y) {
+                changed += 1;
+                assert!(
+                    x >= 100 && y >= 100,
+                    "({x}, {y}) changed outside the corner"
+                );
+            }
+        }
+    }
+    assert!(changed > 500, "{changed} pixels of legend");
+    // Down the middle of the ramp (16 wide, 4 in from the panel's right edge, which is 8 from
+    // the image's): its saturated pixels run from red-dominant at the top to blue at the bottom.
+    let x = 200 - 8 - 4 - 8;
+    let rows: Vec<u32> = (100..200)
+        .filter(|&y| {
+            let p = px(&with, x, y);
+            p.iter().max().unwrap() - p.iter().min().unwrap() > 100
+        })
+        .collect();
+    assert!(rows.len() >= 50, "{} ramp rows", rows.len());
+    let (top, bottom) = (px(&with, x, rows[0]), px(&with, x, rows[rows.len() - 1]));
+    assert!(top[0] > top[2] + 100, "top of the ramp {top:?}");
+    assert!(bottom[2] > bottom[0] + 80, "bottom of the ramp {bottom:?}");
+    // `--legend` wants a heat map.
+    let o = mimic(&[
+        "render",
+        "recordings/a_yn_question.jsonl",
+        "--frames",
+        "0",
+        "--legend",
+        "-o",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+}

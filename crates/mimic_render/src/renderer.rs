@@ -1,5 +1,6 @@
 //! The headless renderer: device, offscreen targets, pipelines, and the per-rig GPU buffers.
 
+use crate::overlay::{Overlay, OverlayPass};
 use crate::texture::Level;
 use crate::{Camera, Image, RenderError};
 use glam::{Mat4, Quat, Vec3};
@@ -183,6 +184,7 @@ pub struct Renderer {
     normals: wgpu::ComputePipeline,
     draw: wgpu::RenderPipeline,
     sampler: wgpu::Sampler,
+    overlay: OverlayPass,
 }
 
 fn vec4s(v: &[Vec3], w: f32) -> Vec<[f32; 4]> {
@@ -305,6 +307,7 @@ impl Renderer {
             source: wgpu::ShaderSource::Wgsl(
                 concat!(
                     include_str!("shaders/frame.wgsl"),
+                    include_str!("shaders/ramp.wgsl"),
                     include_str!("shaders/render.wgsl")
                 )
                 .into(),
@@ -374,7 +377,9 @@ impl Renderer {
             mipmap_filter: wgpu::MipmapFilterMode::Linear,
             ..Default::default()
         });
+        let overlay = OverlayPass::new(&device, format);
         Ok(Self {
+            overlay,
             device,
             queue,
             adapter: format!("{} ({:?}, {:?})", info.name, info.device_type, info.backend),
@@ -942,9 +947,29 @@ impl Renderer {
         deform: Deform<'_>,
         view: &View,
     ) -> Result<Image, RenderError> {
+        self.render_with(rig, deform, view, None)
+    }
+
+    /// [`Renderer::render`] with `overlay` (text, legend, bars) composited over the mesh.
+    pub fn render_with(
+        &self,
+        rig: &RigGpu,
+        deform: Deform<'_>,
+        view: &View,
+        overlay: Option<&Overlay>,
+    ) -> Result<Image, RenderError> {
         let mut encoder = self.device.create_command_encoder(&Default::default());
         self.deform_into(rig, deform, Some(view), &mut encoder)?;
         self.draw_pass(rig, view, &self.resolve_view, &mut encoder);
+        if let Some(o) = overlay {
+            self.overlay.encode(
+                &self.queue,
+                o,
+                self.size(),
+                &self.resolve_view,
+                &mut encoder,
+            );
+        }
         encoder.copy_texture_to_buffer(
             wgpu::TexelCopyTextureInfo {
                 texture: &self.resolve,
@@ -998,9 +1023,25 @@ impl Renderer {
         view: &View,
         target: &wgpu::TextureView,
     ) -> Result<(), RenderError> {
+        self.draw_to_with(rig, deform, view, target, None)
+    }
+
+    /// [`Renderer::draw_to`] with `overlay` composited over the mesh.
+    pub fn draw_to_with(
+        &self,
+        rig: &RigGpu,
+        deform: Deform<'_>,
+        view: &View,
+        target: &wgpu::TextureView,
+        overlay: Option<&Overlay>,
+    ) -> Result<(), RenderError> {
         let mut encoder = self.device.create_command_encoder(&Default::default());
         self.deform_into(rig, deform, Some(view), &mut encoder)?;
         self.draw_pass(rig, view, target, &mut encoder);
+        if let Some(o) = overlay {
+            self.overlay
+                .encode(&self.queue, o, self.size(), target, &mut encoder);
+        }
         self.queue.submit([encoder.finish()]);
         Ok(())
     }
@@ -1008,6 +1049,15 @@ impl Renderer {
     /// Clears `target` (a view like [`Renderer::draw_to`]'s) to the lit view's background and
     /// submits: what a window shows while it has nothing to draw.
     pub fn clear_to(&self, target: &wgpu::TextureView) -> Result<(), RenderError> {
+        self.clear_to_with(target, None)
+    }
+
+    /// [`Renderer::clear_to`] with `overlay` drawn on the background (e.g. a waiting message).
+    pub fn clear_to_with(
+        &self,
+        target: &wgpu::TextureView,
+        overlay: Option<&Overlay>,
+    ) -> Result<(), RenderError> {
         let [r, g, b, a] = View::lit(Camera::front(Vec3::ZERO, Vec3::ONE)).background;
         let mut encoder = self.device.create_command_encoder(&Default::default());
         encoder.begin_render_pass(&wgpu::RenderPassDescriptor {
@@ -1026,6 +1076,10 @@ impl Renderer {
             occlusion_query_set: None,
             multiview_mask: None,
         });
+        if let Some(o) = overlay {
+            self.overlay
+                .encode(&self.queue, o, self.size(), target, &mut encoder);
+        }
         self.queue.submit([encoder.finish()]);
         Ok(())
     }

@@ -39,6 +39,11 @@ impl Expressions {
         self.names.len()
     }
 
+    /// Names of the expressions on keys, key 1 first.
+    pub fn names(&self) -> &[String] {
+        &self.names
+    }
+
     /// Whether no expression is on a key.
     pub fn is_empty(&self) -> bool {
         self.names.is_empty()

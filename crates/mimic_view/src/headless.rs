@@ -28,7 +28,8 @@ pub struct HeadlessReport {
 /// Runs the viewer's loop for `frames` images (local), or until `frames` live frames were drawn or
 /// the connection closed (live, polling every `poll`): at iteration k (from 1) the k-th of `keys`
 /// is applied first. `step` is the simulated time between iterations of a local replay; a live
-/// run also stops after `give_up` of wall time.
+/// run also stops after `give_up` of wall time. With [`crate::Options::headless_overlay`] the
+/// images carry what the window draws over the head (readout, legend, weights, help; [`crate::hud`]).
 pub fn run_headless(
     viewer: &mut Viewer,
     renderer: &Renderer,
@@ -38,6 +39,7 @@ pub fn run_headless(
     live: bool,
     give_up: Duration,
 ) -> Result<HeadlessReport, ViewError> {
+    let overlay = viewer.headless_overlay();
     let (w, h) = renderer.size();
     let aspect = w as f32 / h as f32;
     let start = Instant::now();
@@ -73,8 +75,12 @@ pub fn run_headless(
             std::thread::sleep(Duration::from_millis(2));
             continue;
         }
+        if overlay {
+            viewer.build_overlay((w, h));
+        }
         if let Some((rig, deform, view)) = viewer.scene(aspect) {
-            image = Some(renderer.render(rig, deform, &view)?);
+            let drawn_over = overlay.then(|| viewer.overlay());
+            image = Some(renderer.render_with(rig, deform, &view, drawn_over)?);
             drawn += 1;
             viewer.presented();
         }

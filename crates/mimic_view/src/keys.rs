@@ -21,6 +21,12 @@ pub enum Action {
     ResetCamera,
     /// Blend the rig's morph target on this number key (0: key 1) in or out.
     Expression(usize),
+    /// The key help on screen, or not.
+    ToggleHelp,
+    /// The morph-target weights as bars, or not.
+    ToggleWeights,
+    /// The heat map's colour legend, or not.
+    ToggleLegend,
     /// Close the window.
     Quit,
 }
@@ -41,6 +47,14 @@ pub const BINDINGS: &[(&str, Action, &str)] = &[
     ("h", Action::ToggleHeat, "heat map of |P - P0| on / off"),
     ("p", Action::TogglePose, "head rotation on / off"),
     ("r", Action::ResetCamera, "reset the camera"),
+    (
+        "w",
+        Action::ToggleWeights,
+        "morph-target weights as bars on / off",
+    ),
+    ("l", Action::ToggleLegend, "heat map colour legend on / off"),
+    ("?", Action::ToggleHelp, "this key help on / off (also F1)"),
+    ("f1", Action::ToggleHelp, ""),
     ("1", Action::Expression(0), "morph target 1 in / out"),
     ("2", Action::Expression(1), "morph target 2 in / out"),
     ("3", Action::Expression(2), "morph target 3 in / out"),
@@ -65,7 +79,10 @@ Keys and mouse:
   h                heat map of |P - P0|    p            head rotation on / off
   r                reset the camera        q, esc       quit
   1 - 9            blend the rig's morph targets 1-9 in / out (eased over 0.25 s; local replay)
-Title bar: rig, solver, frame, fps, latency (local: step to present; --connect: arrival to present).";
+  w                weights as bars         l            heat map legend on / off
+  ?, F1            this help on screen
+On screen and in the title bar: rig, solver, frame, fps, latency (local: step to present;
+--connect: arrival to present), the last frame's state.";
 
 /// Name of a key in [`BINDINGS`]: a named key in lower case, or the character typed.
 fn key_name(key: &Key) -> Option<String> {
@@ -77,6 +94,7 @@ fn key_name(key: &Key) -> Option<String> {
         Key::Named(NamedKey::PageDown) => Some("pagedown".into()),
         Key::Named(NamedKey::Home) => Some("home".into()),
         Key::Named(NamedKey::Escape) => Some("escape".into()),
+        Key::Named(NamedKey::F1) => Some("f1".into()),
         Key::Character(c) => Some(c.to_lowercase()),
         _ => None,
     }
@@ -127,6 +145,18 @@ mod tests {
             action_for(&Key::Character(SmolStr::new("3"))),
             Some(Action::Expression(2))
         );
+        assert_eq!(
+            action_for(&Key::Character(SmolStr::new("?"))),
+            Some(Action::ToggleHelp)
+        );
+        assert_eq!(
+            action_for(&Key::Named(NamedKey::F1)),
+            Some(Action::ToggleHelp)
+        );
+        assert_eq!(
+            action_for(&Key::Character(SmolStr::new("W"))),
+            Some(Action::ToggleWeights)
+        );
         assert_eq!(action_for(&Key::Character(SmolStr::new("0"))), None);
         assert_eq!(action_for(&Key::Character(SmolStr::new("z"))), None);
         assert_eq!(action_for(&Key::Named(NamedKey::Tab)), None);
@@ -137,6 +167,7 @@ mod tests {
         for (key, _, what) in BINDINGS {
             let shown = match *key {
                 "escape" => "esc",
+                "f1" => "F1",
                 // The number keys are listed as one range.
                 k if k.len() == 1 && k.chars().all(|c| c.is_ascii_digit()) => "1 - 9",
                 k => k,

@@ -3,7 +3,7 @@
 //!
 //! The logic that needs no window lives in plain modules with unit tests: the orbit camera
 //! ([`orbit`]), the playback clock ([`playback`]), key bindings ([`keys`]), the fps and latency
-//! readout ([`readout`]), the newest-wins frame queue ([`latest`]), the live client ([`client`])
+//! readout ([`readout`]) and what is drawn over the head ([`hud`]), the newest-wins frame queue ([`latest`]), the live client ([`client`])
 //! and the viewer state ([`viewer`]). [`window`] is the winit event loop around it, and
 //! [`headless`] the same loop into an offscreen target (`mimic view --headless-frames N`).
 
@@ -11,6 +11,7 @@ pub mod client;
 mod error;
 pub mod expressions;
 pub mod headless;
+pub mod hud;
 pub mod keys;
 pub mod latest;
 pub mod look;

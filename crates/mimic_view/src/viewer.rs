@@ -5,13 +5,14 @@
 use crate::ViewError;
 use crate::client::{Event, Live};
 use crate::expressions::{Expressions, extend_basis};
+use crate::hud::{Hud, HudState, status_label};
 use crate::keys::Action;
 use crate::look::{Look, LookFor, upload_with_look};
 use crate::orbit::Orbit;
 use crate::playback::Playback;
 use crate::readout::{Readout, Status, write_title};
 use glam::{Mat4, Quat, Vec3};
-use mimic_render::{Deform, Renderer, RigGpu, Shading, View};
+use mimic_render::{Deform, Overlay, Renderer, RigGpu, Shading, View};
 use mimic_retarget::{FrameOutput, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
 use mimic_types::{LandmarkFrame, Layout, MorphTarget, Rig, SolverKind, SolverSettings};
@@ -29,6 +30,8 @@ pub struct Options {
     pub heat_scale: Option<f32>,
     /// Build the other solver's basis in the foreground when toggled (headless runs: reproducible).
     pub blocking_builds: bool,
+    /// Headless images carry the overlay too (the window always draws it).
+    pub headless_overlay: bool,
 }
 
 /// A local replay: recording frames, the rig and one retargeter per solver.
@@ -70,6 +73,8 @@ struct Slot {
     /// `d` of every frame stepped so far, frame-major (`frames x m`).
     history: Vec<Vec3>,
     rotations: Vec<Quat>,
+    /// Each stepped frame's state: its FRAME status byte, or 4 for a frame the gate held.
+    states: Vec<u8>,
     stepped: usize,
 }
 
@@ -83,6 +88,7 @@ impl Slot {
             gpu: None,
             history: Vec::new(),
             rotations: Vec::new(),
+            states: Vec::new(),
             stepped: 0,
         }
     }
@@ -92,6 +98,7 @@ impl Slot {
         self.output = Some(retargeter.new_output());
         self.history = vec![Vec3::ZERO; frames * m];
         self.rotations = vec![Quat::IDENTITY; frames];
+        self.states = vec![0; frames];
         self.retargeter = Some(retargeter);
     }
 
@@ -108,6 +115,13 @@ impl Slot {
             r.step(&frames[k], out);
             self.history[k * m..(k + 1) * m].copy_from_slice(&out.displacements);
             self.rotations[k] = out.target_rotation;
+            let gated = out.status == mimic_retarget::FrameStatus::Tracked
+                && r.gate_reading().reason.is_some();
+            self.states[k] = if gated {
+                4
+            } else {
+                mimic_wire::status_byte(out.status)
+            };
             self.stepped += 1;
         }
         stepped
@@ -157,6 +171,7 @@ pub struct Viewer {
     heat: bool,
     pose: bool,
     heat_scale: Option<f32>,
+    headless_overlay: bool,
     playing: bool,
     bounds: (Vec3, Vec3),
     shown_d: Vec<Vec3>,
@@ -175,6 +190,16 @@ pub struct Viewer {
     quit: bool,
     /// The shown data must be refreshed even if the frame did not change (solver switched).
     dirty: bool,
+    /// What is drawn over the head, and its toggles.
+    hud: Hud,
+    /// The shown frame's state, for the readout.
+    state: Option<&'static str>,
+    /// The rig's length unit (the legend's labels).
+    units: String,
+    /// Morph targets whose weights are known (the number keys', or a weights session's).
+    weight_names: Vec<String>,
+    /// Their weights now.
+    weights: Vec<f32>,
 }
 
 fn bounds_of(points: &[Vec3]) -> (Vec3, Vec3) {
@@ -201,6 +226,7 @@ impl Viewer {
             heat: options.heat,
             pose: options.pose,
             heat_scale: options.heat_scale,
+            headless_overlay: options.headless_overlay,
             playing: true,
             bounds,
             shown_d: Vec::new(),
@@ -216,6 +242,11 @@ impl Viewer {
             note: String::new(),
             quit: false,
             dirty: true,
+            hud: Hud::new(),
+            state: None,
+            units: String::new(),
+            weight_names: Vec::new(),
+            weights: Vec::new(),
         }
     }
 
@@ -235,6 +266,7 @@ impl Viewer {
         setup.expressions.retain(|t| t.vertex_count() == n);
         setup.expressions.truncate(crate::expressions::MAX_KEYS);
         let names: Vec<String> = setup.expressions.iter().map(|t| t.name.clone()).collect();
+        let units = setup.rig.units.clone();
         let local = Local {
             clock: Playback::new(&times),
             slots: [first, Slot::new(setup.other)],
@@ -249,6 +281,9 @@ impl Viewer {
         };
         let mut viewer = Self::with_source(Source::Local(Box::new(local)), bounds, options);
         viewer.expressions = Expressions::new(names);
+        viewer.weight_names = viewer.expressions.names().to_vec();
+        viewer.weights = vec![0.0; viewer.weight_names.len()];
+        viewer.units = units;
         Ok(viewer)
     }
 
@@ -357,6 +392,9 @@ impl Viewer {
                     self.note = format!("no morph target on key {}", k + 1);
                 }
             }
+            Action::ToggleHelp => self.hud.show_help = !self.hud.show_help,
+            Action::ToggleWeights => self.hud.show_weights = !self.hud.show_weights,
+            Action::ToggleLegend => self.hud.show_legend = !self.hud.show_legend,
             Action::Quit => self.quit = true,
         }
         Ok(())
@@ -475,6 +513,7 @@ impl Viewer {
                     self.shown_d.clear();
                     self.shown_d.extend_from_slice(d);
                     self.shown_rotation = slot.rotations[frame];
+                    self.state = slot.states.get(frame).map(|&b| status_label(b));
                     self.shown_frame = frame as u64;
                     self.fresh_since = Some(started);
                     self.new_frames += 1;
@@ -482,6 +521,9 @@ impl Viewer {
                 }
                 self.playing = l.clock.playing();
                 self.expressions.extend_d(&self.shown_d, &mut self.drawn_d);
+                for (k, w) in self.weights.iter_mut().enumerate() {
+                    *w = self.expressions.eased(k);
+                }
             }
             Source::Live(s) => {
                 while let Ok(event) = s.live.events.try_recv() {
@@ -508,6 +550,19 @@ impl Viewer {
                             )?;
                             let (lo, hi) = bounds_of(&msg.rest);
                             self.bounds = (lo, hi);
+                            self.units = msg.meta["units"].as_str().unwrap_or("").to_string();
+                            // A weights session's d holds w_k along each axis (three columns
+                            // per target, mimic_solve::morph_basis): its weights are known.
+                            self.weight_names.clear();
+                            if msg.meta["mode"] == "weights"
+                                && let Some(names) = msg.meta["targets"].as_array()
+                                && names.len() * 3 == msg.controls
+                            {
+                                self.weight_names
+                                    .extend(names.iter().map(|n| n.as_str().unwrap_or("?").into()));
+                            }
+                            self.weights.clear();
+                            self.weights.resize(self.weight_names.len(), 0.0);
                             self.shown_d.clear();
                             self.shown_d.resize(msg.controls, Vec3::ZERO);
                             self.shown_rotation = Quat::IDENTITY;
@@ -550,6 +605,10 @@ impl Viewer {
                     self.shown_d.copy_from_slice(&a.frame.displacements);
                     self.shown_rotation = a.frame.target_rotation;
                     self.shown_frame = a.frame.seq;
+                    self.state = Some(status_label(a.frame.status));
+                    for (w, d) in self.weights.iter_mut().zip(self.shown_d.chunks_exact(3)) {
+                        *w = d[0].x;
+                    }
                     self.fresh_since = Some(a.at);
                     self.new_frames += 1;
                     if self.note.starts_with("waiting") || self.note.starts_with("session ended") {
@@ -584,7 +643,7 @@ impl Viewer {
         let mut view = View::lit(camera);
         if self.heat {
             view.shading = Shading::Displacement {
-                full_scale: self.heat_scale.unwrap_or(0.05 * (hi - lo).length()),
+                full_scale: self.full_scale(lo, hi),
             };
         }
         if self.pose {
@@ -593,6 +652,63 @@ impl Viewer {
             view.model = Mat4::IDENTITY;
         }
         Some((gpu, Deform::Controls(&self.drawn_d), view))
+    }
+
+    /// Rebuilds what is drawn over the head for a `screen` (width, height) image: the readout, the
+    /// waiting message, the legend, the weights and the key help ([`crate::hud`]).
+    pub fn build_overlay(&mut self, screen: (u32, u32)) -> &Overlay {
+        let (rig, count): (&str, Option<usize>) = match &self.source {
+            Source::Local(l) => (&l.rig.name, Some(l.frames.len())),
+            Source::Live(s) => (s.rig.as_ref().map_or("-", |r| r.name.as_str()), None),
+        };
+        let session = match &self.source {
+            Source::Local(_) => None,
+            Source::Live(s) => Some(s.session.as_str()),
+        };
+        let heat = self.heat.then(|| {
+            let (lo, hi) = match &self.source {
+                Source::Live(s) => s.rig.as_ref().map_or(self.bounds, |r| (r.lo, r.hi)),
+                Source::Local(_) => self.bounds,
+            };
+            self.full_scale(lo, hi)
+        });
+        let state = HudState {
+            rig,
+            solver: self.solver(),
+            session,
+            frame: (self.shown_frame, count),
+            playing: self.playing,
+            figures: self.readout.shown,
+            state: self.state,
+            note: &self.note,
+            idle: self.idle(),
+            heat,
+            units: &self.units,
+            weight_names: &self.weight_names,
+            weights: &self.weights,
+        };
+        self.hud.build(&state, screen)
+    }
+
+    /// Whether headless images carry the overlay ([`Options::headless_overlay`]).
+    pub fn headless_overlay(&self) -> bool {
+        self.headless_overlay
+    }
+
+    /// The overlay last built by [`Viewer::build_overlay`].
+    pub fn overlay(&self) -> &Overlay {
+        self.hud.overlay()
+    }
+
+    /// The morph targets whose weights are known and their weights now (the bars of `w`).
+    pub fn weights(&self) -> (&[String], &[f32]) {
+        (&self.weight_names, &self.weights)
+    }
+
+    /// The heat map's hottest displacement for a rig spanning `lo..hi`: `--heat-scale`, else 5%
+    /// of its diagonal.
+    fn full_scale(&self, lo: Vec3, hi: Vec3) -> f32 {
+        self.heat_scale.unwrap_or(0.05 * (hi - lo).length())
     }
 
     /// Records a presented frame; returns the new window title when the readout refreshed.

@@ -114,12 +114,16 @@ impl App {
             ..Default::default()
         });
         let (w, h) = gpu.renderer.size();
+        self.viewer.build_overlay((w, h));
         if let Some((rig, deform, view)) = self.viewer.scene(w as f32 / h as f32) {
-            gpu.renderer.draw_to(rig, deform, &view, &target)?;
+            let overlay = Some(self.viewer.overlay());
+            gpu.renderer
+                .draw_to_with(rig, deform, &view, &target, overlay)?;
         } else {
-            // Nothing to draw yet: the background, and the note (waiting for session X on ADDR)
-            // in the title and on stderr, once per change.
-            gpu.renderer.clear_to(&target)?;
+            // Nothing to draw yet: the background with the note (waiting for session X on ADDR)
+            // in the middle, and in the title and on stderr, once per change.
+            gpu.renderer
+                .clear_to_with(&target, Some(self.viewer.overlay()))?;
             let title = self.viewer.title().to_string();
             gpu.window.set_title(&title);
         }

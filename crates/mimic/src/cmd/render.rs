@@ -4,7 +4,8 @@ use crate::cmd::setup::{PipelineArgs, RigArgs, parse_size, prepare_with, rig_loo
 use anyhow::{Context, bail};
 use glam::Vec3;
 use mimic_capture::RecordingReader;
-use mimic_render::{Camera, Deform, Image, Renderer, Shading, View};
+use mimic_render::overlay::legend_ticks;
+use mimic_render::{Camera, Deform, Image, Overlay, Renderer, Shading, View};
 use mimic_retarget::RetargetSettings;
 use mimic_types::ControlName;
 use std::path::{Path, PathBuf};
@@ -40,6 +41,9 @@ pub struct Args {
     /// Displacement shown hottest by `--heat displacement`, rig units (default: 5% of the rig's diagonal).
     #[arg(long)]
     pub heat_scale: Option<f32>,
+    /// With --heat: draw the colour legend (the ramp with its scale) in the bottom-right corner.
+    #[arg(long, requires = "heat")]
+    pub legend: bool,
     /// Turn the head by the performer's head rotation.
     #[arg(long)]
     pub pose: bool,
@@ -50,6 +54,25 @@ pub struct Args {
     /// Skin colour everywhere instead of the mesh's material colours (teeth, gums, eyes, lashes).
     #[arg(long)]
     pub no_materials: bool,
+}
+
+/// The colour legend of `shading` for a `size` image, labelled in the rig's `units`.
+fn legend(shading: Shading, units: &str, size: (u32, u32)) -> Overlay {
+    let (title, full) = match shading {
+        Shading::Displacement { full_scale } => ("|P - P0|", Some(full_scale)),
+        Shading::ControlWeight { .. } => ("weight", None),
+        Shading::Lit => return Overlay::new(),
+    };
+    let mut o = Overlay::new();
+    let scale = mimic_view::hud::text_scale(size);
+    o.legend(
+        size,
+        mimic_view::hud::MARGIN,
+        scale,
+        title,
+        &legend_ticks(full, units),
+    );
+    o
 }
 
 /// Frames to render for a sheet of `n` out of `total`: evenly spread, first and last included.
@@ -116,6 +139,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let pivot = (lo + hi) * 0.5;
     let mut view = View::lit(Camera::front(lo, hi));
     view.shading = shading;
+    let overlay = args
+        .legend
+        .then(|| legend(shading, &rig.units, (width, height)));
 
     // Read the accepted frames (a sheet needs the count first; recordings are small).
     reader.expect_points(prepared.layout.point_count)?;
@@ -159,7 +185,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             glam::Mat4::IDENTITY
         };
         let d: &[Vec3] = &out.displacements;
-        let image = renderer.render(&gpu, Deform::Controls(d), &view)?;
+        let image = renderer.render_with(&gpu, Deform::Controls(d), &view, overlay.as_ref())?;
         if args.sheet.is_some() {
             let mut plot = Image::filled(width, height, [236, 236, 232, 255]);
             let controls: Vec<usize> = prepared

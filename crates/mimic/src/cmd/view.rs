@@ -63,6 +63,10 @@ pub struct Args {
     /// With --headless-frames: write the last image here (PNG).
     #[arg(long, requires = "headless_frames")]
     pub headless_out: Option<PathBuf>,
+    /// With --headless-frames: draw what the window draws over the head into the images too
+    /// (readout, heat map legend, weights, key help); off, the images are the head alone.
+    #[arg(long, requires = "headless_frames")]
+    pub headless_overlay: bool,
     /// With --headless-frames and --connect: give up after this many seconds.
     #[arg(long, default_value_t = 60.0, requires = "headless_frames")]
     pub headless_timeout: f64,
@@ -84,6 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         heat: args.heat,
         heat_scale: args.heat_scale,
         blocking_builds: args.headless_frames.is_some(),
+        headless_overlay: args.headless_overlay,
     };
     let mut viewer = match &args.connect {
         Some(addr) => {

@@ -1,7 +1,8 @@
 // Draws the morphed rig, not indexed: corner c of the draw is vertex triangles[c] of the morphed
 // positions and normals; applies the head pose and the camera, and shades with diffuse + ambient
 // light (over the vertex albedo or the corner's texture) or a heat map.
-// `Frame` and its uniform at binding 0 are declared in frame.wgsl, which is prepended.
+// `Frame` and its uniform at binding 0 are declared in frame.wgsl, and `ramp` (the heat map's
+// colours) in ramp.wgsl, both prepended.
 
 @group(0) @binding(1) var<storage, read> rest: array<vec4<f32>>;
 @group(0) @binding(2) var<storage, read> basis: array<f32>;
@@ -53,22 +54,6 @@ fn vs_main(@builtin(vertex_index) c: u32) -> VsOut {
     out.uv = corner.xy;
     out.layer = i32(round(corner.z));
     return out;
-}
-
-// Piecewise-linear blue -> cyan -> green -> yellow -> red ramp over [0, 1].
-fn ramp(t: f32) -> vec3<f32> {
-    let x = clamp(t, 0.0, 1.0) * 4.0;
-    let k = min(floor(x), 3.0);
-    let f = x - k;
-    var stops = array<vec3<f32>, 5>(
-        vec3<f32>(0.05, 0.10, 0.60),
-        vec3<f32>(0.00, 0.65, 0.90),
-        vec3<f32>(0.15, 0.80, 0.25),
-        vec3<f32>(0.98, 0.85, 0.10),
-        vec3<f32>(0.85, 0.08, 0.05),
-    );
-    let ki = u32(k);
-    return mix(stops[ki], stops[ki + 1u], f);
 }
 
 @fragment
