@@ -151,6 +151,7 @@ fn ab(
         "floor: read f16 deform bytes",
     ];
     let mut t: [Vec<u32>; 9] = Default::default();
+    let mut f16_max = 0f32;
     for k in 0..steps {
         for (w, (rt, out)) in steppers.iter_mut().enumerate() {
             let src = &frames[k % frames.len()];
@@ -163,6 +164,11 @@ fn ab(
                 t[w].push(ns);
                 stage_samples[w].push(ns, &out.times);
             }
+        }
+        // How far the f16 weights move the mesh (rig units), untimed.
+        let [(_, a), (_, b)] = &steppers;
+        for (p, q) in a.positions.iter().zip(&b.positions) {
+            f16_max = f16_max.max((*p - *q).abs().max_element());
         }
         let mut time = |k: usize, f: &mut dyn FnMut()| {
             let s = Instant::now();
@@ -206,6 +212,7 @@ fn ab(
     for (what, mut v) in names.iter().zip(t) {
         eprintln!("  {what:<32} {:>8.2} us", median_p99_us(&mut v).0);
     }
+    eprintln!("  f16 against f32 weights: largest coordinate difference {f16_max:e} (rig units)");
     for (what, s) in ["f32", "f16"].iter().zip(&mut stage_samples) {
         let (stages, _) = s.summary();
         eprintln!(
