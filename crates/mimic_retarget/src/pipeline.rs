@@ -39,6 +39,9 @@ pub enum RetargetError {
     /// A given neutral frame does not fit the layout or lacks controls.
     #[error("neutral frame: {0}")]
     BadNeutral(String),
+    /// f16 weights were asked for ([`RetargetSettings::f16_weights`]) and the basis does not fit them.
+    #[error("f16 weights: {0}")]
+    F16Weights(mimic_solve::SolveError),
 }
 
 /// Stages of a step, in order, for per-stage timing.
@@ -265,6 +268,8 @@ impl Retargeter {
             layout: layout.clone(),
             patch: if settings.positions {
                 MovingPatch::new(&basis, &rig.mesh.triangles, &rig.mesh.positions)
+                    .with_f16_weights(settings.f16_weights)
+                    .map_err(RetargetError::F16Weights)?
             } else {
                 // No positions: an empty patch, so no per-retargeter copy of the moving rows.
                 let empty = Basis::from_row_major(0, m, Vec::new())

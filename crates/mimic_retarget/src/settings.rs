@@ -33,6 +33,10 @@ pub struct RetargetSettings {
     /// control displacements `d` (for viewers that evaluate the morph themselves); `positions`
     /// keep the rest mesh and normals are not updated.
     pub positions: bool,
+    /// Store the deform's weights as binary16 (half the bytes read per frame; F16C converts them
+    /// in registers): each coordinate then moves by at most `sum_j (2^-11 |B_ij| + 2^-25) |d_j|`
+    /// from the f32 weights' (`docs/performance.md`, issue #21). Off by default.
+    pub f16_weights: bool,
     /// A control whose displacement, scaled to the target, exceeds this fraction of the RMS radius
     /// of the rig's controls is an outlier (e.g. a depth sample that hit the background): it is
     /// held like a missing control.
@@ -56,6 +60,7 @@ impl Default for RetargetSettings {
             lost_ease_secs: 0.5,
             normals: true,
             positions: true,
+            f16_weights: false,
             outlier_fraction: 0.8,
             stable_trim: 3.0,
             gate: GateSettings::default(),

@@ -15,8 +15,13 @@
 //!
 //! The sums are the same fused multiply-add chains as [`Basis::apply`]'s (ascending control
 //! index, zero weights skipped), so the positions are bit-for-bit those of `rest + B d`.
+//!
+//! Opt-in, [`MovingDeform::with_f16_weights`] stores the weights as IEEE binary16 (half the
+//! bytes read per frame), converted to f32 in registers (F16C): the same sums over the rounded
+//! weights, so each coordinate moves by at most `sum_j (2^-11 |B_ij| + 2^-25) |d_j|` from the
+//! f32 weights' result (plus the f32 rounding of both).
 
-use crate::Basis;
+use crate::{Basis, SolveError};
 use glam::{Vec3, Vec3A};
 
 /// Rows per block: 3 AVX registers of f32.
@@ -46,6 +51,9 @@ pub struct MovingDeform {
     /// Per block, its first mesh vertex when its `BLOCK` rows are consecutive vertices, else
     /// [`SCATTERED`].
     runs: Vec<u32>,
+    /// `values` rounded to binary16 (bits), read instead of `values` when not empty
+    /// ([`MovingDeform::with_f16_weights`]).
+    half: Vec<u16>,
 }
 
 impl MovingDeform {
@@ -102,6 +110,48 @@ impl MovingDeform {
             values,
             rest: rest_blocked,
             runs,
+            half: Vec::new(),
+        }
+    }
+
+    /// The same deform with its weights stored as IEEE binary16 (rounded to nearest), read by
+    /// every later call instead of the f32 ones: half the weight bytes per frame, each
+    /// coordinate within `sum_j (2^-11 |B_ij| + 2^-25) |d_j|` of the f32 weights' result (the
+    /// rounding of each weight, relative 2^-11 or absolute 2^-25 below f16's normal range),
+    /// plus the f32 rounding of both sums.
+    ///
+    /// # Errors
+    /// [`SolveError::F16Range`] if a weight's magnitude exceeds f16's largest value (65 504).
+    pub fn with_f16_weights(mut self) -> Result<Self, SolveError> {
+        let max = f32::from(half::f16::MAX);
+        if let Some(k) = self.values.iter().position(|w| w.abs() > max) {
+            let (col, r) = (k / BLOCK, k % BLOCK);
+            let block = self.starts.partition_point(|&s| s as usize <= col) - 1;
+            return Err(SolveError::F16Range {
+                vertex: self.rows[block * BLOCK + r],
+                control: self.cols[col],
+                weight: self.values[k],
+            });
+        }
+        self.half = self
+            .values
+            .iter()
+            .map(|&w| half::f16::from_f32(w).to_bits())
+            .collect();
+        Ok(self)
+    }
+
+    /// Whether the weights are read as binary16 ([`MovingDeform::with_f16_weights`]).
+    pub fn f16_weights(&self) -> bool {
+        !self.half.is_empty()
+    }
+
+    /// Kept weight `k` (over all blocks' kept columns) of row `r` of its block, as the kernels
+    /// read it: f32, or its binary16 rounding.
+    fn weight(&self, k: usize, r: usize) -> f32 {
+        match self.half.get(k * BLOCK + r) {
+            Some(&h) => f32::from(half::f16::from_bits(h)),
+            None => self.values[k * BLOCK + r],
         }
     }
 
@@ -125,9 +175,11 @@ impl MovingDeform {
         self.cols.len() as f64 / all as f64
     }
 
-    /// Bytes the kernel reads per call: the kept weights and the rest positions.
+    /// Bytes the kernel reads per call: the kept weights (4 or 2 bytes each) and the rest
+    /// positions.
     pub fn bytes_read(&self) -> usize {
-        (self.values.len() + self.rest.len()) * 4
+        let weight = if self.f16_weights() { 2 } else { 4 };
+        self.values.len() * weight + self.rest.len() * 4
     }
 
     /// `compact[k] = positions[rows()[k]] = rest + (B d)` for every moving row `k`; other
@@ -154,10 +206,17 @@ impl MovingDeform {
         );
         let compact = &mut compact[..self.rows.len()];
         #[cfg(target_arch = "x86_64")]
-        if crate::basis::avx2_fma() {
-            // SAFETY: AVX2 and FMA are checked just above; the shapes are asserted above and
-            // the blocked arrays were built for these rows and controls.
-            unsafe { self.deform_avx2(d, compact, positions) };
+        if avx2_fma_f16c() {
+            // SAFETY: AVX2, FMA and F16C are checked just above; the shapes are asserted above
+            // and the blocked arrays (and `half`, when not empty) were built for these rows and
+            // controls.
+            unsafe {
+                if self.f16_weights() {
+                    self.deform_avx2::<true>(d, compact, positions);
+                } else {
+                    self.deform_avx2::<false>(d, compact, positions);
+                }
+            }
             return;
         }
         self.deform_portable(d, compact, positions);
@@ -188,10 +247,15 @@ impl MovingDeform {
         );
         let compact = &mut compact[..3 * self.rows.len()];
         #[cfg(target_arch = "x86_64")]
-        if crate::basis::avx2_fma() {
-            // SAFETY: AVX2 and FMA are checked just above; the shapes are asserted above and
-            // the blocked arrays were built for these rows and controls.
-            unsafe { self.deform_packed_avx2(d, compact, positions) };
+        if avx2_fma_f16c() {
+            // SAFETY: as in `deform`.
+            unsafe {
+                if self.f16_weights() {
+                    self.deform_packed_avx2::<true>(d, compact, positions);
+                } else {
+                    self.deform_packed_avx2::<false>(d, compact, positions);
+                }
+            }
             return;
         }
         for (b, out) in compact.chunks_mut(3 * BLOCK).enumerate() {
@@ -200,8 +264,7 @@ impl MovingDeform {
             for (r, o) in out.chunks_exact_mut(3).enumerate() {
                 let mut u = Vec3A::ZERO;
                 for (k, &j) in self.cols[kept.clone()].iter().enumerate() {
-                    let w = self.values[(kept.start + k) * BLOCK + r];
-                    u += Vec3A::from(d[j as usize]) * w;
+                    u += Vec3A::from(d[j as usize]) * self.weight(kept.start + k, r);
                 }
                 let p = Vec3A::new(rest[r], rest[BLOCK + r], rest[2 * BLOCK + r]) + u;
                 o.copy_from_slice(&p.to_array());
@@ -210,7 +273,8 @@ impl MovingDeform {
         }
     }
 
-    /// [`MovingDeform::deform`] on any CPU: the same blocked sums, one row at a time.
+    /// [`MovingDeform::deform`] on any CPU: the same blocked sums (over the weights as
+    /// [`MovingDeform::weight`] reads them), one row at a time.
     fn deform_portable(&self, d: &[Vec3], compact: &mut [Vec3A], positions: &mut [Vec3]) {
         for (b, out) in compact.chunks_mut(BLOCK).enumerate() {
             let kept = self.starts[b] as usize..self.starts[b + 1] as usize;
@@ -218,8 +282,7 @@ impl MovingDeform {
             for (r, o) in out.iter_mut().enumerate() {
                 let mut u = Vec3A::ZERO;
                 for (k, &j) in self.cols[kept.clone()].iter().enumerate() {
-                    let w = self.values[(kept.start + k) * BLOCK + r];
-                    u += Vec3A::from(d[j as usize]) * w;
+                    u += Vec3A::from(d[j as usize]) * self.weight(kept.start + k, r);
                 }
                 let rest = Vec3A::new(rest[r], rest[BLOCK + r], rest[2 * BLOCK + r]);
                 *o = rest + u;
@@ -236,8 +299,13 @@ impl MovingDeform {
     /// The CPU must support AVX2 and FMA; `compact.len() == rows.len()`, `positions.len() >=
     /// vertex_count` and `d.len() == control_count`.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn deform_avx2(&self, d: &[Vec3], compact: &mut [Vec3A], positions: &mut [Vec3]) {
+    #[target_feature(enable = "avx2,fma,f16c")]
+    unsafe fn deform_avx2<const HALF: bool>(
+        &self,
+        d: &[Vec3],
+        compact: &mut [Vec3A],
+        positions: &mut [Vec3],
+    ) {
         const L: usize = 8;
         let mut spare = [Vec3A::ZERO; BLOCK];
         let dp = d.as_ptr().cast::<f32>();
@@ -249,7 +317,7 @@ impl MovingDeform {
                 spare.as_mut_ptr().cast()
             };
             let kept = self.starts[b] as usize..self.starts[b + 1] as usize;
-            let values = &self.values[kept.start * BLOCK..kept.end * BLOCK];
+            let weights = self.block_weights::<HALF>(kept.clone());
             let cols = &self.cols[kept];
             let rest = &self.rest[b * 3 * BLOCK..][..3 * BLOCK];
             // SAFETY: `values` holds BLOCK weights per kept column; each kept column is <
@@ -257,7 +325,7 @@ impl MovingDeform {
             // `rest` holds 3 * BLOCK values (`block_rows`' contract); `dst` points at BLOCK Vec3A (the block's compact rows when full,
             // else `spare`); a run's 24 positions lie below vertex_count <= positions.len().
             unsafe {
-                let rows = block_rows(values, cols, dp, rest);
+                let rows = block_rows::<HALF>(weights, cols, dp, rest);
                 let run = self.runs[b];
                 for (g, &[x, y, z]) in rows.iter().enumerate() {
                     store_vec3a8(dst.add(g * 4 * L), x, y, z);
@@ -280,6 +348,21 @@ impl MovingDeform {
 }
 
 impl MovingDeform {
+    /// The kept columns `kept` of a block as the AVX2 kernels read them: `BLOCK` f32 (or, with
+    /// `HALF`, binary16) weights per column, from the start of the first.
+    #[cfg(target_arch = "x86_64")]
+    fn block_weights<const HALF: bool>(&self, kept: std::ops::Range<usize>) -> *const u8 {
+        if HALF {
+            self.half[kept.start * BLOCK..kept.end * BLOCK]
+                .as_ptr()
+                .cast()
+        } else {
+            self.values[kept.start * BLOCK..kept.end * BLOCK]
+                .as_ptr()
+                .cast()
+        }
+    }
+
     /// [`MovingDeform::deform_packed`] with AVX2 + FMA: [`MovingDeform::deform_avx2`]'s sums, the
     /// rows stored packed (x, y, z) to `compact` and, for a run of consecutive vertices, the same
     /// three registers to `positions`.
@@ -288,8 +371,13 @@ impl MovingDeform {
     /// The CPU must support AVX2 and FMA; `compact.len() == 3 * rows.len()`, `positions.len() >=
     /// vertex_count` and `d.len() == control_count`.
     #[cfg(target_arch = "x86_64")]
-    #[target_feature(enable = "avx2,fma")]
-    unsafe fn deform_packed_avx2(&self, d: &[Vec3], compact: &mut [f32], positions: &mut [Vec3]) {
+    #[target_feature(enable = "avx2,fma,f16c")]
+    unsafe fn deform_packed_avx2<const HALF: bool>(
+        &self,
+        d: &[Vec3],
+        compact: &mut [f32],
+        positions: &mut [Vec3],
+    ) {
         const L: usize = 8;
         let mut spare = [0f32; 3 * BLOCK];
         let dp = d.as_ptr().cast::<f32>();
@@ -301,13 +389,13 @@ impl MovingDeform {
                 spare.as_mut_ptr()
             };
             let kept = self.starts[b] as usize..self.starts[b + 1] as usize;
-            let values = &self.values[kept.start * BLOCK..kept.end * BLOCK];
+            let weights = self.block_weights::<HALF>(kept.clone());
             let cols = &self.cols[kept];
             let rest = &self.rest[b * 3 * BLOCK..][..3 * BLOCK];
             // SAFETY: as in `deform_avx2`; `dst` points at 3 * BLOCK floats (the block's packed
             // compact rows when full, else `spare`).
             unsafe {
-                let rows = block_rows(values, cols, dp, rest);
+                let rows = block_rows::<HALF>(weights, cols, dp, rest);
                 let run = self.runs[b];
                 for (g, &[x, y, z]) in rows.iter().enumerate() {
                     crate::basis::store_xyz8(dst.add(g * 3 * L), x, y, z);
@@ -329,34 +417,53 @@ impl MovingDeform {
     }
 }
 
+/// Whether this CPU runs [`MovingDeform`]'s AVX2 kernels (AVX2, FMA and F16C; every CPU with
+/// AVX2 has F16C).
+#[cfg(target_arch = "x86_64")]
+fn avx2_fma_f16c() -> bool {
+    crate::basis::avx2_fma() && std::arch::is_x86_feature_detected!("f16c")
+}
+
 /// One block's 24 rows of [`MovingDeform`]: `rest + sum_j B[., j] d_j` over the block's kept
-/// columns `cols` (BLOCK weights each in `values`), as x, y, z registers of its three groups of 8.
+/// columns `cols` (BLOCK weights each at `weights`: f32, or binary16 with `HALF`, converted
+/// exactly to f32 in registers), as x, y, z registers of its three groups of 8.
 ///
 /// # Safety
-/// The CPU must support AVX2 and FMA; `values.len() == BLOCK * cols.len()`, `rest.len() == 3 *
-/// BLOCK`, and `dp` points at `3 * (max(cols) + 1)` f32 (the controls' `Vec3`s).
+/// The CPU must support AVX2, FMA and F16C; `weights` points at `BLOCK * cols.len()` weights,
+/// `rest.len() == 3 * BLOCK`, and `dp` points at `3 * (max(cols) + 1)` f32 (the controls'
+/// `Vec3`s).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
+#[target_feature(enable = "avx2,fma,f16c")]
 #[inline]
-unsafe fn block_rows(
-    values: &[f32],
+unsafe fn block_rows<const HALF: bool>(
+    weights: *const u8,
     cols: &[u32],
     dp: *const f32,
     rest: &[f32],
 ) -> [[std::arch::x86_64::__m256; 3]; 3] {
     use std::arch::x86_64::*;
     const L: usize = 8;
-    // SAFETY: `values` holds BLOCK weights per column, read 24 at a time from `col`, which
-    // advances by BLOCK per column; `dp` reads 3 f32 per column below its bound; `rest` holds
-    // 3 * BLOCK values (caller).
+    let size = if HALF { 2 } else { 4 };
+    // 8 weights at `p` as f32.
+    // SAFETY (of the caller): p points at 8 readable weights.
+    let load = |p: *const u8| unsafe {
+        if HALF {
+            _mm256_cvtph_ps(_mm_loadu_si128(p.cast()))
+        } else {
+            _mm256_loadu_ps(p.cast())
+        }
+    };
+    // SAFETY: `weights` holds BLOCK weights per column, read 24 at a time from `col`, which
+    // advances by BLOCK weights per column; `dp` reads 3 f32 per column below its bound; `rest`
+    // holds 3 * BLOCK values (caller).
     unsafe {
-        let mut col = values.as_ptr();
+        let mut col = weights;
         let mut acc = [_mm256_setzero_ps(); 9];
         for &j in cols {
             let c = [
-                _mm256_loadu_ps(col),
-                _mm256_loadu_ps(col.add(L)),
-                _mm256_loadu_ps(col.add(2 * L)),
+                load(col),
+                load(col.add(L * size)),
+                load(col.add(2 * L * size)),
             ];
             let dj = dp.add(3 * j as usize);
             let dv = [
@@ -369,7 +476,7 @@ unsafe fn block_rows(
                     acc[3 * g + a] = _mm256_fmadd_ps(c[g], dv[a], acc[3 * g + a]);
                 }
             }
-            col = col.add(BLOCK);
+            col = col.add(BLOCK * size);
         }
         let rp = rest.as_ptr();
         [0, 1, 2].map(|g| {
@@ -384,7 +491,7 @@ unsafe fn block_rows(
 /// # Safety
 /// The CPU must support AVX2; `dst` must be valid for writing 32 f32.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
+#[target_feature(enable = "avx2,fma,f16c")]
 unsafe fn store_vec3a8(
     dst: *mut f32,
     x: std::arch::x86_64::__m256,
@@ -411,146 +518,4 @@ unsafe fn store_vec3a8(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use mimic_testkit::lcg;
-
-    /// A basis in bands of rows with their own supports (like face regions), frozen rows
-    /// between, rows of different bands interleaved so the sort has work to do.
-    fn banded(n: usize, m: usize, seed: &mut u64) -> Vec<f32> {
-        (0..n * m)
-            .map(|k| {
-                let (i, j) = (k / m, k % m);
-                let w = lcg(seed);
-                match i % 5 {
-                    0 if j < m / 3 => w,
-                    1 | 3 if j >= m / 3 && j < 2 * m / 3 + 1 => w,
-                    4 if j >= m / 2 || j == 1 => w,
-                    _ => 0.0,
-                }
-            })
-            .collect()
-    }
-
-    #[test]
-    fn deform_equals_rest_plus_apply_bit_for_bit() {
-        let mut seed = 11u64;
-        for &(n, m) in &[
-            (1usize, 1usize),
-            (23, 5),
-            (24, 38),
-            (70, 38),
-            (203, 38),
-            (61, 70),
-        ] {
-            let data = if m >= 5 {
-                banded(n, m, &mut seed)
-            } else {
-                (0..n * m).map(|_| lcg(&mut seed)).collect()
-            };
-            let basis = Basis::from_row_major(n, m, data).unwrap();
-            let rest: Vec<Vec3> = (0..n)
-                .map(|_| Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)) * 10.0)
-                .collect();
-            let d: Vec<Vec3> = (0..m)
-                .map(|_| Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)))
-                .collect();
-            let deform = MovingDeform::new(&basis, &rest);
-            let moving = basis.moving_rows(n);
-            let mut sorted = deform.rows().to_vec();
-            sorted.sort_unstable();
-            assert_eq!(sorted, moving.rows, "n={n} m={m}: the same moving rows");
-            let mut u = vec![Vec3::ZERO; n];
-            basis.apply(&d, &mut u);
-            let mut compact = vec![Vec3A::NAN; deform.rows().len()];
-            let mut positions = vec![Vec3::NAN; n];
-            deform.deform(&d, &mut compact, &mut positions);
-            for (k, &i) in deform.rows().iter().enumerate() {
-                let i = i as usize;
-                let want = Vec3::from(Vec3A::from(rest[i]) + Vec3A::from(u[i]));
-                if m <= 64 {
-                    // Same fused chains as Basis::apply (its AVX2 path, or both portable).
-                    #[cfg(target_arch = "x86_64")]
-                    if crate::basis::avx2_fma() {
-                        assert_eq!(positions[i], want, "n={n} m={m} row {i}");
-                    }
-                }
-                // Any path: within the f32 error of an m-term sum plus one add, m eps sum |w d|
-                // + eps |p|, bounded by (m + 1) eps (sum_j |B_ij| |d_j| + |rest_i|).
-                let bound: f32 = (0..m)
-                    .map(|j| basis.row(i)[j].abs() * d[j].abs().max_element())
-                    .sum::<f32>()
-                    + rest[i].abs().max_element();
-                let tol = (m + 2) as f32 * f32::EPSILON * bound;
-                assert!((positions[i] - want).abs().max_element() <= tol, "row {i}");
-                assert_eq!(Vec3::from(compact[k]), positions[i]);
-            }
-            // The packed variant: the same positions and compact rows, bit for bit.
-            let mut packed = vec![f32::NAN; 3 * deform.rows().len()];
-            let mut positions_p = vec![Vec3::NAN; n];
-            deform.deform_packed(&d, &mut packed, &mut positions_p);
-            for (k, &i) in deform.rows().iter().enumerate() {
-                assert_eq!(
-                    positions_p[i as usize], positions[i as usize],
-                    "packed row {i}"
-                );
-                assert_eq!(&packed[3 * k..3 * k + 3], &positions[i as usize].to_array());
-            }
-            // Frozen rows are left alone.
-            for (i, p) in positions.iter().enumerate() {
-                if basis.row(i).iter().all(|w| *w == 0.0) {
-                    assert!(p.is_nan());
-                }
-            }
-        }
-    }
-
-    #[test]
-    fn portable_path_matches() {
-        let (n, m) = (130usize, 38usize);
-        let mut seed = 5u64;
-        let basis = Basis::from_row_major(n, m, banded(n, m, &mut seed)).unwrap();
-        let rest: Vec<Vec3> = (0..n).map(|k| Vec3::splat(k as f32)).collect();
-        let d: Vec<Vec3> = (0..m)
-            .map(|_| Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)))
-            .collect();
-        let deform = MovingDeform::new(&basis, &rest);
-        let (mut ca, mut pa) = (vec![Vec3A::ZERO; deform.rows().len()], vec![Vec3::ZERO; n]);
-        let (mut cb, mut pb) = (ca.clone(), pa.clone());
-        deform.deform(&d, &mut ca, &mut pa);
-        deform.deform_portable(&d, &mut cb, &mut pb);
-        for i in 0..n {
-            // Same terms, fused or not: (m + 2) eps (sum |w d| + |rest|).
-            let bound: f32 = (0..m)
-                .map(|j| basis.row(i)[j].abs() * d[j].abs().max_element())
-                .sum::<f32>()
-                + rest[i].abs().max_element();
-            let tol = 2.0 * (m + 2) as f32 * f32::EPSILON * bound;
-            assert!((pa[i] - pb[i]).abs().max_element() <= tol, "row {i}");
-        }
-    }
-
-    #[test]
-    fn support_order_keeps_fewer_columns_than_index_order() {
-        // Interleaved bands: blocks in index order keep the union of three supports.
-        let (n, m) = (480usize, 38usize);
-        let mut seed = 9u64;
-        let basis = Basis::from_row_major(n, m, banded(n, m, &mut seed)).unwrap();
-        let deform = MovingDeform::new(&basis, &vec![Vec3::ZERO; n]);
-        let rows = basis.moving_rows(n).rows;
-        let index_order_kept = rows
-            .chunks(BLOCK)
-            .map(|b| {
-                (0..m)
-                    .filter(|&j| b.iter().any(|&i| basis.row(i as usize)[j] != 0.0))
-                    .count()
-            })
-            .sum::<usize>();
-        assert!(
-            (deform.cols.len() as f64) < 0.7 * index_order_kept as f64,
-            "{} vs {index_order_kept}",
-            deform.cols.len()
-        );
-        assert!(deform.kept_fraction() > 0.0 && deform.kept_fraction() < 1.0);
-    }
-}
+mod tests;

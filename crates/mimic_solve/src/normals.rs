@@ -34,8 +34,53 @@ pub fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]], out: &mut [Vec
     }
 }
 
-/// Vertices gathered together by [`VertexFans`]: one AVX register of f32 lanes.
-const GROUP: usize = 8;
+#[cfg(target_arch = "x86_64")]
+mod avx512;
+
+/// Vertices gathered together by [`VertexFans`]: one AVX-512 register of f32 lanes (two AVX
+/// registers on the AVX2 path).
+const GROUP: usize = 16;
+
+/// Lanes of one AVX register of f32: the AVX2 path runs a group as two halves of this many.
+#[cfg(target_arch = "x86_64")]
+const HALF: usize = 8;
+
+/// Which fan kernel [`VertexFans::normals_packed_by`] runs (benchmarks and tests; the other
+/// entry points pick [`FanKernel::best`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FanKernel {
+    /// One fan at a time, any CPU.
+    Portable,
+    /// 8 fans in the lanes of an AVX register (AVX2 + FMA).
+    Avx2,
+    /// 16 fans in the lanes of an AVX-512 register (AVX-512F).
+    Avx512,
+}
+
+impl FanKernel {
+    /// The fastest kernel this CPU runs (runtime-detected).
+    pub fn best() -> Self {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if crate::basis::avx2_fma() && std::arch::is_x86_feature_detected!("avx512f") {
+                return Self::Avx512;
+            }
+            if crate::basis::avx2_fma() {
+                return Self::Avx2;
+            }
+        }
+        Self::Portable
+    }
+
+    /// `self` where this CPU runs it, else the best kernel it runs ([`FanKernel::best`]).
+    pub fn available(self) -> Self {
+        let best = Self::best();
+        match (self, best) {
+            (Self::Portable, _) | (Self::Avx2, Self::Avx2 | Self::Avx512) => self,
+            _ => best,
+        }
+    }
+}
 
 /// Triangle fans around the first `count` vertices of a mesh, for gathering their area-weighted
 /// normals vertex by vertex (the same normals as [`vertex_normals`], up to f32 rounding).
@@ -49,16 +94,16 @@ const GROUP: usize = 8;
 /// joined by `v` itself, whose difference vector is zero and adds exactly nothing; the same
 /// padding evens out fan lengths.
 ///
-/// Fans are stored in groups of 8 vertices of (nearly) equal fan length, step-major (entry `l` of
-/// the 8 fans side by side), so that [`VertexFans::normals`] can run the 8 fans in the lanes of
-/// one AVX register, with no data-dependent branch inside a group.
+/// Fans are stored in groups of 16 vertices of (nearly) equal fan length, step-major (entry `l`
+/// of the 16 fans side by side), so that [`VertexFans::normals`] can run the 16 fans in the lanes
+/// of one AVX-512 register (or of two AVX registers), with no data-dependent branch inside a group.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct VertexFans {
-    /// Per group: first entry in `entries`, steps (entries per lane), lanes in use (1..=8).
+    /// Per group: first entry in `entries`, steps (entries per lane), lanes in use (1..=16).
     groups: Vec<[u32; 3]>,
-    /// 8 centre vertices per group (unused lanes repeat the first).
+    /// 16 centre vertices per group (unused lanes repeat the first).
     centres: Vec<u32>,
-    /// Per group, `steps * 8` neighbours, step-major.
+    /// Per group, `steps * 16` neighbours, step-major.
     entries: Vec<u32>,
     /// Vertices with a fan.
     count: usize,
@@ -124,8 +169,9 @@ impl VertexFans {
     /// Calls `write(v, normal)` once for every vertex `v < count()` (in no particular order) with
     /// its normalised area-weighted normal, zero where the sum has no finite, non-zero length
     /// (as `normalize_or_zero`; the vectorised path also gives zero for sums whose squared length
-    /// is subnormal, below 1.2e-38); allocates nothing. 8 fans at a time with AVX2 + FMA where the
-    /// CPU has them, else one by one.
+    /// is subnormal, below 1.2e-38); allocates nothing. 16 fans at a time with AVX-512F, 8 with
+    /// AVX2 + FMA where the CPU has them (the same sums bit for bit; each normalised by a
+    /// Newton-refined reciprocal square root, within 4 eps), else one by one.
     ///
     /// # Panics
     /// If `positions.len() < position_count()`.
@@ -137,12 +183,16 @@ impl VertexFans {
             self.position_count
         );
         #[cfg(target_arch = "x86_64")]
-        if crate::basis::avx2_fma() {
-            // SAFETY: AVX2 and FMA are checked just above; every centre and entry is below
-            // position_count <= positions.len() (asserted), each a 16-byte Vec3A at 4 floats a
-            // vertex, and each group's entries lie in `entries` by construction.
-            unsafe { self.normals_avx2::<false, 4>(positions.as_ptr().cast(), &mut write) };
-            return;
+        {
+            let p = positions.as_ptr().cast::<f32>();
+            // SAFETY: the kernel's CPU features are checked by `best`; every centre and entry is
+            // below position_count <= positions.len() (asserted), each a 16-byte Vec3A at 4
+            // floats a vertex, and each group's entries lie in `entries` by construction.
+            match FanKernel::best() {
+                FanKernel::Avx512 => return unsafe { self.normals_avx512::<4>(p, &mut write) },
+                FanKernel::Avx2 => return unsafe { self.normals_avx2::<false, 4>(p, &mut write) },
+                FanKernel::Portable => {}
+            }
         }
         self.normals_portable(positions, &mut write);
     }
@@ -155,7 +205,21 @@ impl VertexFans {
     ///
     /// # Panics
     /// If `positions.len() < 3 * position_count() + 1`.
-    pub fn normals_packed(&self, positions: &[f32], mut write: impl FnMut(usize, Vec3)) {
+    pub fn normals_packed(&self, positions: &[f32], write: impl FnMut(usize, Vec3)) {
+        self.normals_packed_by(FanKernel::best(), positions, write);
+    }
+
+    /// [`VertexFans::normals_packed`] by a given kernel ([`FanKernel::available`]: the best one
+    /// the CPU runs where it lacks `kernel`), for A/B comparisons and tests.
+    ///
+    /// # Panics
+    /// As [`VertexFans::normals_packed`].
+    pub fn normals_packed_by(
+        &self,
+        kernel: FanKernel,
+        positions: &[f32],
+        mut write: impl FnMut(usize, Vec3),
+    ) {
         assert!(
             positions.len() > 3 * self.position_count,
             "VertexFans::normals_packed: {} floats, fans name {} positions (3 floats each and 1 of padding)",
@@ -163,13 +227,17 @@ impl VertexFans {
             self.position_count
         );
         #[cfg(target_arch = "x86_64")]
-        if crate::basis::avx2_fma() {
+        {
             let p = positions.as_ptr();
-            // SAFETY: AVX2 and FMA are checked just above; every centre and entry v is below
-            // position_count, and the 4 floats at 3 v lie within positions (asserted: 3
-            // position_count + 1 floats); each group's entries lie in `entries` by construction.
-            unsafe { self.normals_avx2::<false, 3>(p, &mut write) };
-            return;
+            // SAFETY: the kernel's CPU features are checked by `available`; every centre and
+            // entry v is below position_count, and the 4 floats at 3 v lie within positions
+            // (asserted: 3 position_count + 1 floats); each group's entries lie in `entries` by
+            // construction.
+            match kernel.available() {
+                FanKernel::Avx512 => return unsafe { self.normals_avx512::<3>(p, &mut write) },
+                FanKernel::Avx2 => return unsafe { self.normals_avx2::<false, 3>(p, &mut write) },
+                FanKernel::Portable => {}
+            }
         }
         self.normals_packed_portable(positions, &mut write);
     }
@@ -222,7 +290,8 @@ impl VertexFans {
         }
     }
 
-    /// [`VertexFans::normals`] with the 8 fans of a group in the lanes of AVX registers: per step,
+    /// [`VertexFans::normals`] with the fans of a group, 8 at a time (each half of the group), in
+    /// the lanes of AVX registers: per step,
     /// 8 neighbour loads transposed to x, y, z registers, 8 cross products, one vector square root
     /// and division per group for the normalisation.
     ///
@@ -273,17 +342,26 @@ impl VertexFans {
                 )
             }
         };
-        let mut normals = [Vec3A::ZERO; GROUP];
-        for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
-            let centre = &self.centres[g * GROUP..][..GROUP];
+        let mut normals = [Vec3A::ZERO; HALF];
+        // Each group of 16 as two halves of 8 lanes (the second only where it has lanes in use).
+        let halves = self
+            .groups
+            .iter()
+            .enumerate()
+            .flat_map(|(g, &[first, steps, lanes])| {
+                (0..(lanes as usize).div_ceil(HALF)).map(move |h| (g, first, steps, lanes, h))
+            });
+        for (g, first, steps, lanes, h) in halves {
+            let centre = &self.centres[g * GROUP + h * HALF..][..HALF];
             let entries = &self.entries[first as usize..][..steps as usize * GROUP];
+            let lanes = (lanes as usize - h * HALF).min(HALF);
             let (px, py, pz) = load8(centre);
             let (mut sx, mut sy, mut sz) = (
                 _mm256_setzero_ps(),
                 _mm256_setzero_ps(),
                 _mm256_setzero_ps(),
             );
-            let mut steps = entries.chunks_exact(GROUP);
+            let mut steps = entries.chunks_exact(GROUP).map(|e| &e[h * HALF..][..HALF]);
             if let Some(e0) = steps.next() {
                 let (qx, qy, qz) = load8(e0);
                 let (mut ax, mut ay, mut az) = (
@@ -342,7 +420,7 @@ impl VertexFans {
                 _mm256_storeu2_m128(out.add(24), out.add(8), _mm256_shuffle_ps::<0x44>(t1, t3));
                 _mm256_storeu2_m128(out.add(28), out.add(12), _mm256_shuffle_ps::<0xEE>(t1, t3));
             }
-            for (&v, n) in centre.iter().zip(&normals).take(lanes as usize) {
+            for (&v, n) in centre.iter().zip(&normals).take(lanes) {
                 write(v as usize, Vec3::from(*n));
             }
         }
@@ -504,6 +582,42 @@ mod tests {
         fans.normals_packed(&packed, |v, n| from_packed[v] = n);
         let mut packed_portable = vec![Vec3::NAN; count];
         fans.normals_packed_portable(&packed, &mut |v, n| packed_portable[v] = n);
+        // Each kernel by name (the best one the CPU has where it lacks one): every vertex
+        // written once, each within the reference's bound below; the AVX-512 and AVX2 kernels
+        // sum the same terms in the same order, so they differ only by their normalisations,
+        // each within 4 eps relative plus the final product's eps / 2 per component: at most
+        // 9 eps per component of a unit normal.
+        let by_kernel = [FanKernel::Portable, FanKernel::Avx2, FanKernel::Avx512].map(|k| {
+            let mut out = vec![Vec3::NAN; count];
+            let mut seen = vec![0; count];
+            fans.normals_packed_by(k, &packed, |v, n| {
+                out[v] = n;
+                seen[v] += 1;
+            });
+            assert!(
+                seen.iter().all(|&c| c == 1),
+                "{k:?}: each vertex written once"
+            );
+            out
+        });
+        let [by_portable, by_avx2, by_avx512] = &by_kernel;
+        let tol = 9.0 * f32::EPSILON;
+        for v in 0..count {
+            let (a, b) = (by_avx512[v], by_avx2[v]);
+            assert!(
+                (a - b).abs().max_element() <= tol || (a.is_nan() && b.is_nan()),
+                "AVX-512 vs AVX2 v={v}: {a} vs {b}"
+            );
+            assert!(
+                (a == Vec3::ZERO) == (b == Vec3::ZERO),
+                "AVX-512 vs AVX2 zero v={v}: {a} vs {b}"
+            );
+            let (a, b) = (by_portable[v], portable[v]);
+            assert!(
+                a == b || (a.is_nan() && b.is_nan()),
+                "portable by name v={v}"
+            );
+        }
         for v in 0..count {
             let (a, b) = (packed_portable[v], portable[v]);
             assert!(
@@ -511,12 +625,16 @@ mod tests {
                 "packed portable v={v}: {a} vs {b}"
             );
         }
+        // The gathers are the AVX2 kernel's loads: its normals bit for bit; the packed positions
+        // (best kernel) give the Vec3A positions' (best kernel) bit for bit.
         for v in 0..count {
-            for (what, other) in [("gather", gathered[v]), ("packed", from_packed[v])] {
+            for (what, other, want) in [
+                ("gather", gathered[v], by_avx2[v]),
+                ("packed", from_packed[v], fast[v]),
+            ] {
                 assert!(
-                    other == fast[v] || (other.is_nan() && fast[v].is_nan()),
-                    "{what} v={v}: {other} vs {}",
-                    fast[v]
+                    other == want || (other.is_nan() && want.is_nan()),
+                    "{what} v={v}: {other} vs {want}"
                 );
             }
         }
@@ -526,6 +644,8 @@ mod tests {
                 ("fans", fast[v]),
                 ("portable", portable[v]),
                 ("face", face[v]),
+                ("avx2", by_avx2[v]),
+                ("avx512", by_avx512[v]),
             ] {
                 if tol.is_finite() && tol < 0.1 {
                     let err = (got.as_dvec3() - t).length();
@@ -615,6 +735,13 @@ mod tests {
         let mut out = [Vec3::ONE; 4];
         fans.normals_portable(&pa, &mut |v, n| out[v] = n);
         assert!(out.iter().all(|n| *n == Vec3::ZERO), "{out:?}");
+        let mut packed: Vec<f32> = p.iter().flat_map(|q| q.to_array()).collect();
+        packed.push(0.0);
+        for k in [FanKernel::Portable, FanKernel::Avx2, FanKernel::Avx512] {
+            let mut out = [Vec3::ONE; 4];
+            fans.normals_packed_by(k, &packed, |v, n| out[v] = n);
+            assert!(out.iter().all(|n| *n == Vec3::ZERO), "{k:?}: {out:?}");
+        }
         let none = VertexFans::new(0, 0, &[]);
         none.normals(&[], |_, _| unreachable!("no fans"));
     }
