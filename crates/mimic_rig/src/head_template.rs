@@ -120,9 +120,11 @@ pub struct FoundLandmarks {
 }
 
 impl FoundLandmarks {
-    /// Why the fit probably failed, if it looks so: the similarity covered less than half of
-    /// the template, the non-rigid fit matched less than 60% of it or left more than 0.03 IOD
-    /// RMS, or a landmark is more than 0.15 IOD from its vertex.
+    /// Why the fit probably failed, if it looks so: the similarity covered less than 30% of
+    /// the template, the non-rigid fit matched less than 35% of it or left more than 0.03 IOD
+    /// RMS, or a landmark is more than 0.25 IOD from its vertex (MediaPipe's face mask, fitted
+    /// well, gives 42%, 45%, 0.015 and 0.18: the mask is smaller than ICT's face area and
+    /// coarse).
     pub fn doubt(&self) -> Option<String> {
         let worst = self
             .landmark_distance
@@ -131,13 +133,13 @@ impl FoundLandmarks {
             .filter(|d| d.is_finite())
             .fold(0.0, f32::max);
         let mut why = Vec::new();
-        if self.rigid.coverage < 0.5 {
+        if self.rigid.coverage < 0.3 {
             why.push(format!(
                 "the similarity covers {:.0}% of the template's face",
                 100.0 * self.rigid.coverage
             ));
         }
-        if self.coverage < 0.6 {
+        if self.coverage < 0.35 {
             why.push(format!(
                 "the non-rigid fit matches {:.0}% of it",
                 100.0 * self.coverage
@@ -146,7 +148,7 @@ impl FoundLandmarks {
         if self.residual > 0.03 {
             why.push(format!("its residual is {:.3} IOD", self.residual));
         }
-        if worst > 0.15 {
+        if worst > 0.25 {
             why.push(format!("a landmark lies {worst:.3} IOD from its vertex"));
         }
         (!why.is_empty()).then(|| why.join(", "))
