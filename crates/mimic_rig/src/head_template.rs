@@ -318,8 +318,8 @@ pub fn find_landmarks(
         vertex: [None; IBUG_POINTS],
     };
     let mut landmark_distance = [f32::NAN; IBUG_POINTS];
-    for k in 0..IBUG_POINTS {
-        let Some(i) = nodes.landmark[k] else { continue };
+    for (k, node) in nodes.landmark.iter().enumerate() {
+        let Some(i) = *node else { continue };
         if let Some((v, d)) = nearest_allowed(
             fit.deformed[i],
             Some(nodes.normal[i]),
