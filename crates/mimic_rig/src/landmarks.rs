@@ -157,6 +157,18 @@ fn set(vertex: &mut [Option<u32>; IBUG_POINTS], n: u64, v: u64) -> Result<(), St
     Ok(())
 }
 
+/// The landmarks as the JSON object `--landmarks` reads: `{"0": 1225, "1": 1888, ...}`, keyed
+/// by 0-based iBUG number, unknown points left out, one point a line.
+pub fn landmarks_json(marks: &Landmarks) -> String {
+    let lines: Vec<String> = marks
+        .vertex
+        .iter()
+        .enumerate()
+        .filter_map(|(k, v)| v.map(|v| format!("  \"{k}\": {v}")))
+        .collect();
+    format!("{{\n{}\n}}\n", lines.join(",\n"))
+}
+
 /// The JSON forms; errors carry a 1-based line.
 fn parse_json(text: &str) -> Result<Landmarks, (usize, String)> {
     let value: serde_json::Value =
@@ -225,6 +237,20 @@ mod tests {
 
     fn parse(text: &str, base: LandmarkBase) -> Result<Landmarks, String> {
         parse_landmarks(Path::new("marks.txt"), text, base).map_err(|e| e.to_string())
+    }
+
+    #[test]
+    fn written_landmarks_read_back_the_same() {
+        let mut marks = Landmarks {
+            vertex: [None; IBUG_POINTS],
+        };
+        marks.vertex[0] = Some(1225);
+        marks.vertex[30] = Some(7);
+        marks.vertex[67] = Some(5966);
+        let text = landmarks_json(&marks);
+        assert!(text.starts_with("{\n  \"0\": 1225,\n"), "{text}");
+        let back = parse_landmarks(Path::new("m.json"), &text, LandmarkBase::One).unwrap();
+        assert_eq!(back, marks);
     }
 
     #[test]

@@ -1,12 +1,17 @@
 //! Rigs for any face mesh (docs/rigging.md): iBUG-68 landmark files, the face frame, the 38
 //! MPEG-4 controls placed by rules relative to the landmarks, frozen parts, regions and kernels
-//! in face units (`mimic rig new`), and the checks of `mimic rig check`.
+//! in face units (`mimic rig new`), landmarks found by registering a template head when none are
+//! given, and the checks of `mimic rig check`.
 
 pub mod check;
 pub mod frame;
 pub mod gltf_mesh;
+pub mod head_template;
+pub mod icp;
 pub mod landmarks;
+pub mod nearest;
 pub mod new;
+pub mod nonrigid;
 pub mod parts;
 pub mod picture;
 pub mod place;
@@ -15,7 +20,10 @@ pub mod write;
 
 pub use check::{Warning, check_rig};
 pub use frame::{FaceFrame, FramePoints};
-pub use landmarks::{IBUG_POINTS, LandmarkBase, Landmarks, load_landmarks, parse_landmarks};
+pub use head_template::{FindSettings, FoundLandmarks, TemplateHead, find_landmarks};
+pub use landmarks::{
+    IBUG_POINTS, LandmarkBase, Landmarks, landmarks_json, load_landmarks, parse_landmarks,
+};
 pub use new::{Defaults, GeneratedRig, guess_units, make_rig};
 pub use write::{relative_path, write_rig_toml};
 

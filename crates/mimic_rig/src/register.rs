@@ -176,22 +176,15 @@ pub fn register(
     let mut best: Vec<(usize, Option<(u32, f32)>)> = Vec::with_capacity(warped.len());
     for (i, w) in warped.iter().enumerate() {
         let facing = template.normals.get(i).map(|n| sim.rotation * *n);
-        let mut near: Option<(u32, f32)> = None;
-        for (v, p) in mesh.positions.iter().enumerate() {
-            if !allowed.get(v).copied().unwrap_or(false) {
-                continue;
-            }
-            if let Some(f) = facing
-                && f.dot(normals[v]) < settings.min_normal_dot
-            {
-                continue;
-            }
-            let d = p.distance_squared(*w);
-            if near.is_none_or(|(_, b)| d < b) {
-                near = Some((v as u32, d));
-            }
-        }
-        best.push((i, near.map(|(v, d)| (v, d.sqrt() / iod))));
+        let near = nearest_allowed(
+            *w,
+            facing,
+            &mesh.positions,
+            &normals,
+            allowed,
+            settings.min_normal_dot,
+        );
+        best.push((i, near.map(|(v, d)| (v, d / iod))));
     }
     let mut rejected = Vec::new();
     let mut owner: std::collections::HashMap<u32, (usize, f32)> = Default::default();
@@ -464,8 +457,38 @@ fn landmark_registration(rig: &Rig, marks: &Landmarks, allowed: &[bool]) -> Regi
     }
 }
 
+/// The nearest vertex to `w` among the `allowed` ones whose normal has a dot product of at
+/// least `min_dot` with `facing` (any normal without `facing`), and its distance: how a
+/// registered template point becomes a vertex (the normal test keeps lip points out of the
+/// mouth socket behind them).
+pub fn nearest_allowed(
+    w: Vec3,
+    facing: Option<Vec3>,
+    positions: &[Vec3],
+    normals: &[Vec3],
+    allowed: &[bool],
+    min_dot: f32,
+) -> Option<(u32, f32)> {
+    let mut near: Option<(u32, f32)> = None;
+    for (v, p) in positions.iter().enumerate() {
+        if !allowed.get(v).copied().unwrap_or(false) {
+            continue;
+        }
+        if let Some(f) = facing
+            && f.dot(normals.get(v).copied().unwrap_or(Vec3::ZERO)) < min_dot
+        {
+            continue;
+        }
+        let d = p.distance_squared(w);
+        if near.is_none_or(|(_, b)| d < b) {
+            near = Some((v as u32, d));
+        }
+    }
+    near.map(|(v, d)| (v, d.sqrt()))
+}
+
 /// Area-weighted unit vertex normals (zero for vertices in no triangle).
-fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
+pub fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]]) -> Vec<Vec3> {
     let mut n = vec![Vec3::ZERO; positions.len()];
     for t in triangles {
         let [a, b, c] = t.map(|v| v as usize);

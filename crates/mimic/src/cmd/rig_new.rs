@@ -1,7 +1,11 @@
 //! `mimic rig new`: a rig from a face mesh and its iBUG landmarks (logic in `mimic_rig`).
 
-use anyhow::{Context, bail};
-use mimic_rig::{Defaults, LandmarkBase, load_landmarks, make_rig, relative_path, write_rig_toml};
+use anyhow::Context;
+use mimic_rig::{
+    Defaults, FindSettings, LandmarkBase, Landmarks, TemplateHead, find_landmarks, landmarks_json,
+    load_landmarks, make_rig, relative_path, write_rig_toml,
+};
+use std::path::Path;
 use std::path::PathBuf;
 
 /// Arguments of `mimic rig new`.
@@ -14,9 +18,14 @@ pub struct Args {
     #[arg(short = 'o', long)]
     pub output: PathBuf,
     /// Which vertex carries each iBUG-68 point: a JSON object {"0": V, ...}, a JSON list of 68
-    /// vertices, or `N = V` lines.
+    /// vertices, or `N = V` lines. Without it they are found by registering the ICT head onto
+    /// the mesh (docs/rigging.md, "Without --landmarks").
     #[arg(long)]
     pub landmarks: Option<PathBuf>,
+    /// Write the landmarks the rig was made from (given or found) to this file, as the JSON
+    /// object `--landmarks` reads, to inspect and fix them.
+    #[arg(long)]
+    pub landmarks_out: Option<PathBuf>,
     /// Where the numbers of an `N = V` landmark file count from (both N and V).
     #[arg(long, default_value = "0", value_parser = parse_base)]
     pub landmark_base: LandmarkBase,
@@ -44,13 +53,22 @@ fn parse_base(s: &str) -> Result<LandmarkBase, String> {
 
 /// Runs `mimic rig new`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let Some(marks_path) = &args.landmarks else {
-        bail!(
-            "--landmarks is needed: finding the landmarks by registering a template head is not implemented yet (docs/rigging.md)"
-        );
-    };
     let mesh = mimic_rig::load_mesh(&args.mesh)?;
-    let marks = load_landmarks(marks_path, args.landmark_base)?;
+    let configs = mimic_assets::ConfigDirs::locate(None).root;
+    let (marks, marks_from) = match &args.landmarks {
+        Some(path) => (
+            load_landmarks(path, args.landmark_base)?,
+            path.display().to_string(),
+        ),
+        None => (
+            found_landmarks(&args.mesh, &mesh, &configs)?,
+            "landmarks found by template registration".to_string(),
+        ),
+    };
+    if let Some(out) = &args.landmarks_out {
+        std::fs::write(out, landmarks_json(&marks)).with_context(|| out.display().to_string())?;
+        eprintln!("wrote {} ({} landmarks)", out.display(), marks.count());
+    }
     let name = args.name.clone().unwrap_or_else(|| {
         args.output
             .file_stem()
@@ -65,7 +83,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.units.as_deref(),
         Defaults::default(),
     )
-    .with_context(|| format!("{}: {}", args.mesh.display(), marks_path.display()))?;
+    .with_context(|| format!("{}: {marks_from}", args.mesh.display()))?;
     let out_dir = args
         .output
         .parent()
@@ -93,7 +111,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(reg) = mimic_rig::register::apply_control_set(
         &mut loaded,
         &args.controls,
-        &mimic_assets::ConfigDirs::locate(None).root,
+        &configs,
         Some(&marks),
         &mimic_rig::register::RegisterSettings::default(),
     )
@@ -125,4 +143,38 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("warning: {w}");
     }
     Ok(())
+}
+
+/// The landmarks of `mesh` found by registering the ICT head onto it, with the fit on stderr.
+fn found_landmarks(
+    path: &Path,
+    mesh: &mimic_types::Mesh,
+    configs: &Path,
+) -> anyhow::Result<Landmarks> {
+    let template = TemplateHead::ict(configs).context("loading the ICT template head")?;
+    let found = find_landmarks(mesh, &template, &FindSettings::default())
+        .with_context(|| format!("{}: registering the ICT template head", path.display()))?;
+    let worst = found
+        .landmark_distance
+        .iter()
+        .copied()
+        .filter(|d| d.is_finite())
+        .fold(0.0, f32::max);
+    eprintln!(
+        "no --landmarks: registered the ICT head onto {} ({} nodes, best of {} starts: similarity covers {:.0}% at {:.3} IOD RMS; non-rigid fit covers {:.0}%, residual {:.3} IOD RMS; landmarks at most {worst:.3} IOD from their vertices); {} of 68 landmarks found (--landmarks-out writes them)",
+        path.display(),
+        found.nodes,
+        found.starts,
+        100.0 * found.rigid.coverage,
+        found.rigid.rms,
+        100.0 * found.coverage,
+        found.residual,
+        found.landmarks.count()
+    );
+    if let Some(why) = found.doubt() {
+        eprintln!(
+            "warning: the template registration probably failed ({why}): check the rig with `mimic rig check`, and give --landmarks (docs/rigging.md)"
+        );
+    }
+    Ok(found.landmarks)
 }
