@@ -108,7 +108,7 @@ impl Surface {
         }
     }
 
-    /// The nearest matchable vertex to `q` (among its [`CANDIDATES`] nearest) whose normal has
+    /// The nearest matchable vertex to `q` (among its 8 nearest) whose normal has
     /// a dot product of at least `min_dot` with `facing`, and the nearest point of its tangent
     /// plane to `q`.
     pub fn closest(&self, q: Vec3, facing: Vec3, min_dot: f32) -> Option<Match> {
