@@ -2,9 +2,9 @@
 // of its morphed position minus its rest position, computed in the vertex shader (patched into
 // the GLB's materials with onBeforeCompile) and lit as the skin is; the same ramp and default
 // full scale as `mimic view` and `mimic render --heat displacement`
-// (crates/mimic_render/src/shaders/render.wgsl's `ramp`), with a colour legend on screen.
+// (crates/mimic_render/src/shaders/ramp.wgsl's `ramp`, shared by render.wgsl), with a colour legend on screen.
 
-/** The ramp's stops, linear RGB, at 0, 1/4, 1/2, 3/4 and 1 (render.wgsl's `ramp`). */
+/** The ramp's stops, linear RGB, at 0, 1/4, 1/2, 3/4 and 1 (ramp.wgsl's `ramp`). */
 export const RAMP_STOPS = [
   [0.05, 0.1, 0.6],
   [0.0, 0.65, 0.9],

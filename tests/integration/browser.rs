@@ -375,7 +375,7 @@ fn the_keys_and_the_mouse_work(i: &Value, pixels: f64) {
         "h off did not restore the lit face: {i}"
     );
 
-    // The heat map: nearly every face pixel has a hue of render.wgsl's ramp (the pixel over its
+    // The heat map: nearly every face pixel has a hue of ramp.wgsl's ramp (the pixel over its
     // largest channel within 0.1 of the ramp's; measured: 99%), none of the lit shots does (the
     // skin's hue is 0.3 or more off the ramp); most of the head is still (the cold fifth of the
     // ramp: measured 84%) and the open jaw is hot (the top fifth: measured 6.5%).

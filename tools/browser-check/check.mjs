@@ -9,7 +9,7 @@
 //   node check.mjs --url ... --out DIR --frames N --interact
 //     the same, then with the stream paused (space, the frame held): key 1 in and out, h on and
 //     off, a mouse drag and r; pixel statistics of each screenshot in `interact` (the heat map's
-//     colours judged against the ramp of crates/mimic_render/src/shaders/render.wgsl)
+//     colours judged against the ramp of crates/mimic_render/src/shaders/ramp.wgsl)
 //   node check.mjs --url ... --out DIR --at-end [--compare render.png]
 //     waits for the session to end, takes one screenshot of its last frame and, with
 //     --compare, the mean absolute difference (per channel, 0-255) from PNG (e.g. `mimic
@@ -125,15 +125,15 @@ async function moving(page, report) {
 
 /**
  * The heat map's ramp as the native renderer defines it: the five stops of `ramp` in
- * crates/mimic_render/src/shaders/render.wgsl (the truth the page's colours are judged by).
+ * crates/mimic_render/src/shaders/ramp.wgsl (the truth the page's colours are judged by).
  */
 function wgslRampStops() {
   const here = dirname(fileURLToPath(import.meta.url));
-  const wgsl = readFileSync(join(here, '../../crates/mimic_render/src/shaders/render.wgsl'), 'utf8');
+  const wgsl = readFileSync(join(here, '../../crates/mimic_render/src/shaders/ramp.wgsl'), 'utf8');
   const body = wgsl.slice(wgsl.indexOf('fn ramp('));
   const stops = [...body.slice(0, body.indexOf('return')).matchAll(/vec3<f32>\(([-\d.]+),\s*([-\d.]+),\s*([-\d.]+)\)/g)]
     .map((m) => [Number(m[1]), Number(m[2]), Number(m[3])]);
-  if (stops.length !== 5) throw new Error(`render.wgsl's ramp has ${stops.length} stops, 5 expected`);
+  if (stops.length !== 5) throw new Error(`ramp.wgsl's ramp has ${stops.length} stops, 5 expected`);
   return stops;
 }
 
