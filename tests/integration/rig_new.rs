@@ -142,6 +142,45 @@ fn generated_ict_rig_matches_the_hand_rig_and_ignores_a_similarity() {
             "{shape}: ratio {a} on the shipped head, {b} scaled, turned and moved"
         );
     }
+
+    // The same moved head without `--landmarks`: the ICT template registered onto it finds
+    // the landmarks (written by --landmarks-out), and the rig scores as the one from the list.
+    let found = d.join("found.toml");
+    let found_marks = d.join("found.landmarks.json");
+    let o = mimic(&[
+        "rig",
+        "new",
+        moved_dir.join("neutral.obj").to_str().unwrap(),
+        "-o",
+        found.to_str().unwrap(),
+        "--units",
+        "mm",
+        "--landmarks-out",
+        found_marks.to_str().unwrap(),
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    assert!(stderr.contains("68 of 68 landmarks found"), "{stderr}");
+    assert!(!stderr.contains("probably failed"), "{stderr}");
+    let read = |p: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let (given, got) = (
+        read(&repo().join("configs/rigs/ict-face.landmarks.json")),
+        read(&found_marks),
+    );
+    // The list is the 68 vertices in iBUG order; the found file an object keyed by number.
+    let same = (0..68)
+        .filter(|&k| given[k].as_u64().is_some() && given[k] == got[k.to_string().as_str()])
+        .count();
+    assert!(same >= 60, "{same} of 68 landmarks on the listed vertex");
+    let (found_ratios, _) = eval(&found, &moved_shapes);
+    for ((shape, a), b) in SHAPES.iter().zip(&ratios).zip(&found_ratios) {
+        assert!(
+            (a - b).abs() <= 0.01 * a,
+            "{shape}: ratio {a} from the landmark list, {b} from the found landmarks"
+        );
+    }
 }
 
 /// Writes a rig on the ICT mesh built from `controls` (`fdp`, `vertex`, `region`) with `units`.
