@@ -9,7 +9,7 @@ use crate::loopback::{
     Serve, connect_from, frame_lines, header_with_session, read_json_line, read_message, viewer,
 };
 use mimic_stream::wire::ViewerMessage;
-use std::io::{BufReader, Write};
+use std::io::{BufRead, BufReader, Read, Write};
 use std::time::{Duration, Instant};
 
 #[test]
@@ -24,7 +24,20 @@ fn four_hundred_sockets_from_one_peer_do_not_lock_out_another_peer() {
     // The first 64 are admitted and wait; every later one is answered with the reason and
     // closed. The server accepts in order, so once the last one has its answer all 400 have
     // been seen (the stats then come through the stats slots: this peer is at its share).
-    match read_message(&mut held[399]) {
+    // A viewer gets it as a viewer ERROR message; on a starved machine (the browser test's
+    // Chromium on both cores) the server may not have read the hello within its wait and answers
+    // with the error line instead (seen once in a cold CI run): the same code and message.
+    let mut first = [0u8; 1];
+    held[399].read_exact(&mut first).unwrap();
+    let reply = if first[0] == b'{' {
+        let mut rest = String::new();
+        BufReader::new(&mut held[399]).read_line(&mut rest).unwrap();
+        let e: serde_json::Value = serde_json::from_str(&format!("{{{rest}")).unwrap();
+        Some(ViewerMessage::Error(e))
+    } else {
+        read_message(&mut (&first[..]).chain(&mut held[399]))
+    };
+    match reply {
         Some(ViewerMessage::Error(e)) => {
             assert_eq!(e["code"], "too_many_connections");
             assert!(
