@@ -347,38 +347,16 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
     let (mut stream, reader) = connect(&args.to, None)?;
     stream.write_all(format!("{hello}\n").as_bytes())?;
     let pace = Pacer::new(args.speed, args.fast);
-    let mut sent = 0usize;
-    let mut write_failed = None;
     let first_t = lines.first().map_or(0, |(t, _)| *t);
     let last_t = lines.last().map_or(0, |(t, _)| *t);
-    // `--loop`: each pass again, its times shifted past the previous pass by one frame interval
-    // (the mean of the CSV's, else 1 / --rate), so the server never sees a repeated time.
+    // `--loop` shifts each pass by one frame interval: the mean of the CSV's, else 1 / --rate.
     let gap = if lines.len() >= 2 {
         ((last_t - first_t) / (lines.len() as i64 - 1)).max(1)
     } else {
         (1e6 / args.rate).round().max(1.0) as i64
     };
-    let mut offset = 0i64;
-    'passes: loop {
-        for (t, weights) in &lines {
-            let t_us = t.saturating_add(offset);
-            pace.wait(t_us.saturating_sub(first_t));
-            let mut line = serde_json::json!({"t_us": t_us, "weights": weights}).to_string();
-            line.push('\n');
-            if let Err(e) = stream.write_all(line.as_bytes()) {
-                write_failed = Some(anyhow::Error::from(e).context("sending a weight frame"));
-                break 'passes;
-            }
-            sent += 1;
-            if args.max_frames.is_some_and(|m| sent >= m) {
-                break 'passes;
-            }
-        }
-        if !args.looping || lines.is_empty() {
-            break;
-        }
-        offset = offset.saturating_add(last_t - first_t + gap);
-    }
+    let (sent, _, write_failed) =
+        send_weight_frames(&mut stream, &pace, args, &lines, first_t, gap);
     let _ = stream.shutdown(Shutdown::Write);
     stream.set_read_timeout(Some(Duration::from_secs(10)))?;
     let bye = reader.join().ok().flatten();
@@ -394,6 +372,46 @@ fn send_weights(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
         None => {}
     }
     ended_early(write_failed, bye.as_ref())
+}
+
+/// Sends weight frames (`t_us`, `weights`) paced from `origin_us`, again and again under
+/// `--loop` (each pass's times shifted past the previous pass by `gap_us`, so none is late),
+/// up to `--max-frames`; returns the frames sent, the last frame's due time (s) and the write
+/// error that stopped it, if any.
+fn send_weight_frames(
+    stream: &mut TcpStream,
+    pace: &Pacer,
+    args: &Args,
+    frames: &[(i64, serde_json::Map<String, Value>)],
+    origin_us: i64,
+    gap_us: i64,
+) -> (usize, f64, Option<anyhow::Error>) {
+    use std::io::Write;
+    let span = match (frames.first(), frames.last()) {
+        (Some(a), Some(b)) => b.0 - a.0,
+        _ => 0,
+    };
+    let (mut sent, mut last_due, mut offset) = (0usize, 0.0f64, 0i64);
+    loop {
+        for (t, weights) in frames {
+            let t_us = t.saturating_add(offset);
+            last_due = pace.wait(t_us.saturating_sub(origin_us));
+            let mut line = serde_json::json!({"t_us": t_us, "weights": weights}).to_string();
+            line.push('\n');
+            if let Err(e) = stream.write_all(line.as_bytes()) {
+                let e = anyhow::Error::from(e).context("sending a weight frame");
+                return (sent, last_due, Some(e));
+            }
+            sent += 1;
+            if args.max_frames.is_some_and(|m| sent >= m) {
+                return (sent, last_due, None);
+            }
+        }
+        if !args.looping || frames.is_empty() {
+            return (sent, last_due, None);
+        }
+        offset = offset.saturating_add(span + gap_us);
+    }
 }
 
 /// Whether a weights CSV is a Live Link Face take (`Timecode` and `BlendShapeCount` columns).
@@ -458,38 +476,21 @@ fn send_take(args: &Args, csv: &std::path::Path) -> anyhow::Result<()> {
         );
     }
     let pace = Pacer::new(args.speed, args.fast);
-    let mut sent = 0usize;
-    let mut last_due = 0.0f64;
-    let mut write_failed = None;
-    // `--loop`: each pass shifted past the previous one by one frame of the take's rate.
-    let first_t = tw.frames.first().map_or(0, |f| f.1);
-    let last_t = tw.frames.last().map_or(0, |f| f.1);
-    let gap = (1e6 / rate).round().max(1.0) as i64;
-    let mut offset = 0i64;
-    'passes: loop {
-        for (_, t, w) in &tw.frames {
-            let t_us = t.saturating_add(offset);
-            last_due = pace.wait(t_us);
-            let weights: serde_json::Map<String, Value> = kept
+    let frames: WeightRows = tw
+        .frames
+        .iter()
+        .map(|(_, t, w)| {
+            let weights = kept
                 .iter()
                 .map(|&k| (tw.targets[k].clone(), Value::from(f64::from(w[k]))))
                 .collect();
-            let mut line = serde_json::json!({"t_us": t_us, "weights": weights}).to_string();
-            line.push('\n');
-            if let Err(e) = stream.write_all(line.as_bytes()) {
-                write_failed = Some(anyhow::Error::from(e).context("sending a weight frame"));
-                break 'passes;
-            }
-            sent += 1;
-            if args.max_frames.is_some_and(|m| sent >= m) {
-                break 'passes;
-            }
-        }
-        if !args.looping || tw.frames.is_empty() {
-            break;
-        }
-        offset = offset.saturating_add(last_t - first_t + gap);
-    }
+            (*t, weights)
+        })
+        .collect();
+    // `--loop` shifts each pass by one frame of the take's rate.
+    let gap = (1e6 / rate).round().max(1.0) as i64;
+    let (sent, last_due, write_failed) =
+        send_weight_frames(&mut stream, &pace, args, &frames, 0, gap);
     let paced = pace.elapsed_s();
     let _ = stream.shutdown(Shutdown::Write);
     stream.set_read_timeout(Some(Duration::from_secs(10)))?;
