@@ -8,21 +8,13 @@
 )]
 
 use glam::Vec3;
-use mimic_render::{Camera, Deform, Image, Renderer, Shading, View};
+use mimic_render::{Camera, Deform, Image, Shading, View};
 use mimic_solve::{Basis, vertex_normals};
 use mimic_testkit::Lcg;
 use std::path::PathBuf;
 
-fn renderer(w: u32, h: u32) -> Option<Renderer> {
-    if std::env::var_os("MIMIC_SKIP_GPU_TESTS").is_some() {
-        eprintln!("MIMIC_SKIP_GPU_TESTS is set: skipping a GPU test");
-        return None;
-    }
-    match Renderer::new(w, h) {
-        Ok(r) => Some(r),
-        Err(e) => panic!("{e} (set MIMIC_SKIP_GPU_TESTS=1 to skip GPU tests)"),
-    }
-}
+mod common;
+use common::renderer;
 
 fn ict() -> mimic_types::Rig {
     let root = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs/rigs/ict-face.toml");

@@ -11,18 +11,10 @@
 
 use glam::Vec3;
 use mimic_render::overlay::{self, TEXT, heat_color, legend_ticks, linear_to_srgb};
-use mimic_render::{Anchor, Camera, Deform, Image, Overlay, Renderer, Shading, View};
+use mimic_render::{Anchor, Camera, Deform, Image, Overlay, Shading, View};
 
-fn renderer(w: u32, h: u32) -> Option<Renderer> {
-    if std::env::var_os("MIMIC_SKIP_GPU_TESTS").is_some() {
-        eprintln!("MIMIC_SKIP_GPU_TESTS is set: skipping a GPU test");
-        return None;
-    }
-    match Renderer::new(w, h) {
-        Ok(r) => Some(r),
-        Err(e) => panic!("{e} (set MIMIC_SKIP_GPU_TESTS=1 to skip GPU tests)"),
-    }
-}
+mod common;
+use common::renderer;
 
 fn px(img: &Image, x: i32, y: i32) -> [u8; 4] {
     let at = (y as usize * img.width as usize + x as usize) * 4;

@@ -9,19 +9,11 @@
 )]
 
 use glam::Vec3;
-use mimic_render::{Camera, Deform, Renderer, Shading, View};
+use mimic_render::{Camera, Deform, Shading, View};
 use mimic_types::{MeshTextures, TextureImage, TriangleTexture};
 
-fn renderer(w: u32, h: u32) -> Option<Renderer> {
-    if std::env::var_os("MIMIC_SKIP_GPU_TESTS").is_some() {
-        eprintln!("MIMIC_SKIP_GPU_TESTS is set: skipping a GPU test");
-        return None;
-    }
-    match Renderer::new(w, h) {
-        Ok(r) => Some(r),
-        Err(e) => panic!("{e} (set MIMIC_SKIP_GPU_TESTS=1 to skip GPU tests)"),
-    }
-}
+mod common;
+use common::renderer;
 
 /// Quadrant colours (sRGB bytes) of the 16 x 16 test texture: top-left, top-right, bottom-left,
 /// bottom-right of the image.
