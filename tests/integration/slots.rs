@@ -21,35 +21,33 @@ fn four_hundred_sockets_from_one_peer_do_not_lock_out_another_peer() {
     for _ in 0..400 {
         held.push(viewer(&server.tcp, "never", false));
     }
-    // The first 64 are admitted and wait; every later one is answered with the reason and
-    // closed. The server accepts in order, so once the last one has its answer all 400 have
-    // been seen (the stats then come through the stats slots: this peer is at its share).
-    // A viewer gets it as a viewer ERROR message; on a starved machine (the browser test's
-    // Chromium on both cores) the server may not have read the hello within its wait and answers
-    // with the error line instead (seen once in a cold CI run): the same code and message.
-    let mut first = [0u8; 1];
-    held[399].read_exact(&mut first).unwrap();
-    let reply = if first[0] == b'{' {
-        let mut rest = String::new();
-        BufReader::new(&mut held[399]).read_line(&mut rest).unwrap();
-        let e: serde_json::Value = serde_json::from_str(&format!("{{{rest}")).unwrap();
-        Some(ViewerMessage::Error(e))
-    } else {
-        read_message(&mut (&first[..]).chain(&mut held[399]))
-    };
-    match reply {
-        Some(ViewerMessage::Error(e)) => {
-            assert_eq!(e["code"], "too_many_connections");
-            assert!(
-                e["message"]
-                    .as_str()
-                    .unwrap()
-                    .contains("at most 64 connections from 127.0.0.1"),
-                "{e}"
-            );
+    // The first 64 are admitted and wait; every later one is refused: past the peer's share a
+    // connection may still take one of the 4 slots kept for stats requests, and is then refused
+    // for not being one ("no connection slot left but those kept ..."), else it is refused for
+    // the peer's share ("at most 64 connections from 127.0.0.1"). Each answer is a viewer ERROR
+    // message or, on a starved machine (the browser test's Chromium on both cores) where the
+    // server had not read the hello within its wait, the error line: the same code and message.
+    // Refusals are answered while at most 256 are in flight and closed unanswered past that
+    // (docs/reliability.md), which a starved server reaches when it accepts the backlog faster
+    // than its refusal tasks run. The stats below show that none of them was admitted.
+    let mut for_the_share = 0;
+    for (i, v) in held.iter_mut().enumerate().skip(per_peer as usize) {
+        let mut first = [0u8; 1];
+        match v.read(&mut first) {
+            Ok(0) => {}
+            Err(e) if e.kind() == std::io::ErrorKind::ConnectionReset => {}
+            Ok(_) => {
+                if refusal_reply(first[0], v).contains("at most 64 connections from 127.0.0.1") {
+                    for_the_share += 1;
+                }
+            }
+            Err(e) => panic!("viewer {i}: {e}"),
         }
-        other => panic!("expected a refusal, got {other:?}"),
     }
+    assert!(
+        for_the_share > 0,
+        "no refusal named the peer's share of 64 connections"
+    );
     let s = server.wait_for("400 sockets seen", |s| {
         s["viewers_active"] == per_peer && s["refused"] == 400 - per_peer
     });
@@ -64,9 +62,11 @@ fn four_hundred_sockets_from_one_peer_do_not_lock_out_another_peer() {
         t.write_all(l.as_bytes()).unwrap();
     }
     server.wait_for_session("other", "the second peer's frames", |s| s["frames"] == 30);
+    // Locked out, it would wait for a held viewer's slot: the viewer idle timeout, 60 s. Its
+    // own frames take a fraction of a second; the bound leaves a starved CI machine room.
     let took = started.elapsed();
     assert!(
-        took < Duration::from_secs(2),
+        took < Duration::from_secs(10),
         "the second peer's tracker waited {took:?}"
     );
     // A tracker from the full peer is refused with a line, not left in the backlog.
@@ -94,4 +94,29 @@ fn a_viewer_of_a_session_that_never_starts_is_closed_after_the_idle_timeout() {
     assert!(read_message(&mut v).is_none());
     server.wait_for("the viewer gone", |s| s["viewers_active"] == 0);
     server.stop();
+}
+
+/// The rest of a refusal whose first byte is `first`: asserts its code and returns its message.
+fn refusal_reply(first: u8, v: &mut std::net::TcpStream) -> String {
+    let reply = if first == b'{' {
+        let mut rest = String::new();
+        BufReader::new(&mut *v).read_line(&mut rest).unwrap();
+        let e: serde_json::Value = serde_json::from_str(&format!("{{{rest}")).unwrap();
+        Some(ViewerMessage::Error(e))
+    } else {
+        read_message(&mut (&[first][..]).chain(&mut *v))
+    };
+    match reply {
+        Some(ViewerMessage::Error(e)) => {
+            assert_eq!(e["code"], "too_many_connections", "{e}");
+            let m = e["message"].as_str().unwrap_or_default().to_string();
+            assert!(
+                m.contains("at most 64 connections from 127.0.0.1")
+                    || m.contains("no connection slot left but those kept for stats requests"),
+                "{e}"
+            );
+            m
+        }
+        other => panic!("expected a refusal, got {other:?}"),
+    }
 }
