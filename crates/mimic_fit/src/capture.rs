@@ -3,7 +3,9 @@
 //! `mimic import --fit candide3` writes (points 0-112 the fitted vertices, 113-120 invalid) and
 //! each frame's fit. The caller reads the files and writes the recording.
 
-use crate::{Camera, Candide3, FitError, FitResult, FitSettings, Fitter, PointObservation};
+use crate::{
+    Camera, Candide3, FitError, FitResult, FitSettings, Fitter, OddParts, PointObservation,
+};
 use glam::{DVec2, DVec3, Vec3};
 use mimic_types::{LandmarkFrame, Layout};
 use serde_json::{Map, Value, json};
@@ -53,6 +55,8 @@ pub struct CaptureFit {
     pub summary: FitSummary,
     /// The header's `fit` object: model, units, shape, camera, median residual.
     pub header_fit: Value,
+    /// How the AUs' left-right odd parts were fitted.
+    pub odd: OddParts,
 }
 
 /// The observations of one frame: positions of its valid points (when tracked), pixels where given.
@@ -66,19 +70,22 @@ pub fn observations(frame: &CaptureFrame<'_>) -> Vec<PointObservation> {
         .collect()
 }
 
-/// Fits `model` to every frame of a capture in `layout` (through its `candide_correspondences`).
+/// Fits `model` with `settings` to every frame of a capture in `layout` (through its
+/// `candide_correspondences`).
 pub fn fit_capture(
     model: Candide3,
     layout: &Layout,
     camera: Camera,
+    settings: FitSettings,
     frames: &[CaptureFrame<'_>],
 ) -> Result<CaptureFit, FitError> {
+    let odd = settings.odd;
     let mut fitter = Fitter::new(
         model,
         &layout.candide_correspondences,
         layout.point_count,
         camera,
-        FitSettings::default(),
+        settings,
     )?;
     let obs: Vec<Vec<PointObservation>> = frames.iter().map(observations).collect();
     let started = Instant::now();
@@ -138,16 +145,25 @@ pub fn fit_capture(
         frames_per_s: out.len() as f64 / elapsed.max(1e-9),
     };
     let m = fitter.model();
-    let header_fit = json!({
+    let mut header_fit = json!({
         "model": "candide3",
         "from_layout": layout.name,
         "au_names": m.auvs().iter().map(|u| u.name.clone()).collect::<Vec<_>>(),
-        "au_fitted": fitter.settings().units,
+        "au_fitted": fitter.fitted_units(),
         "shape_units": m.shape_units.iter().map(|u| u.name.clone()).collect::<Vec<_>>(),
         "shape": fitter.shape().iter().map(|v| round(*v, 4)).collect::<Vec<_>>(),
         "camera": {"focal_px": camera.focal_px, "cx": camera.cx, "cy": camera.cy},
         "median_residual_px": round(median_residual_px, 3),
     });
+    // A symmetric fit's header stays as it was before odd parts existed.
+    let odd_name = match odd {
+        OddParts::Off => None,
+        OddParts::Joint => Some("joint"),
+        OddParts::AfterPose => Some("after_pose"),
+    };
+    if let (Some(name), Some(h)) = (odd_name, header_fit.as_object_mut()) {
+        h.insert("odd".into(), json!(name));
+    }
     Ok(CaptureFit {
         frames: out,
         results,
@@ -155,6 +171,7 @@ pub fn fit_capture(
         shape_frames,
         summary,
         header_fit,
+        odd,
     })
 }
 
@@ -165,9 +182,14 @@ impl CaptureFit {
             "Kinect-style 121-point shape: points 0-112 are CANDIDE-3 v3.1.6 vertices fitted per frame to the `{}` \
              points (pose, scale, animation units; shape units from {} neutral frames), camera space, metres; \
              points 113-120 are not modelled and always invalid. Per frame `fit` holds the pose, the 11 AUV \
-             coefficients and the RMS reprojection residual (docs/fitter.md).{}",
+             coefficients{} and the RMS reprojection residual (docs/fitter.md).{}",
             self.from_layout,
             self.shape_frames,
+            if self.odd == OddParts::Off {
+                ""
+            } else {
+                ", their left-right odd parts (`au_odd`)"
+            },
             if labelled {
                 " label = the source's per-frame label."
             } else {
@@ -178,7 +200,8 @@ impl CaptureFit {
 }
 
 /// A frame's extra recording fields: `{"fit": {rotation, translation, scale, au, au_odd,
-/// residual_px, points_used}}` (`au_odd` only from an asymmetric fit) (pose and residual only when tracked), rounded as written.
+/// residual_px, points_used}}` (`au_odd` only when odd parts were fitted; pose and residual only
+/// when tracked), rounded as written.
 pub fn frame_fields(r: &FitResult) -> Map<String, Value> {
     let mut fit = Map::new();
     if r.tracked {

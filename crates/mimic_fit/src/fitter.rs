@@ -13,6 +13,9 @@ use crate::cholesky::solve_spd;
 use glam::{DMat3, DQuat, DVec2, DVec3};
 use mimic_types::ModelCorrespondence;
 
+mod odd;
+pub use odd::OddParts;
+
 /// Pose parameters plus animation units: unknowns per frame.
 const POSE_PARAMS: usize = 7;
 
@@ -92,12 +95,12 @@ pub struct FitSettings {
     pub nominal_scale_m: f64,
     /// The AUVs fitted, as indices into [`Candide3::auvs`] (file order); the others stay 0.
     pub units: Vec<usize>,
-    /// Also fit each fitted AUV's left-right odd part (its displacements times the sign of the
-    /// vertex's x; `docs/fitter.md`): the subject's left half then moves by `alpha + beta` of the
-    /// unit and the right half by `alpha - beta`, so a one-sided smile stays one-sided. Off by
-    /// default: on the shipped GFE captures the odd parts trade off against the head's yaw and
-    /// the fit fails more often (docs/fitter.md).
-    pub asymmetric: bool,
+    /// Whether and how each fitted AUV's left-right odd part is fitted (its displacements times
+    /// the sign of the vertex's x; `docs/fitter.md`): the subject's left half then moves by
+    /// `alpha + beta` of the unit and the right half by `alpha - beta`, so a one-sided smile
+    /// stays one-sided. Default [`OddParts::AfterPose`]: fitted after the symmetric fit, on the
+    /// image only, with the pose held, so the odd parts cannot trade off against the head's yaw.
+    pub odd: OddParts,
     /// Bounds of every odd-part coefficient `beta` (symmetric: either side may lead).
     pub odd_bound: f64,
     /// Ridge prior on each odd-part coefficient (pixels per unit): stiffer than the AUs', so
@@ -129,7 +132,7 @@ impl Default for FitSettings {
             cold_iterations: 60,
             nominal_scale_m: 0.1,
             units: DEFAULT_UNITS.to_vec(),
-            asymmetric: false,
+            odd: OddParts::AfterPose,
             odd_bound: 1.0,
             odd_prior_px: 3.0,
             odd_smooth_px: 2.0,
@@ -158,7 +161,7 @@ pub struct FitResult {
     /// Fitted coefficients of the 11 AUVs, in model file order.
     pub au: Vec<f64>,
     /// Fitted coefficients of their left-right odd parts (11, same order; empty when the fit is
-    /// symmetric, [`FitSettings::asymmetric`] off).
+    /// symmetric, [`FitSettings::odd`] = [`OddParts::Off`]).
     pub au_odd: Vec<f64>,
     /// RMS reprojection error of the observed correspondences (pixels).
     pub residual_px: f64,
@@ -197,8 +200,15 @@ pub struct Fitter {
     targets: Vec<Target>,
     /// Per-vertex displacements of the odd parts, one field per AUV (empty when symmetric).
     odd_dense: Vec<Vec<DVec3>>,
-    /// Length of the internal coefficient vector: the AUVs, then their odd parts.
+    /// Length of the internal coefficient vector: the AUVs, then (jointly fitted) their odd parts.
     au_len: usize,
+    /// The fitted AUVs that have an odd part (a unit moving only the midline has none).
+    odd_units: Vec<usize>,
+    /// Odd-part coefficients of the last tracked frame, fitted after the pose
+    /// ([`OddParts::AfterPose`]; file order, 0 for units without one).
+    odd_after: [f64; AUV_COUNT],
+    /// Whether `odd_after` belongs to the previous frame (a temporal prior applies).
+    odd_warm: bool,
     shape: Vec<f64>,
     state: Option<State>,
     // Scratch (reused across frames, no per-frame allocation in the LM loop).
@@ -233,7 +243,7 @@ impl Fitter {
         let nv = model.vertices.len();
         let mut au_dense = dense(model.auvs(), nv);
         let mut settings = settings;
-        let odd_dense: Vec<Vec<DVec3>> = if settings.asymmetric {
+        let odd_dense: Vec<Vec<DVec3>> = if settings.odd != OddParts::Off {
             au_dense
                 .iter()
                 .map(|d| {
@@ -253,7 +263,13 @@ impl Fitter {
             Vec::new()
         };
         au_dense.extend(odd_dense.iter().cloned());
-        let au_len = au_dense.len();
+        // Jointly fitted odd parts are coefficients of the LM state; after-pose ones are kept apart
+        // (the targets still carry their fields, after the AUVs').
+        let au_len = if settings.odd == OddParts::Joint {
+            au_dense.len()
+        } else {
+            AUV_COUNT
+        };
         let shape_dense = dense(&model.shape_units, nv);
         let mut targets = Vec::with_capacity(correspondences.len());
         for c in correspondences {
@@ -289,16 +305,22 @@ impl Fitter {
         if let Some(&k) = settings.units.iter().find(|&&k| k >= AUV_COUNT) {
             return Err(FitError::UnitOutOfRange(k));
         }
-        // The odd parts are fitted as units AUV_COUNT + k, for the fitted units that have one
-        // (a unit moving only the midline, x = 0, has none).
-        if settings.asymmetric {
-            let odd: Vec<usize> = settings
+        // The fitted units that have an odd part (a unit moving only the midline, x = 0, has
+        // none). Jointly fitted, they are the LM's units AUV_COUNT + k.
+        let odd_units: Vec<usize> = if settings.odd == OddParts::Off {
+            Vec::new()
+        } else {
+            settings
                 .units
                 .iter()
-                .filter(|&&k| odd_dense[k].iter().any(|d| *d != DVec3::ZERO))
-                .map(|&k| AUV_COUNT + k)
-                .collect();
-            settings.units.extend(odd);
+                .copied()
+                .filter(|&k| odd_dense[k].iter().any(|d| *d != DVec3::ZERO))
+                .collect()
+        };
+        if settings.odd == OddParts::Joint {
+            settings
+                .units
+                .extend(odd_units.iter().map(|&k| AUV_COUNT + k));
         }
         let n = POSE_PARAMS + settings.units.len() + model.shape_units.len();
         let shape = vec![0.0; model.shape_units.len()];
@@ -310,6 +332,9 @@ impl Fitter {
             targets,
             odd_dense,
             au_len,
+            odd_units,
+            odd_after: [0.0; AUV_COUNT],
+            odd_warm: false,
             shape,
             state: None,
             jtj: vec![0.0; n * n],
@@ -340,9 +365,20 @@ impl Fitter {
         }
     }
 
+    /// The fitted units as the recording header's `au_fitted` lists them: the AUVs (file order
+    /// indices), then their odd parts as `AUV_COUNT + k`.
+    pub fn fitted_units(&self) -> Vec<usize> {
+        let mut units = self.settings.units.clone();
+        if self.settings.odd == OddParts::AfterPose {
+            units.extend(self.odd_units.iter().map(|&k| AUV_COUNT + k));
+        }
+        units
+    }
+
     /// Forgets the previous frame: the next fit starts cold.
     pub fn reset(&mut self) {
         self.state = None;
+        self.odd_warm = false;
     }
 
     /// Estimates the shape units from `frames` (the performer's first, ideally neutral, frames):
@@ -375,7 +411,7 @@ impl Fitter {
         } else {
             vec![0.0; ns]
         };
-        self.state = None;
+        self.reset();
         used
     }
 
@@ -399,7 +435,7 @@ impl Fitter {
             0
         };
         if used < self.settings.min_points {
-            self.state = None;
+            self.reset();
             return self.lost(used);
         }
         let prev_au = self.state.as_ref().map(|s| s.au.clone());
@@ -409,7 +445,7 @@ impl Fitter {
             let (it, residual) = self.solve(&mut state, obs, false, prev_au.as_deref(), iterations);
             iterations_total += it;
             if residual <= self.settings.max_residual_px {
-                return self.accept(state, residual, used, iterations_total);
+                return self.accept(state, obs, residual, used, iterations_total, true);
             }
         }
         let mut state = self.initial_state(obs);
@@ -417,8 +453,9 @@ impl Fitter {
         let (it, residual) = self.solve(&mut state, obs, false, None, iterations);
         iterations_total += it;
         if residual <= self.settings.max_residual_px {
-            self.accept(state, residual, used, iterations_total)
+            self.accept(state, obs, residual, used, iterations_total, false)
         } else {
+            self.odd_warm = false;
             let mut r = self.lost(used);
             r.residual_px = residual;
             r.iterations = iterations_total;
@@ -426,18 +463,29 @@ impl Fitter {
         }
     }
 
+    /// A converged frame: with [`OddParts::AfterPose`], its odd parts fitted now (`warm`: the
+    /// frame was warm-started from the previous one, whose odd parts then form a temporal prior).
     fn accept(
         &mut self,
         state: State,
+        obs: &[PointObservation],
         residual_px: f64,
         used: usize,
         iterations: usize,
+        warm: bool,
     ) -> FitResult {
+        let (au_odd, residual_px) = if self.settings.odd == OddParts::AfterPose {
+            let residual = self.fit_odd_after_pose(&state, obs, warm && self.odd_warm);
+            self.odd_warm = true;
+            (self.odd_after.to_vec(), residual)
+        } else {
+            (state.au[AUV_COUNT..].to_vec(), residual_px)
+        };
         let r = FitResult {
             tracked: true,
             pose: pose_of(&state),
             au: state.au[..AUV_COUNT].to_vec(),
-            au_odd: state.au[AUV_COUNT..].to_vec(),
+            au_odd,
             residual_px,
             points_used: used,
             iterations,
@@ -455,7 +503,11 @@ impl Fitter {
                 scale: 0.0,
             },
             au: vec![0.0; AUV_COUNT],
-            au_odd: vec![0.0; self.au_len - AUV_COUNT],
+            au_odd: if self.settings.odd == OddParts::Off {
+                Vec::new()
+            } else {
+                vec![0.0; AUV_COUNT]
+            },
             residual_px: f64::NAN,
             points_used: used,
             iterations: 0,

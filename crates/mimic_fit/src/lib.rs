@@ -15,4 +15,4 @@ pub mod fitter;
 
 pub use camera::Camera;
 pub use candide::{AUV_COUNT, Candide3, ModelError, Unit};
-pub use fitter::{FitError, FitResult, FitSettings, Fitter, PointObservation, Pose};
+pub use fitter::{FitError, FitResult, FitSettings, Fitter, OddParts, PointObservation, Pose};

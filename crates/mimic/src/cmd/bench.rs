@@ -556,6 +556,11 @@ fn fit_throughput(recording: &mimic_capture::Recording) -> anyhow::Result<Option
             pixels: None,
         })
         .collect();
-    let fit = fit_candide3(&configs, &recording.header.layout, &frames)?;
+    let fit = fit_candide3(
+        &configs,
+        &recording.header.layout,
+        &frames,
+        mimic_fit::OddParts::default(),
+    )?;
     Ok(Some(fit.summary))
 }

@@ -1,6 +1,7 @@
 //! `mimic import`: other trackers' files to v1 recordings; with `--fit candide3`, the capture
 //! fitted with CANDIDE-3 as a `kinect121` recording (points 0-112 the fitted vertices, 113-120
-//! invalid) with the fit kept per frame (docs/fitter.md).
+//! invalid) with the fit kept per frame and one-sided motion kept by the AUs' odd parts, fitted
+//! after the pose (`--symmetric`: without them; docs/fitter.md, "One-sided motion").
 
 use crate::cmd::setup::fit_candide3;
 use anyhow::Context;
@@ -9,6 +10,7 @@ use mimic_assets::ConfigDirs;
 use mimic_capture::gfe::FramePixels;
 use mimic_capture::openface::OpenFaceTiming;
 use mimic_capture::{Imported, RecordingHeader, RecordingWriter};
+use mimic_fit::OddParts;
 use mimic_fit::capture::{CaptureFrame, KINECT121_POINTS, frame_fields};
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
@@ -39,6 +41,10 @@ pub enum ImportCommand {
         /// Fit a face model and write its `kinect121` recording instead (docs/fitter.md).
         #[arg(long, value_enum)]
         fit: Option<FitModel>,
+        /// With --fit: a left-right symmetric fit, no odd parts (the fit before one-sided motion
+        /// was kept, docs/fitter.md).
+        #[arg(long, requires = "fit")]
+        symmetric: bool,
         /// Keep the sensor's depths: holes stay invalid, off-face samples stay (default: repaired
         /// from the head's depth plane and the neighbouring frames, docs/gate.md).
         #[arg(long)]
@@ -63,6 +69,10 @@ pub enum ImportCommand {
         /// Fit a face model and write its `kinect121` recording instead (docs/fitter.md).
         #[arg(long, value_enum)]
         fit: Option<FitModel>,
+        /// With --fit: a left-right symmetric fit, no odd parts (the fit before one-sided motion
+        /// was kept, docs/fitter.md).
+        #[arg(long, requires = "fit")]
+        symmetric: bool,
     },
     /// MediaPipe Face Mesh dump (JSON lines of normalised landmarks, `tools/mediapipe_track.py`)
     /// to a `mediapipe478` recording in camera-space metres.
@@ -110,6 +120,7 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             output,
             source,
             fit,
+            symmetric,
             raw_depth,
         } => {
             let (mut imported, pixels) = mimic_capture::gfe::import_gfe_with_pixels(
@@ -125,7 +136,7 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
                     r.holes_filled, r.outliers_replaced, r.frames_kept
                 );
             }
-            (imported, output, fit.map(|m| (m, Some(pixels))))
+            (imported, output, fit.map(|m| (m, symmetric, Some(pixels))))
         }
         ImportCommand::Openface {
             csv,
@@ -134,6 +145,7 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             keep_timestamps,
             source,
             fit,
+            symmetric,
         } => {
             let timing = if keep_timestamps {
                 OpenFaceTiming::FileTimestamps
@@ -143,7 +155,7 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             (
                 mimic_capture::openface::import_openface(&csv, timing, source.as_deref())?,
                 output,
-                fit.map(|m| (m, None)),
+                fit.map(|m| (m, symmetric, None)),
             )
         }
         ImportCommand::Mediapipe {
@@ -184,8 +196,13 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             (osf.imported, output, None)
         }
     };
-    if let Some((FitModel::Candide3, pixels)) = fit {
-        return write_fitted(&imported, pixels.as_deref(), &output);
+    if let Some((FitModel::Candide3, symmetric, pixels)) = fit {
+        let odd = if symmetric {
+            OddParts::Off
+        } else {
+            OddParts::AfterPose
+        };
+        return write_fitted(&imported, pixels.as_deref(), odd, &output);
     }
     write(&imported, &output)?;
     println!("{}", summary_line(&imported, &output));
@@ -206,6 +223,7 @@ fn write(imported: &Imported, output: &Path) -> anyhow::Result<()> {
 fn write_fitted(
     imported: &Imported,
     pixels: Option<&[FramePixels]>,
+    odd: OddParts,
     output: &Path,
 ) -> anyhow::Result<()> {
     let frames: Vec<CaptureFrame> = imported
@@ -218,7 +236,12 @@ fn write_fitted(
             pixels: pixels.and_then(|p| p.get(i)).map(Vec::as_slice),
         })
         .collect();
-    let fit = fit_candide3(&ConfigDirs::locate(None), &imported.header.layout, &frames)?;
+    let fit = fit_candide3(
+        &ConfigDirs::locate(None),
+        &imported.header.layout,
+        &frames,
+        odd,
+    )?;
     let mut header = RecordingHeader::new(
         "kinect121",
         &format!(

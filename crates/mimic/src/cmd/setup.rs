@@ -644,11 +644,12 @@ pub fn write_obj_frame(
 }
 
 /// Fits CANDIDE-3 (`configs/models/candide3/candide3.wfm`) to a capture in the layout named
-/// `layout_name` (which must list `candide_correspondences`).
+/// `layout_name` (which must list `candide_correspondences`), its AUs' odd parts as `odd` says.
 pub fn fit_candide3(
     configs: &ConfigDirs,
     layout_name: &str,
     frames: &[CaptureFrame<'_>],
+    odd: mimic_fit::OddParts,
 ) -> anyhow::Result<CaptureFit> {
     let layout = configs.load_layout_named(layout_name)?;
     if layout.candide_correspondences.is_empty() {
@@ -666,6 +667,10 @@ pub fn fit_candide3(
         candide,
         &layout,
         mimic_fit::Camera::KINECT_V1_COLOUR,
+        mimic_fit::FitSettings {
+            odd,
+            ..mimic_fit::FitSettings::default()
+        },
         frames,
     )?)
 }
