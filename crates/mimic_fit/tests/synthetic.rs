@@ -293,7 +293,10 @@ fn a_one_sided_smile_stays_one_sided() {
             r = f.fit(&frame(f64::from(k) / 10.0));
         }
         assert!(r.tracked);
-        assert_eq!(r.au_odd.len(), if odd == OddParts::Off { 0 } else { AUV_COUNT });
+        assert_eq!(
+            r.au_odd.len(),
+            if odd == OddParts::Off { 0 } else { AUV_COUNT }
+        );
         let mut v1 = Vec::new();
         f.vertices(&r.pose, &r.au, &r.au_odd, &mut v1);
         // Image-plane motion of the two corners (pixels).
@@ -376,10 +379,8 @@ fn a_head_turn_on_a_neutral_face_gives_no_odd_parts() {
             ..FitSettings::default()
         };
         let mut f = Fitter::new(model.clone(), &corr, point_count, camera, settings).unwrap();
-        let neutral: Vec<&[PointObservation]> = frames[..NEUTRAL_FRAMES]
-            .iter()
-            .map(Vec::as_slice)
-            .collect();
+        let neutral: Vec<&[PointObservation]> =
+            frames[..NEUTRAL_FRAMES].iter().map(Vec::as_slice).collect();
         f.estimate_shape(&neutral);
         let mut largest = 0.0f64;
         for (i, obs) in frames.iter().enumerate() {
@@ -391,11 +392,16 @@ fn a_head_turn_on_a_neutral_face_gives_no_odd_parts() {
     };
     let after = largest_odd(OddParts::AfterPose);
     let joint = largest_odd(OddParts::Joint);
-    eprintln!("head turn to 25 deg: largest |odd coefficient| {after:.3} after the pose, {joint:.3} jointly");
+    eprintln!(
+        "head turn to 25 deg: largest |odd coefficient| {after:.3} after the pose, {joint:.3} jointly"
+    );
     // Bound: the odd parts see only pixel noise. An odd part moves ~4-11 px per unit on 4-12
     // points (as an AU does, on one half of the face); 0.5 px noise then pins it to
     // ~0.5 / (4 px * sqrt(4)) ~ 0.06 for the weakest unit (one standard error, before the 3 px
     // ridge and the 2 px temporal prior shrink it further). The largest of 7 units over 70 frames
     // is then within ~3 standard errors: 0.2. A one-sided smile of the size above gives ~0.5.
-    assert!(after < 0.2, "largest odd coefficient {after} on a pure head turn");
+    assert!(
+        after < 0.2,
+        "largest odd coefficient {after} on a pure head turn"
+    );
 }
