@@ -176,13 +176,13 @@ impl Fitter {
                             *r = coef.dot(s * (state.rotation * *d));
                         }
                     }
-                    for i in 0..n {
-                        if row[i] == 0.0 {
+                    for (i, &ri) in row[..n].iter().enumerate() {
+                        if ri == 0.0 {
                             continue;
                         }
-                        jtr[i] += hw * row[i] * res;
-                        for j in 0..n {
-                            jtj[i * n + j] += hw * row[i] * row[j];
+                        jtr[i] += hw * ri * res;
+                        for (j, &rj) in row[..n].iter().enumerate() {
+                            jtj[i * n + j] += hw * ri * rj;
                         }
                     }
                 }
