@@ -149,7 +149,8 @@ fn lower_lip_folds(rig: &Rig, u: &[Vec3], reach: f64) -> (usize, f32) {
         .map(|c| c.vertex as usize)
         .collect();
     assert_eq!(lip.len(), 4, "the lower lip's controls of {}", rig.name);
-    let near = mimic_solve::geodesic::EdgeGraph::new(p, &rig.mesh.triangles).distances_from_set(&lip);
+    let near =
+        mimic_solve::geodesic::EdgeGraph::new(p, &rig.mesh.triangles).distances_from_set(&lip);
     let (mut folded, mut worst) = (0usize, 0f32);
     for t in &rig.mesh.triangles {
         let [a, b, c] = t.map(|v| v as usize);
@@ -184,7 +185,11 @@ fn largest_frame(rig: &Rig, recording: &str, dir: &std::path::Path) -> (usize, V
     let text = std::fs::read_to_string(&csv).unwrap();
     let mut lines = text.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let names: Vec<String> = rig.controls.iter().map(|c| format!("{}_x", c.fdp)).collect();
+    let names: Vec<String> = rig
+        .controls
+        .iter()
+        .map(|c| format!("{}_x", c.fdp))
+        .collect();
     let got: Vec<&str> = header.iter().skip(3).step_by(3).copied().collect();
     assert_eq!(got, names, "control columns of {recording}");
     let mut best: Option<(f32, usize, Vec<Vec3>)> = None;
@@ -262,7 +267,10 @@ fn largest_recorded_frames_have_no_seam_no_hard_edge_and_no_folded_lower_lip() {
                 );
             }
             if a.band > a.inside {
-                failures.push(format!("{what}: band bends {} (inside {})", a.band, a.inside));
+                failures.push(format!(
+                    "{what}: band bends {} (inside {})",
+                    a.band, a.inside
+                ));
             }
             if a.step > 0.2 * a.inside {
                 failures.push(format!(

@@ -147,7 +147,10 @@ mod tests {
         let g = EdgeGraph::new(&mesh.positions, &mesh.triangles);
         let sources = [3usize, 40, 62, 40, 1000];
         let set = g.distances_from_set(&sources);
-        let singles: Vec<Vec<f64>> = [3usize, 40, 62].iter().map(|&s| g.distances_from(s)).collect();
+        let singles: Vec<Vec<f64>> = [3usize, 40, 62]
+            .iter()
+            .map(|&s| g.distances_from(s))
+            .collect();
         for (i, d) in set.iter().enumerate() {
             let want = singles.iter().map(|v| v[i]).fold(f64::INFINITY, f64::min);
             // Both are sums of the same f64 edge lengths along a shortest path: equal up to
