@@ -6,39 +6,45 @@
 #
 # BEFORE_MIMIC is a `mimic` built from the commit before the fade (mimic_solve::border), AFTER_MIMIC
 # one built with it (e.g. target/debug/mimic). Needs a Vulkan driver (lavapipe will do) and
-# ImageMagick's `convert` to tile. Run from the repository root.
+# ImageMagick's `convert` to tile (CONVERT=/usr/bin/convert if another `convert` comes first on the
+# PATH). Run from the repository root.
 set -euo pipefail
 before=${1:?usage: $0 BEFORE_MIMIC AFTER_MIMIC}
 after=${2:?usage: $0 BEFORE_MIMIC AFTER_MIMIC}
 tmp=$(mktemp -d)
 trap 'rm -rf "$tmp"' EXIT
 
-# row NAME BIN RECORDING FRAMES [render options...]: one row of 192x192 tiles.
-row() {
-  local name=$1 bin=$2 rec=$3 frames=$4
-  shift 4
-  "$bin" render "$rec" --rig ict-face --frames "$frames" --size 192x192 --out "$tmp/$name" "$@" >/dev/null
-  convert "$tmp/$name"/frame_*.png +append "$tmp/$name.png"
-}
+convert=${CONVERT:-convert}
 
-# The frozen border on the largest jaw motion of a_yn_question: lit, then |u| as heat, where a
-# step at the neck shows as a hard colour edge.
+# row NAME BIN RECORDING FRAMES SIZE CROP [render options...]: one row of 192x192 tiles, each
+# cropped at CROP (+x+y) from a SIZE render.
+row() {
+  local name=$1 bin=$2 rec=$3 frames=$4 size=$5 crop=$6
+  shift 6
+  "$bin" render "$rec" --rig ict-face --frames "$frames" --size "$size" --out "$tmp/$name" "$@" >/dev/null
+  for f in "$tmp/$name"/frame_*.png; do
+    "$convert" "$f" -crop "192x192$crop" +repage "${f%.png}_crop.png"
+  done
+  "$convert" "$tmp/$name"/frame_*_crop.png +append "$tmp/$name.png"
+}
+# The lower face (mouth, chin, jaw line, neck) of a 384x384 render; the mouth of a 768x768 one.
+face="384x384 +96+150"
+mouth="768x768 +236+360"
+
+# The frozen border on the largest jaw motion of a_yn_question: lit, then |u| as heat (full
+# scale 1 cm), where a step at the neck shows as a hard colour edge.
 rec=recordings/a_yn_question.kinect121.jsonl
-row border_before "$before" $rec 109,110,111
-row border_after "$after" $rec 109,110,111
-row heat_before "$before" $rec 109,110,111 --heat displacement --heat-scale 2
-row heat_after "$after" $rec 109,110,111 --heat displacement --heat-scale 2
-convert "$tmp"/border_before.png "$tmp"/border_after.png "$tmp"/heat_before.png \
+row lit_before "$before" $rec 109,110,111 $face
+row lit_after "$after" $rec 109,110,111 $face
+row heat_before "$before" $rec 109,110,111 $face --heat displacement --heat-scale 1
+row heat_after "$after" $rec 109,110,111 $face --heat displacement --heat-scale 1
+"$convert" "$tmp"/lit_before.png "$tmp"/lit_after.png "$tmp"/heat_before.png \
   "$tmp"/heat_after.png -append docs/images/rbf_border_a_yn_question_109_111.png
 
-# The lower lip on the largest opening of a_doubt_question (the frame
-# tests/integration/seams.rs picks), with the RBF before and after, then the Laplacian.
-rec=recordings/a_doubt_question.kinect121.jsonl
-frames=${LIP_FRAMES:-}
-if [ -n "$frames" ]; then
-  row lip_before "$before" $rec "$frames"
-  row lip_after "$after" $rec "$frames"
-  row lip_laplacian "$after" $rec "$frames" --solver laplacian
-  convert "$tmp"/lip_before.png "$tmp"/lip_after.png "$tmp"/lip_laplacian.png -append \
-    docs/images/rbf_lower_lip_a_doubt_question.png
-fi
+# The lower lip on the same frames, the largest opening of the recordings: the RBF before and
+# after, then the Laplacian.
+row mouth_before "$before" $rec 109,110,111 $mouth
+row mouth_after "$after" $rec 109,110,111 $mouth
+row mouth_laplacian "$after" $rec 109,110,111 $mouth --solver laplacian
+"$convert" "$tmp"/mouth_before.png "$tmp"/mouth_after.png "$tmp"/mouth_laplacian.png -append \
+  docs/images/rbf_lower_lip_a_yn_question_109_111.png
