@@ -162,7 +162,15 @@ mod tests {
         let b = build_basis(&r, &settings(false)).unwrap();
         let raw = unfaded(&r);
         let w = FADE_RADII * RADIUS;
-        let mut previous = vec![0f64; N];
+        let controls: Vec<usize> = r.controls.iter().map(|c| c.vertex as usize).collect();
+        let fade = BorderFade::new(
+            &r.mesh.positions,
+            &r.mesh.triangles,
+            &r.frozen,
+            &controls,
+            settings(false).kernel,
+        )
+        .unwrap();
         for j in 0..N {
             let t = (j as f64 * H / w).min(1.0);
             let factor = if j == 0 { 0.0 } else { t * t * (3.0 - 2.0 * t) };
@@ -179,9 +187,12 @@ mod tests {
                     );
                     size += got.abs();
                 }
-                // Monotone ramp: the factor never decreases up a column, away from the border.
-                assert!(factor >= previous[i]);
-                previous[i] = factor;
+                // The fade's own factors: the independent ones (f32 positions: 1e-6), and a
+                // monotone ramp, never decreasing up a column, away from the border.
+                assert!((fade.factors[v] - factor).abs() < 1e-6, "({i}, {j})");
+                if j > 0 {
+                    assert!(fade.factors[v] >= fade.factors[v - N], "({i}, {j})");
+                }
                 if j == 1 {
                     // The frozen border's neighbours, ~0: t = H / w = 1/8 and the factor
                     // 3t^2 - 2t^3 < 3 (H / w)^2 = 0.047 of the unfaded row (+ f32 rounding).
