@@ -39,7 +39,7 @@ row lit_after "$after" $rec 109,110,111 $face
 row heat_before "$before" $rec 109,110,111 $face --heat displacement --heat-scale 1
 row heat_after "$after" $rec 109,110,111 $face --heat displacement --heat-scale 1
 "$convert" "$tmp"/lit_before.png "$tmp"/lit_after.png "$tmp"/heat_before.png \
-  "$tmp"/heat_after.png -append docs/images/rbf_border_a_yn_question_109_111.png
+  "$tmp"/heat_after.png -append -strip -colors 256 PNG8:docs/images/rbf_border_a_yn_question_109_111.png
 
 # The lower lip on the same frames, the largest opening of the recordings: the RBF before and
 # after, then the Laplacian.
@@ -47,4 +47,4 @@ row mouth_before "$before" $rec 109,110,111 $mouth
 row mouth_after "$after" $rec 109,110,111 $mouth
 row mouth_laplacian "$after" $rec 109,110,111 $mouth --solver laplacian
 "$convert" "$tmp"/mouth_before.png "$tmp"/mouth_after.png "$tmp"/mouth_laplacian.png -append \
-  docs/images/rbf_lower_lip_a_yn_question_109_111.png
+  -strip -colors 256 PNG8:docs/images/rbf_lower_lip_a_yn_question_109_111.png
