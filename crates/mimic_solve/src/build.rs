@@ -1,6 +1,6 @@
 //! [`build_basis`]: the basis `B` of a rig, from RBF, Laplacian or thin-shell solves per region part.
 
-use crate::{Basis, SolveError, geodesic, laplacian, rbf, regions, shell};
+use crate::{Basis, SolveError, border, geodesic, laplacian, rbf, regions, shell};
 use mimic_types::{RbfDistance, Rig, SolverKind, SolverSettings};
 
 /// The Laplacian and the thin shell blend their regions over this many times the rig's `regions.band`.
@@ -16,7 +16,8 @@ const LAPLACIAN_BAND_SCALE: f32 = 2.0;
 /// factorisation; measured better than per-region solves on real expressions, see
 /// docs/quality.md, but it no longer reproduces a uniform translation). A region without controls
 /// contributes nothing (its vertices stay still); the Laplacian and the shell blend over
-/// twice the rig's band (`LAPLACIAN_BAND_SCALE`). Rows of frozen vertices are zero.
+/// twice the rig's band (`LAPLACIAN_BAND_SCALE`). Rows of frozen vertices are zero; the RBF's
+/// rows fade to zero toward them ([`crate::border`], over twice its kernel radius, no control faded).
 /// RBF reproduces each control displacement exactly when regions are off (with regions, a control
 /// inside a blend band is only weighted by its own region's share). With
 /// [`SolverSettings::top_split`] (RBF only) the top region is two solves (controls above / below
@@ -181,6 +182,19 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
             }
         };
         regions::blend_into(&mut b, m, &cols, subset, *part, positions, &weights);
+    }
+    // The RBF knows nothing of the frozen vertices: fade its rows to zero toward them
+    // (`border`), so the face meets a frozen neck without a step; controls keep their rows.
+    if settings.kind == SolverKind::Rbf
+        && let Some(fade) = border::BorderFade::new(
+            positions,
+            &rig.mesh.triangles,
+            &rig.frozen,
+            &all,
+            settings.kernel,
+        )
+    {
+        fade.apply(&mut b, m);
     }
     for (row, &frozen) in b.chunks_exact_mut(m).zip(&rig.frozen) {
         if frozen {

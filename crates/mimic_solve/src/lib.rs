@@ -8,6 +8,7 @@
 //! `&mut` outputs and allocate nothing. No I/O, no tokio, no wgpu.
 
 pub mod basis;
+pub mod border;
 mod build;
 pub mod cotangent;
 pub mod deform;
