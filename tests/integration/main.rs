@@ -38,6 +38,7 @@ mod rig_new;
 mod seams;
 mod serve;
 mod serve_weights;
+mod shipped_rigs;
 mod shell;
 mod slots;
 mod view;

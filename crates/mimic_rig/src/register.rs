@@ -388,14 +388,26 @@ pub fn replace_controls_toml(
     use std::fmt::Write;
     let mut out = String::new();
     let mut in_controls = false;
+    // Comment and blank lines inside the controls: dropped with them, unless a table other
+    // than a control follows, whose comment they are.
+    let mut held = String::new();
     for line in text.lines() {
         let head = line.trim_start();
         if head.starts_with('[') {
             in_controls = head.starts_with("[[controls]]");
+            if !in_controls {
+                out.push_str(&held);
+            }
+            held.clear();
         }
         if !in_controls {
             out.push_str(line);
             out.push('\n');
+        } else if head.is_empty() || head.starts_with('#') {
+            held.push_str(line);
+            held.push('\n');
+        } else {
+            held.clear();
         }
     }
     while out.ends_with("\n\n") {
