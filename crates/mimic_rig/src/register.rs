@@ -396,7 +396,8 @@ pub fn replace_controls_toml(
         if head.starts_with('[') {
             in_controls = head.starts_with("[[controls]]");
             if !in_controls {
-                out.push_str(&held);
+                let gap = out.is_empty() || out.ends_with("\n\n");
+                out.push_str(if gap { held.trim_start_matches('\n') } else { &held });
             }
             held.clear();
         }
@@ -613,6 +614,24 @@ fn solve_dense(a: &mut [f64], rhs: &mut [DVec3], n: usize) -> Option<Vec<DVec3>>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn replaced_controls_keep_the_comment_of_the_table_after_them() {
+        let text = "name = \"r\"\n\n[[controls]]\nfdp = \"2.1\"\nvertex = 1\n# inside\nregion = \"bottom\"\n\n# The expressions.\n[[morph_targets]]\nname = \"a\"\n";
+        let registration = Registration {
+            placed: Vec::new(),
+            rejected: Vec::new(),
+            similarity_rms: 0.0,
+            warp_rms: 0.0,
+            warped: Vec::new(),
+        };
+        let out = replace_controls_toml(text, &[], &registration);
+        assert!(
+            out.starts_with("name = \"r\"\n\n# The expressions.\n[[morph_targets]]\nname = \"a\"\n"),
+            "{out}"
+        );
+        assert!(!out.contains("inside") && !out.contains("fdp"), "{out}");
+    }
 
     /// A bumpy 21 x 21 sheet (spacing 1), facing +z.
     fn sheet() -> Mesh {
