@@ -38,8 +38,8 @@ mod rig_new;
 mod seams;
 mod serve;
 mod serve_weights;
-mod shipped_rigs;
 mod shell;
+mod shipped_rigs;
 mod slots;
 mod view;
 

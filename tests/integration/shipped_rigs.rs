@@ -37,7 +37,11 @@ fn shipped_rigs_are_rig_new_output_with_their_overrides() {
         let shipped = std::fs::read_to_string(repo().join(&rel)).unwrap();
         let words = regenerate_command(rig, &shipped);
         let o_at = words.iter().position(|w| w == "-o").unwrap();
-        assert_eq!(words[o_at + 1], rel, "{rig}: the command writes another file");
+        assert_eq!(
+            words[o_at + 1],
+            rel,
+            "{rig}: the command writes another file"
+        );
         let out = dir.path().join(format!("{rig}.toml"));
         let out_str = out.to_str().unwrap().to_string();
         let mut args: Vec<&str> = words[3..].iter().map(String::as_str).collect();
@@ -47,9 +51,11 @@ fn shipped_rigs_are_rig_new_output_with_their_overrides() {
         let o = mimic(&full);
         let (stdout, stderr) = text(&o);
         assert!(o.status.success(), "{rig}: {stdout}\n{stderr}");
-        let made = std::fs::read_to_string(&out)
-            .unwrap()
-            .replacen(&format!("-o {out_str} "), &format!("-o {rel} "), 1);
+        let made = std::fs::read_to_string(&out).unwrap().replacen(
+            &format!("-o {out_str} "),
+            &format!("-o {rel} "),
+            1,
+        );
         let (mut n_mesh, mut n_lines) = (0, 0);
         for (k, (a, b)) in shipped.lines().zip(made.lines()).enumerate() {
             if let (Some(a), Some(b)) = (a.strip_prefix("mesh = "), b.strip_prefix("mesh = ")) {
@@ -87,7 +93,10 @@ fn shipped_rigs_are_rig_new_output_with_their_overrides() {
 #[test]
 fn candide3_is_the_one_hand_rig() {
     let text = std::fs::read_to_string(repo().join("configs/rigs/candide3.toml")).unwrap();
-    assert!(!text.contains("# Regenerate: "), "candide3 has no rig new command");
+    assert!(
+        !text.contains("# Regenerate: "),
+        "candide3 has no rig new command"
+    );
     for rig in SHIPPED {
         let t = std::fs::read_to_string(repo().join(format!("configs/rigs/{rig}.toml"))).unwrap();
         assert!(

@@ -44,7 +44,8 @@ fn dotted(path: &[Step]) -> String {
 
 /// 1-based line of byte `offset` in `text`.
 fn line_of(text: &str, offset: usize) -> usize {
-    text.get(..offset).map_or(1, |t| t.matches('\n').count() + 1)
+    text.get(..offset)
+        .map_or(1, |t| t.matches('\n').count() + 1)
 }
 
 /// Merges the override files, in order, into the generated rig TOML `generated`; after each,
@@ -74,8 +75,13 @@ pub fn apply_overrides(
             }
         })?;
         let mut set = Vec::new();
-        merge_table(doc.as_table_mut(), over.as_table(), &mut Vec::new(), &mut set)
-            .map_err(|(key, message)| fail(&key, message))?;
+        merge_table(
+            doc.as_table_mut(),
+            over.as_table(),
+            &mut Vec::new(),
+            &mut set,
+        )
+        .map_err(|(key, message)| fail(&key, message))?;
         order_tables(doc.as_table_mut());
         text = doc.to_string();
         if let Err(e) = mimic_assets::parse_rig(rig_path, &text) {
@@ -415,7 +421,12 @@ mod tests {
         let mut doc: DocumentMut = base.parse().unwrap();
         let over: DocumentMut = over.parse().unwrap();
         let mut set = Vec::new();
-        merge_table(doc.as_table_mut(), over.as_table(), &mut Vec::new(), &mut set)?;
+        merge_table(
+            doc.as_table_mut(),
+            over.as_table(),
+            &mut Vec::new(),
+            &mut set,
+        )?;
         Ok(doc.to_string())
     }
 
@@ -430,13 +441,17 @@ mod tests {
 
     #[test]
     fn a_control_without_a_name_or_a_table_in_an_inline_table_is_an_error() {
-        let base = "[solver]\nkernel = { radius = 2.5 }\n\n[[controls]]\nfdp = \"5.1\"\nvertex = 10\n";
+        let base =
+            "[solver]\nkernel = { radius = 2.5 }\n\n[[controls]]\nfdp = \"5.1\"\nvertex = 10\n";
         let (key, message) = merged(base, "[[controls]]\nvertex = 3\n").unwrap_err();
         assert_eq!(key, "controls[0]");
         assert!(message.contains("fdp"), "{message}");
         let (key, _) = merged(base, "[solver.kernel.x]\ny = 1\n").unwrap_err();
         assert_eq!(key, "solver.kernel.x");
         let out = merged(base, "[[controls]]\nfdp = \"9.9\"\nvertex = 3\n").unwrap();
-        assert!(out.ends_with("[[controls]]\nfdp = \"9.9\"\nvertex = 3\n"), "{out}");
+        assert!(
+            out.ends_with("[[controls]]\nfdp = \"9.9\"\nvertex = 3\n"),
+            "{out}"
+        );
     }
 }

@@ -397,7 +397,11 @@ pub fn replace_controls_toml(
             in_controls = head.starts_with("[[controls]]");
             if !in_controls {
                 let gap = out.is_empty() || out.ends_with("\n\n");
-                out.push_str(if gap { held.trim_start_matches('\n') } else { &held });
+                out.push_str(if gap {
+                    held.trim_start_matches('\n')
+                } else {
+                    &held
+                });
             }
             held.clear();
         }
@@ -627,7 +631,9 @@ mod tests {
         };
         let out = replace_controls_toml(text, &[], &registration);
         assert!(
-            out.starts_with("name = \"r\"\n\n# The expressions.\n[[morph_targets]]\nname = \"a\"\n"),
+            out.starts_with(
+                "name = \"r\"\n\n# The expressions.\n[[morph_targets]]\nname = \"a\"\n"
+            ),
             "{out}"
         );
         assert!(!out.contains("inside") && !out.contains("fdp"), "{out}");

@@ -139,7 +139,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..Defaults::default()
     };
     let rig = make_rig(&mesh, &marks, &name, args.units.as_deref(), defaults)
-    .with_context(|| format!("{}: {marks_from}", args.mesh.display()))?;
+        .with_context(|| format!("{}: {marks_from}", args.mesh.display()))?;
     let out_dir = args
         .output
         .parent()
