@@ -1,6 +1,6 @@
 //! The shipped ICT rigs are `mimic rig new` output (with their documented overrides,
 //! `configs/rigs/overrides/`): the command in each rig's `# Regenerate:` header line, run into a
-//! temporary folder, writes the shipped file again.
+//! temporary folder (beside a link to `configs/meshes`), writes the shipped file again.
 //!
 //! One line may differ: `mesh = ...` is written relative to the rig's folder, which is the
 //! temporary one here; the test checks that it names the same mesh file instead. The header's
@@ -31,7 +31,17 @@ fn regenerate_command(rig: &str, shipped: &str) -> Vec<String> {
 
 #[test]
 fn shipped_rigs_are_rig_new_output_with_their_overrides() {
-    let dir = tempfile::tempdir().unwrap();
+    // Paths in the overrides (morph target OBJs, textures) are relative to the rig, as in
+    // configs/rigs/: the rigs are written to <tmp>/configs/rigs/ beside a link to the meshes.
+    let tmp = tempfile::tempdir().unwrap();
+    let dir_buf = tmp.path().join("configs/rigs");
+    std::fs::create_dir_all(&dir_buf).unwrap();
+    std::os::unix::fs::symlink(
+        repo().join("configs/meshes"),
+        tmp.path().join("configs/meshes"),
+    )
+    .unwrap();
+    let dir = dir_buf.as_path();
     for rig in SHIPPED {
         let rel = format!("configs/rigs/{rig}.toml");
         let shipped = std::fs::read_to_string(repo().join(&rel)).unwrap();
@@ -42,7 +52,7 @@ fn shipped_rigs_are_rig_new_output_with_their_overrides() {
             rel,
             "{rig}: the command writes another file"
         );
-        let out = dir.path().join(format!("{rig}.toml"));
+        let out = dir.join(format!("{rig}.toml"));
         let out_str = out.to_str().unwrap().to_string();
         let mut args: Vec<&str> = words[3..].iter().map(String::as_str).collect();
         args[o_at - 2] = &out_str;
@@ -61,7 +71,7 @@ fn shipped_rigs_are_rig_new_output_with_their_overrides() {
             if let (Some(a), Some(b)) = (a.strip_prefix("mesh = "), b.strip_prefix("mesh = ")) {
                 let unquote = |s: &str| s.trim_matches('"').to_string();
                 let shipped_mesh = repo().join("configs/rigs").join(unquote(a));
-                let made_mesh = dir.path().join(unquote(b));
+                let made_mesh = dir.join(unquote(b));
                 assert_eq!(
                     shipped_mesh.canonicalize().unwrap(),
                     made_mesh.canonicalize().unwrap(),
