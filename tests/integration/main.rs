@@ -39,6 +39,7 @@ mod seams;
 mod serve;
 mod serve_weights;
 mod shell;
+mod shipped_rigs;
 mod slots;
 mod view;
 

@@ -12,6 +12,7 @@ pub mod landmarks;
 pub mod nearest;
 pub mod new;
 pub mod nonrigid;
+pub mod overrides;
 pub mod parts;
 pub mod picture;
 pub mod place;
@@ -25,6 +26,7 @@ pub use landmarks::{
     IBUG_POINTS, LandmarkBase, Landmarks, landmarks_json, load_landmarks, parse_landmarks,
 };
 pub use new::{Defaults, GeneratedRig, guess_units, make_rig};
+pub use overrides::apply_overrides;
 pub use write::{relative_path, write_rig_toml};
 
 use std::path::{Path, PathBuf};
@@ -76,4 +78,24 @@ pub enum RigNewError {
     /// A unit outside `mimic_types::rig::RIG_UNITS`.
     #[error("units `{0}` is not one of m, cm, mm, in, model")]
     Units(String),
+    /// An override file (`rig new --overrides`) that is not TOML.
+    #[error("{}:{line}: {message}", path.display())]
+    OverrideSyntax {
+        /// The override file.
+        path: PathBuf,
+        /// 1-based line.
+        line: usize,
+        /// What was wrong.
+        message: String,
+    },
+    /// An override key that cannot be merged, or with which the rig does not load.
+    #[error("{}: key `{key}`: {message}", path.display())]
+    Override {
+        /// The override file.
+        path: PathBuf,
+        /// The key path (`solver.kernel`, `controls[5.1].vertex`).
+        key: String,
+        /// What was wrong.
+        message: String,
+    },
 }

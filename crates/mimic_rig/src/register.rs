@@ -388,14 +388,31 @@ pub fn replace_controls_toml(
     use std::fmt::Write;
     let mut out = String::new();
     let mut in_controls = false;
+    // Comment and blank lines inside the controls: dropped with them, unless a table other
+    // than a control follows, whose comment they are.
+    let mut held = String::new();
     for line in text.lines() {
         let head = line.trim_start();
         if head.starts_with('[') {
             in_controls = head.starts_with("[[controls]]");
+            if !in_controls {
+                let gap = out.is_empty() || out.ends_with("\n\n");
+                out.push_str(if gap {
+                    held.trim_start_matches('\n')
+                } else {
+                    &held
+                });
+            }
+            held.clear();
         }
         if !in_controls {
             out.push_str(line);
             out.push('\n');
+        } else if head.is_empty() || head.starts_with('#') {
+            held.push_str(line);
+            held.push('\n');
+        } else {
+            held.clear();
         }
     }
     while out.ends_with("\n\n") {
@@ -601,6 +618,26 @@ fn solve_dense(a: &mut [f64], rhs: &mut [DVec3], n: usize) -> Option<Vec<DVec3>>
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn replaced_controls_keep_the_comment_of_the_table_after_them() {
+        let text = "name = \"r\"\n\n[[controls]]\nfdp = \"2.1\"\nvertex = 1\n# inside\nregion = \"bottom\"\n\n# The expressions.\n[[morph_targets]]\nname = \"a\"\n";
+        let registration = Registration {
+            placed: Vec::new(),
+            rejected: Vec::new(),
+            similarity_rms: 0.0,
+            warp_rms: 0.0,
+            warped: Vec::new(),
+        };
+        let out = replace_controls_toml(text, &[], &registration);
+        assert!(
+            out.starts_with(
+                "name = \"r\"\n\n# The expressions.\n[[morph_targets]]\nname = \"a\"\n"
+            ),
+            "{out}"
+        );
+        assert!(!out.contains("inside") && !out.contains("fdp"), "{out}");
+    }
 
     /// A bumpy 21 x 21 sheet (spacing 1), facing +z.
     fn sheet() -> Mesh {

@@ -41,6 +41,49 @@ pub struct Args {
     /// registration aligns by).
     #[arg(long, default_value = "mpeg4")]
     pub controls: String,
+    /// Hand values kept over the generated ones: a TOML file whose tables merge into the rig's
+    /// key by key, whose other values (arrays included) replace the rig's, and whose
+    /// `[[controls]]` entries change the control their `fdp` names (docs/rigging.md,
+    /// "Overrides"). Repeatable; applied in order, each checked by loading the merged rig.
+    #[arg(long = "overrides", value_name = "FILE")]
+    pub overrides: Vec<PathBuf>,
+    /// Freeze the vertices of the controlled pieces farther than this many inter-ocular
+    /// distances from every landmark (the back of the head, the neck).
+    #[arg(long, value_name = "IOD", default_value_t = Defaults::default().back_of_head)]
+    pub frozen_beyond: f32,
+}
+
+impl Args {
+    /// The command line that makes this rig again, as written into its header.
+    fn command_line(&self) -> String {
+        let mut words = vec![
+            "mimic rig new".to_string(),
+            self.mesh.display().to_string(),
+            format!("-o {}", self.output.display()),
+        ];
+        if let Some(l) = &self.landmarks {
+            words.push(format!("--landmarks {}", l.display()));
+            if self.landmark_base == LandmarkBase::One {
+                words.push("--landmark-base 1".into());
+            }
+        }
+        if let Some(u) = &self.units {
+            words.push(format!("--units {u}"));
+        }
+        if let Some(n) = &self.name {
+            words.push(format!("--name {n}"));
+        }
+        if self.controls != "mpeg4" {
+            words.push(format!("--controls {}", self.controls));
+        }
+        if self.frozen_beyond != Defaults::default().back_of_head {
+            words.push(format!("--frozen-beyond {}", self.frozen_beyond));
+        }
+        for o in &self.overrides {
+            words.push(format!("--overrides {}", o.display()));
+        }
+        words.join(" ")
+    }
 }
 
 fn parse_base(s: &str) -> Result<LandmarkBase, String> {
@@ -76,14 +119,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .trim_end_matches(".generated")
             .to_string()
     });
-    let rig = make_rig(
-        &mesh,
-        &marks,
-        &name,
-        args.units.as_deref(),
-        Defaults::default(),
-    )
-    .with_context(|| format!("{}: {marks_from}", args.mesh.display()))?;
+    if !(args.frozen_beyond.is_finite() && args.frozen_beyond > 0.0) {
+        anyhow::bail!(
+            "--frozen-beyond {}: a distance in inter-ocular distances above 0",
+            args.frozen_beyond
+        );
+    }
+    let overrides = args
+        .overrides
+        .iter()
+        .map(|p| {
+            mimic_types::limits::read_capped(p, &mimic_types::limits::RIG_FILE)
+                .map(|t| (p.as_path(), t))
+                .with_context(|| format!("--overrides {}", p.display()))
+        })
+        .collect::<anyhow::Result<Vec<_>>>()?;
+    let defaults = Defaults {
+        back_of_head: args.frozen_beyond,
+        ..Defaults::default()
+    };
+    let rig = make_rig(&mesh, &marks, &name, args.units.as_deref(), defaults)
+        .with_context(|| format!("{}: {marks_from}", args.mesh.display()))?;
     let out_dir = args
         .output
         .parent()
@@ -103,11 +159,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.mesh.clone()
     };
     let mesh_rel = relative_path(&out_dir, &mesh_file);
-    let text = write_rig_toml(&rig, &mesh_rel, mesh.vertex_count());
+    let text = with_command(
+        &write_rig_toml(&rig, &mesh_rel, mesh.vertex_count()),
+        &args.command_line(),
+    );
+    let merged: Vec<(&Path, &str)> = overrides.iter().map(|(p, t)| (*p, t.as_str())).collect();
+    let text = mimic_rig::apply_overrides(&text, &merged, &args.output)?;
     std::fs::write(&args.output, &text).with_context(|| args.output.display().to_string())?;
     // Read it back as every other command will.
     let mut loaded = mimic_assets::load_rig(&args.output)
         .with_context(|| format!("{}: the written rig does not load", args.output.display()))?;
+    if !args.overrides.is_empty() {
+        // The parts of a rig only an override writes: its look and morph targets.
+        mimic_assets::load_rig_look(&args.output)
+            .and_then(|_| mimic_assets::load_morph_targets(&args.output, &loaded))
+            .with_context(|| {
+                format!(
+                    "{}: the look or morph targets from the overrides do not load",
+                    args.output.display()
+                )
+            })?;
+    }
     if let Some(reg) = mimic_rig::register::apply_control_set(
         &mut loaded,
         &args.controls,
@@ -143,6 +215,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("warning: {w}");
     }
     Ok(())
+}
+
+/// The rig text with the command that regenerates it as its second line.
+fn with_command(text: &str, command: &str) -> String {
+    let (first, rest) = text.split_once('\n').unwrap_or((text, ""));
+    format!("{first}\n# Regenerate: {command}\n{rest}")
 }
 
 /// The landmarks of `mesh` found by registering the ICT head onto it, with the fit on stderr.
