@@ -302,3 +302,29 @@ fn info_accepts_every_shipped_recording_and_names_bad_lines() {
         );
     }
 }
+
+/// `--no-gate` turns the plausibility gate off: a_yn_question's fit failure (frames 99-109, which
+/// the gate holds by default) then passes through, and the jump count rises with it; the frame
+/// counts are the same either way (docs/gate.md, the before/after sheet of tools/gate_sheet.sh).
+#[test]
+fn no_gate_lets_the_fit_failure_through() {
+    let run = |extra: &[&str]| -> Value {
+        let mut args = vec![
+            "recordings/a_yn_question.kinect121.jsonl",
+            "--rig",
+            "candide3",
+        ];
+        args.extend_from_slice(extra);
+        replay_json(&args)
+    };
+    let on = run(&[]);
+    let off = run(&["--no-gate"]);
+    let n = |v: &Value, k: &str| v[k].as_u64().unwrap();
+    assert!(n(&on, "gated") >= 11, "{on}");
+    assert_eq!(n(&off, "gated"), 0, "{off}");
+    assert_eq!(n(&off, "clamped"), 0, "{off}");
+    assert!(n(&off, "jumps") > n(&on, "jumps"), "off {off}\non {on}");
+    for k in ["frames_in", "lost", "rejected"] {
+        assert_eq!(n(&on, k), n(&off, k), "{k}");
+    }
+}

@@ -431,6 +431,9 @@ pub struct PipelineArgs {
     /// Turn the One Euro jitter filter off.
     #[arg(long)]
     pub no_filter: bool,
+    /// Turn the plausibility gate off: implausible frames pass through (for before/after comparisons; docs/gate.md).
+    #[arg(long)]
+    pub no_gate: bool,
     /// One Euro cutoff at rest (Hz).
     #[arg(long, default_value_t = OneEuroSettings::default().min_cutoff)]
     pub filter_cutoff: f32,
@@ -451,7 +454,10 @@ pub struct PipelineArgs {
 impl PipelineArgs {
     /// The pipeline settings these options describe.
     pub fn settings(&self) -> RetargetSettings {
+        let mut gate = RetargetSettings::default().gate;
+        gate.enabled = !self.no_gate;
         RetargetSettings {
+            gate,
             neutral: Neutral::FirstFrames(self.neutral_frames.max(1)),
             filter: (!self.no_filter).then_some(OneEuroSettings {
                 min_cutoff: self.filter_cutoff,
