@@ -656,7 +656,7 @@ impl Fitter {
                 break;
             }
         }
-        (it, self.reprojection_rms(state, obs))
+        (it, self.reprojection_rms(state, obs, &[]))
     }
 
     fn apply(&mut self, state: &mut State, delta: &[f64], fit_shape: bool) {
@@ -738,14 +738,9 @@ impl Fitter {
                 }
             }
             let mut add = |res: f64, coef: DVec3, cost: &mut f64| {
-                // Huber loss, by iteratively reweighted least squares: quadratic up to `huber`, then linear.
-                let a = res.abs();
-                let w = if a <= huber { 1.0 } else { huber / a };
-                *cost += if a <= huber {
-                    res * res
-                } else {
-                    huber * (2.0 * a - huber)
-                };
+                // Huber loss, by iteratively reweighted least squares.
+                let (c, w) = huber_loss(res, huber);
+                *cost += c;
                 let res = res * w;
                 if jacobian {
                     for c in 0..n {
@@ -770,19 +765,9 @@ impl Fitter {
                 add(g * d.y, DVec3::new(0.0, g, 0.0), &mut cost);
                 add(g * wz * d.z, DVec3::new(0.0, 0.0, g * wz), &mut cost);
             } else if let Some(p) = pixel {
-                let depth = (-x.z).max(1e-6);
-                let q = self.camera.project(x);
-                let w = t.weight;
-                add(
-                    w * (q.x - p.x),
-                    w * DVec3::new(f / depth, 0.0, f * x.x / (depth * depth)),
-                    &mut cost,
-                );
-                add(
-                    w * (q.y - p.y),
-                    w * DVec3::new(0.0, -f / depth, -f * x.y / (depth * depth)),
-                    &mut cost,
-                );
+                for (res, coef) in pixel_rows(&self.camera, x, p, t.weight) {
+                    add(res, coef, &mut cost);
+                }
             }
         }
         // Priors: diagonal, so added straight to the normal equations.
@@ -829,20 +814,44 @@ impl Fitter {
         cost
     }
 
-    /// RMS image distance between the fitted targets and their observed pixels (or projected positions).
-    fn reprojection_rms(&self, state: &State, obs: &[PointObservation]) -> f64 {
-        let s = state.log_scale.exp();
+    /// The pixel target `t` is fitted to in the image: the tracker's pixel, or a 3D point's
+    /// projection (contour points have no usable depth).
+    fn seen_pixel(&self, t: &Target, o: &PointObservation) -> Option<DVec2> {
+        o.pixel.filter(|p| p.is_finite()).or_else(|| {
+            o.position
+                .filter(|p| !t.contour && p.is_finite() && p.z < 0.0)
+                .map(|p| self.camera.project(p))
+        })
+    }
+
+    /// Camera-space point of target `t` for the frame's pose and AUs plus the odd coefficients
+    /// `odd` (one per `odd_units`; empty: none), with the pixel it is fitted to.
+    fn image_point(
+        &self,
+        state: &State,
+        t: &Target,
+        o: &PointObservation,
+        odd: &[f64],
+    ) -> Option<(DVec3, DVec2)> {
+        let seen = self.seen_pixel(t, o)?;
+        let mut m = self.model_point(t, &state.au);
+        for (&k, b) in self.odd_units.iter().zip(odd) {
+            if let Some(d) = t.au.get(AUV_COUNT + k) {
+                m += *d * *b;
+            }
+        }
+        let x = state.log_scale.exp() * (state.rotation * m) + state.translation;
+        Some((x, seen))
+    }
+
+    /// RMS image distance between the fitted targets (with the odd coefficients `odd`, see
+    /// [`Fitter::image_point`]) and their observed pixels (or projected positions).
+    fn reprojection_rms(&self, state: &State, obs: &[PointObservation], odd: &[f64]) -> f64 {
         let (mut sum, mut count) = (0.0, 0usize);
         for t in &self.targets {
             let Some(o) = obs.get(t.point) else { continue };
-            let seen = o.pixel.filter(|p| p.is_finite()).or_else(|| {
-                o.position
-                    .filter(|p| !t.contour && p.is_finite() && p.z < 0.0)
-                    .map(|p| self.camera.project(p))
-            });
-            if let Some(p) = seen {
-                let x = s * (state.rotation * self.model_point(t, &state.au)) + state.translation;
-                sum += (self.camera.project(x) - p).length_squared();
+            if let Some((x, seen)) = self.image_point(state, t, o, odd) {
+                sum += (self.camera.project(x) - seen).length_squared();
                 count += 1;
             }
         }
@@ -852,6 +861,34 @@ impl Fitter {
             (sum / count as f64).sqrt()
         }
     }
+}
+
+/// Huber loss of a residual and its IRLS weight: quadratic up to `huber`, then linear.
+fn huber_loss(res: f64, huber: f64) -> (f64, f64) {
+    let a = res.abs();
+    if a <= huber {
+        (res * res, 1.0)
+    } else {
+        (huber * (2.0 * a - huber), huber / a)
+    }
+}
+
+/// The two image residuals (x, y) of camera-space point `x` against pixel `seen`, weighted by
+/// `w`, each with its gradient with respect to `x`.
+fn pixel_rows(camera: &Camera, x: DVec3, seen: DVec2, w: f64) -> [(f64, DVec3); 2] {
+    let f = camera.focal_px;
+    let depth = (-x.z).max(1e-6);
+    let q = camera.project(x);
+    [
+        (
+            w * (q.x - seen.x),
+            w * DVec3::new(f / depth, 0.0, f * x.x / (depth * depth)),
+        ),
+        (
+            w * (q.y - seen.y),
+            w * DVec3::new(0.0, -f / depth, -f * x.y / (depth * depth)),
+        ),
+    ]
 }
 
 fn pose_of(state: &State) -> Pose {

@@ -4,10 +4,9 @@
 //! (no depth term). The pose is then exactly the symmetric fit's, so the odd parts cannot trade off
 //! against the head's yaw, and depth noise cannot drive them.
 
-use super::{Fitter, PointObservation, State, Target};
+use super::{Fitter, PointObservation, State, huber_loss, pixel_rows};
 use crate::candide::AUV_COUNT;
 use crate::cholesky::solve_spd;
-use glam::{DVec2, DVec3};
 
 /// Whether and how the fitter fits the AUs' left-right odd parts.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -96,32 +95,7 @@ impl Fitter {
         for (&k, b) in self.odd_units.iter().zip(&beta) {
             self.odd_after[k] = *b;
         }
-        self.odd_rms(state, obs, &beta[..n])
-    }
-
-    /// The image (x, y) of target `t` for the frame's pose and AUs plus odd coefficients `beta`
-    /// (one per `odd_units`), its camera-space point, and the pixel it is fitted to.
-    fn odd_point(
-        &self,
-        state: &State,
-        t: &Target,
-        o: &PointObservation,
-        beta: &[f64],
-    ) -> Option<(DVec3, DVec2)> {
-        // Image only: the tracker's pixel, or a 3D point's projection (no depth term).
-        let seen = o.pixel.filter(|p| p.is_finite()).or_else(|| {
-            o.position
-                .filter(|p| !t.contour && p.is_finite() && p.z < 0.0)
-                .map(|p| self.camera.project(p))
-        })?;
-        let mut m = self.model_point(t, &state.au);
-        for (&k, b) in self.odd_units.iter().zip(beta) {
-            if let Some(d) = t.au.get(AUV_COUNT + k) {
-                m += *d * *b;
-            }
-        }
-        let x = state.log_scale.exp() * (state.rotation * m) + state.translation;
-        Some((x, seen))
+        self.reprojection_rms(state, obs, &beta[..n])
     }
 
     /// Huber cost of the weighted image residuals plus the odd priors; with `normal`, also the
@@ -140,35 +114,17 @@ impl Fitter {
             jtr.iter_mut().for_each(|v| *v = 0.0);
         }
         let s = state.log_scale.exp();
-        let f = self.camera.focal_px;
         let huber = self.settings.huber_px;
         let mut cost = 0.0;
         for t in &self.targets {
             let Some(o) = obs.get(t.point) else { continue };
-            let Some((x, seen)) = self.odd_point(state, t, o, beta) else {
+            let Some((x, seen)) = self.image_point(state, t, o, beta) else {
                 continue;
             };
-            let depth = (-x.z).max(1e-6);
-            let q = self.camera.project(x);
-            let w = t.weight;
-            let rows = [
-                (
-                    w * (q.x - seen.x),
-                    w * DVec3::new(f / depth, 0.0, f * x.x / (depth * depth)),
-                ),
-                (
-                    w * (q.y - seen.y),
-                    w * DVec3::new(0.0, -f / depth, -f * x.y / (depth * depth)),
-                ),
-            ];
+            let rows = pixel_rows(&self.camera, x, seen, t.weight);
             for (res, coef) in rows {
-                let a = res.abs();
-                let hw = if a <= huber { 1.0 } else { huber / a };
-                cost += if a <= huber {
-                    res * res
-                } else {
-                    huber * (2.0 * a - huber)
-                };
+                let (c, hw) = huber_loss(res, huber);
+                cost += c;
                 if let Some((jtj, jtr)) = normal.as_mut() {
                     let mut row = [0.0; AUV_COUNT];
                     for (r, &k) in row.iter_mut().zip(&self.odd_units).take(n) {
@@ -206,22 +162,5 @@ impl Fitter {
             }
         }
         cost
-    }
-
-    /// RMS image distance between the targets (odd parts included) and their observed pixels.
-    fn odd_rms(&self, state: &State, obs: &[PointObservation], beta: &[f64]) -> f64 {
-        let (mut sum, mut count) = (0.0, 0usize);
-        for t in &self.targets {
-            let Some(o) = obs.get(t.point) else { continue };
-            if let Some((x, seen)) = self.odd_point(state, t, o, beta) {
-                sum += (self.camera.project(x) - seen).length_squared();
-                count += 1;
-            }
-        }
-        if count == 0 {
-            f64::NAN
-        } else {
-            (sum / count as f64).sqrt()
-        }
     }
 }
