@@ -12,7 +12,6 @@
 //! faded field meets the frozen set and the unfaded field without a kink.
 
 use crate::geodesic::EdgeGraph;
-use glam::Vec3;
 use mimic_types::RbfKernel;
 
 /// The fade runs over this many kernel radii of edge-path distance from the frozen set.
@@ -34,24 +33,23 @@ pub struct BorderFade {
 }
 
 impl BorderFade {
-    /// The fade of a mesh whose vertices in `frozen` stay still, for an RBF through the control
-    /// vertices `controls` with `kernel`; `None` when nothing frozen is reachable from a free
-    /// vertex (no border to fade) or no positive width is left (thin-plate has no radius: its
-    /// width is the cap alone).
+    /// The fade of a mesh (its edge `graph`) whose vertices in `frozen` stay still, for an RBF
+    /// through the control vertices `controls` with `kernel`; `None` when nothing frozen is
+    /// reachable from a free vertex (no border to fade) or no positive width is left (thin-plate
+    /// has no radius: its width is the cap alone).
     pub fn new(
-        positions: &[Vec3],
-        triangles: &[[u32; 3]],
+        graph: &EdgeGraph,
         frozen: &[bool],
         controls: &[usize],
         kernel: RbfKernel,
     ) -> Option<Self> {
-        let sources: Vec<usize> = (0..positions.len())
+        let sources: Vec<usize> = (0..graph.vertex_count())
             .filter(|&i| frozen.get(i).copied().unwrap_or(false))
             .collect();
         if sources.is_empty() {
             return None;
         }
-        let dist = EdgeGraph::new(positions, triangles).distances_from_set(&sources);
+        let dist = graph.distances_from_set(&sources);
         let reaches_free = dist.iter().zip(frozen).any(|(d, &f)| !f && d.is_finite());
         if !reaches_free {
             return None;
@@ -88,6 +86,7 @@ mod tests {
     use super::*;
     use crate::test_meshes::{grid, lcg, random_d, rig};
     use crate::{Basis, build_basis, rbf};
+    use glam::Vec3;
     use mimic_types::{LaplacianWeights, RbfDistance, SolverKind, SolverSettings};
 
     /// Grid spacing of the test mesh: `N x N` vertices on the unit square.
@@ -164,8 +163,7 @@ mod tests {
         let w = FADE_RADII * RADIUS;
         let controls: Vec<usize> = r.controls.iter().map(|c| c.vertex as usize).collect();
         let fade = BorderFade::new(
-            &r.mesh.positions,
-            &r.mesh.triangles,
+            &EdgeGraph::new(&r.mesh.positions, &r.mesh.triangles),
             &r.frozen,
             &controls,
             settings(false).kernel,
@@ -209,8 +207,7 @@ mod tests {
         // controls' rows are whole and every control displacement is reproduced.
         let r = frozen_bottom_rig(3);
         let fade = BorderFade::new(
-            &r.mesh.positions,
-            &r.mesh.triangles,
+            &EdgeGraph::new(&r.mesh.positions, &r.mesh.triangles),
             &r.frozen,
             &r.controls
                 .iter()
@@ -257,8 +254,13 @@ mod tests {
             .map(|i| (i % 12 < 2 || lcg(&mut seed) > 0.8) && !controls.contains(&i))
             .collect();
         let kernel = RbfKernel::Gaussian { radius: 0.05 };
-        let fade =
-            BorderFade::new(&mesh.positions, &mesh.triangles, &frozen, &controls, kernel).unwrap();
+        let fade = BorderFade::new(
+            &EdgeGraph::new(&mesh.positions, &mesh.triangles),
+            &frozen,
+            &controls,
+            kernel,
+        )
+        .unwrap();
         let mut dist: Vec<f64> = frozen
             .iter()
             .map(|&f| if f { 0.0 } else { f64::INFINITY })
@@ -303,8 +305,7 @@ mod tests {
         let none = vec![false; r.mesh.vertex_count()];
         assert!(
             BorderFade::new(
-                &r.mesh.positions,
-                &r.mesh.triangles,
+                &EdgeGraph::new(&r.mesh.positions, &r.mesh.triangles),
                 &none,
                 &controls,
                 kernel
@@ -316,7 +317,15 @@ mod tests {
         positions.push(Vec3::splat(9.0));
         let mut lone = none.clone();
         lone.push(true);
-        assert!(BorderFade::new(&positions, &r.mesh.triangles, &lone, &controls, kernel).is_none());
+        assert!(
+            BorderFade::new(
+                &EdgeGraph::new(&positions, &r.mesh.triangles),
+                &lone,
+                &controls,
+                kernel
+            )
+            .is_none()
+        );
     }
 
     #[test]

@@ -81,10 +81,14 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
     let weights = regions::vertex_region_weights(&bands, positions);
     let lap_rows = (settings.kind == SolverKind::Laplacian)
         .then(|| laplacian::laplacian_rows(positions, &rig.mesh.triangles, settings.weights));
+    // The RBF's edge graph: its geodesic distances and its fade toward the frozen vertices.
+    let graph = (settings.kind == SolverKind::Rbf)
+        .then(|| geodesic::EdgeGraph::new(positions, &rig.mesh.triangles));
     // Geodesic RBF: one Dijkstra per control, shared by every region.
-    let geodesic = (settings.kind == SolverKind::Rbf && settings.distance == RbfDistance::Geodesic)
-        .then(|| {
-            let graph = geodesic::EdgeGraph::new(positions, &rig.mesh.triangles);
+    let geodesic = graph
+        .as_ref()
+        .filter(|_| settings.distance == RbfDistance::Geodesic)
+        .map(|graph| {
             rig.controls
                 .iter()
                 .map(|c| graph.distances_from(c.vertex as usize))
@@ -185,14 +189,9 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
     }
     // The RBF knows nothing of the frozen vertices: fade its rows to zero toward them
     // (`border`), so the face meets a frozen neck without a step; controls keep their rows.
-    if settings.kind == SolverKind::Rbf
-        && let Some(fade) = border::BorderFade::new(
-            positions,
-            &rig.mesh.triangles,
-            &rig.frozen,
-            &all,
-            settings.kernel,
-        )
+    if let Some(fade) = graph
+        .as_ref()
+        .and_then(|graph| border::BorderFade::new(graph, &rig.frozen, &all, settings.kernel))
     {
         fade.apply(&mut b, m);
     }
