@@ -229,8 +229,7 @@ fn largest_recorded_frames_have_no_seam_no_hard_edge_and_no_folded_lower_lip() {
     // free vertex).
     let controls: Vec<usize> = rig.controls.iter().map(|c| c.vertex as usize).collect();
     let fade = mimic_solve::border::BorderFade::new(
-        &rig.mesh.positions,
-        &rig.mesh.triangles,
+        &mimic_solve::geodesic::EdgeGraph::new(&rig.mesh.positions, &rig.mesh.triangles),
         &rig.frozen,
         &controls,
         rig.solver.kernel,
