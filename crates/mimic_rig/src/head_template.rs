@@ -13,7 +13,7 @@
 
 use crate::RigNewError;
 use crate::icp::{IcpSettings, RigidFit, similarity_icp};
-use crate::landmarks::{IBUG_POINTS, LandmarkBase, Landmarks, load_landmarks};
+use crate::landmarks::{IBUG_POINTS, Landmarks, Numbering, load_landmarks};
 use crate::nearest::Surface;
 use crate::new::landmark_frame;
 use crate::nonrigid::{NonRigidSettings, knn_graph, nonrigid_icp};
@@ -50,7 +50,7 @@ impl TemplateHead {
     /// The ICT head ([`ICT_MESH`], [`ICT_LANDMARKS`], [`ICT_FACE_AREA`]) from `configs`.
     pub fn ict(configs: &Path) -> Result<Self, RigNewError> {
         let mesh = mimic_assets::load_obj(&configs.join(ICT_MESH))?;
-        let landmarks = load_landmarks(&configs.join(ICT_LANDMARKS), LandmarkBase::Zero)?;
+        let landmarks = load_landmarks(&configs.join(ICT_LANDMARKS), Numbering::default())?;
         let face_area = (0..mesh.vertex_count())
             .map(|v| ICT_FACE_AREA.contains(&v))
             .collect();

@@ -3,7 +3,11 @@
 //! Three forms are read (docs/rigging.md): a JSON object `{"0": 1225, "1": 1888, ...}` keyed by
 //! 0-based iBUG numbers (points the mesh lacks are left out), a JSON list of 68 vertex indices
 //! (ICT-FaceKit's `idx_to_landmark_verts`), or text lines `N = V` (blank lines and `#` comments
-//! skipped), whose numbers count from [`LandmarkBase`].
+//! skipped), whose iBUG numbers count from 0 or 1 ([`LandmarkBase`], told or seen from the file)
+//! and whose vertices count from 0 unless told otherwise. A text file may be TOML with its
+//! mapping in a `[landmark_mappings]` table, as eos ships them for the Surrey and Basel face
+//! models (`share/ibug_to_sfm.txt`: iBUG numbers from 1, vertices from 0); other tables in it
+//! (`[contour_landmarks]`) are skipped.
 
 use crate::RigNewError;
 use mimic_types::FileKind;
@@ -18,14 +22,24 @@ pub const LANDMARK_FILE: FileKind = FileKind {
     max_bytes: 1 << 20,
 };
 
-/// Where the numbers of an `N = V` landmark file start counting.
+/// Where a number of an `N = V` landmark file (the iBUG point or the vertex) starts counting.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
 pub enum LandmarkBase {
-    /// iBUG point 0 is written `0`, vertex 0 is `0` (C, Python).
+    /// The first is written `0` (C, Python; vertex indices in most files).
     #[default]
     Zero,
-    /// iBUG point 0 is written `1`, vertex 0 is `1` (MATLAB, OBJ numbering).
+    /// The first is written `1` (the iBUG paper's numbering, MATLAB, OBJ numbering).
     One,
+}
+
+/// How the numbers of an `N = V` file count.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub struct Numbering {
+    /// Base of the iBUG numbers `N`; `None`: seen from the file (a point 68 and no point 0: from
+    /// 1; a point 0: from 0).
+    pub point: Option<LandmarkBase>,
+    /// Base of the vertex indices `V`.
+    pub vertex: LandmarkBase,
 }
 
 impl LandmarkBase {
@@ -65,7 +79,7 @@ impl Landmarks {
 }
 
 /// Reads a landmark file (capped at [`LANDMARK_FILE`]).
-pub fn load_landmarks(path: &Path, base: LandmarkBase) -> Result<Landmarks, RigNewError> {
+pub fn load_landmarks(path: &Path, base: Numbering) -> Result<Landmarks, RigNewError> {
     let text = mimic_types::limits::read_capped(path, &LANDMARK_FILE).map_err(|cause| {
         RigNewError::Read {
             path: path.to_path_buf(),
@@ -77,26 +91,37 @@ pub fn load_landmarks(path: &Path, base: LandmarkBase) -> Result<Landmarks, RigN
 
 /// Parses landmark text; `path` names the file in errors. `base` applies to `N = V` lines only
 /// (JSON forms are 0-based).
-pub fn parse_landmarks(
-    path: &Path,
-    text: &str,
-    base: LandmarkBase,
-) -> Result<Landmarks, RigNewError> {
+pub fn parse_landmarks(path: &Path, text: &str, base: Numbering) -> Result<Landmarks, RigNewError> {
     let err = |line: usize, message: String| RigNewError::Landmarks {
         path: path.to_path_buf(),
         line,
         message,
     };
-    let first = text.trim_start().chars().next();
-    if matches!(first, Some('{') | Some('[')) {
+    // JSON: an object, or a list (`[` then a number or `]`); a `[name]` line is a TOML table.
+    let mut chars = text.trim_start().chars();
+    let first = chars.next();
+    let list = first == Some('[')
+        && chars
+            .find(|c| !c.is_whitespace())
+            .is_some_and(|c| c.is_ascii_digit() || c == ']');
+    if first == Some('{') || list {
         return parse_json(text).map_err(|(line, m)| err(line, m));
     }
-    let mut vertex = [None; IBUG_POINTS];
-    let mut lines_of = [0usize; IBUG_POINTS];
+    // (line, N, V) as written, from the lines outside any table or in `[landmark_mappings]`.
+    let mut pairs: Vec<(usize, u64, u64)> = Vec::new();
+    let mut in_mapping = true;
     for (i, raw) in text.lines().enumerate() {
         let line = i + 1;
         let body = raw.split('#').next().unwrap_or("").trim();
         if body.is_empty() {
+            continue;
+        }
+        if let Some(table) = body.strip_prefix('[') {
+            let name = table.trim_end_matches(']').trim();
+            in_mapping = name == "landmark_mappings";
+            continue;
+        }
+        if !in_mapping {
             continue;
         }
         let Some((n, v)) = body.split_once('=') else {
@@ -107,18 +132,45 @@ pub fn parse_landmarks(
         };
         let number = |s: &str, what: &str| -> Result<u64, RigNewError> {
             let s = s.trim();
-            let got: u64 = s
-                .parse()
-                .map_err(|_| err(line, format!("{what} `{s}` is not a whole number")))?;
-            got.checked_sub(base.offset()).ok_or_else(|| {
+            s.parse()
+                .map_err(|_| err(line, format!("{what} `{s}` is not a whole number")))
+        };
+        pairs.push((line, number(n, "iBUG point")?, number(v, "vertex")?));
+    }
+    if pairs.is_empty() {
+        return Err(err(1, "no landmarks in the file".into()));
+    }
+    let point_base = match base.point {
+        Some(b) => b,
+        None => {
+            let has = |k: u64| pairs.iter().any(|p| p.1 == k);
+            match (has(0), has(IBUG_POINTS as u64)) {
+                (true, _) => LandmarkBase::Zero,
+                (false, true) => LandmarkBase::One,
+                (false, false) => {
+                    return Err(err(
+                        pairs[0].0,
+                        format!(
+                            "the file gives neither iBUG point 0 nor point {IBUG_POINTS}, so where its numbers start is unknown: say --landmark-base 0 or 1"
+                        ),
+                    ));
+                }
+            }
+        }
+    };
+    let mut vertex = [None; IBUG_POINTS];
+    let mut lines_of = [0usize; IBUG_POINTS];
+    for (line, n, v) in pairs {
+        let shift = |got: u64, what: &str, b: LandmarkBase| {
+            got.checked_sub(b.offset()).ok_or_else(|| {
                 err(
                     line,
-                    format!("{what} {got} is below the landmark base {}", base.offset()),
+                    format!("{what} {got} is below its base {}", b.offset()),
                 )
             })
         };
-        let n = number(n, "iBUG point")?;
-        let v = number(v, "vertex")?;
+        let n = shift(n, "iBUG point", point_base)?;
+        let v = shift(v, "vertex", base.vertex)?;
         set(&mut vertex, n, v).map_err(|m| err(line, m))?;
         if let Some(slot) = lines_of.get_mut(n as usize) {
             if *slot != 0 {
@@ -126,7 +178,7 @@ pub fn parse_landmarks(
                     line,
                     format!(
                         "iBUG point {} is given twice (first on line {})",
-                        n + base.offset(),
+                        n + point_base.offset(),
                         *slot
                     ),
                 ));
@@ -134,11 +186,7 @@ pub fn parse_landmarks(
             *slot = line;
         }
     }
-    let marks = Landmarks { vertex };
-    if marks.count() == 0 {
-        return Err(err(1, "no landmarks in the file".into()));
-    }
-    Ok(marks)
+    Ok(Landmarks { vertex })
 }
 
 /// Stores vertex `v` for iBUG point `n` (both 0-based), checking their ranges.
@@ -235,8 +283,20 @@ fn line_of_key(text: &str, needle: &str) -> usize {
 mod tests {
     use super::*;
 
-    fn parse(text: &str, base: LandmarkBase) -> Result<Landmarks, String> {
+    fn parse(text: &str, point: LandmarkBase) -> Result<Landmarks, String> {
+        let base = Numbering {
+            point: Some(point),
+            vertex: LandmarkBase::Zero,
+        };
         parse_landmarks(Path::new("marks.txt"), text, base).map_err(|e| e.to_string())
+    }
+
+    /// iBUG numbers and vertices both from 1.
+    fn one() -> Numbering {
+        Numbering {
+            point: Some(LandmarkBase::One),
+            vertex: LandmarkBase::One,
+        }
     }
 
     #[test]
@@ -249,7 +309,7 @@ mod tests {
         marks.vertex[67] = Some(5966);
         let text = landmarks_json(&marks);
         assert!(text.starts_with("{\n  \"0\": 1225,\n"), "{text}");
-        let back = parse_landmarks(Path::new("m.json"), &text, LandmarkBase::One).unwrap();
+        let back = parse_landmarks(Path::new("m.json"), &text, one()).unwrap();
         assert_eq!(back, marks);
     }
 
@@ -268,7 +328,7 @@ mod tests {
             (2, Some(1000), Some(1067), None)
         );
         let lines = "# iBUG = vertex\n1 = 1001\n\n68 = 1068 # last\n";
-        let c = parse(lines, LandmarkBase::One).unwrap();
+        let c = parse_landmarks(Path::new("m.txt"), lines, one()).unwrap();
         assert_eq!(
             (c.count(), c.get(0), c.get(67)),
             (2, Some(1000), Some(1067))
@@ -287,7 +347,14 @@ mod tests {
             "marks.txt:3: iBUG point 0 is given twice (first on line 1)"
         );
         let e = parse("0 = 5\n", LandmarkBase::One).unwrap_err();
-        assert_eq!(e, "marks.txt:1: iBUG point 0 is below the landmark base 1");
+        assert_eq!(e, "marks.txt:1: iBUG point 0 is below its base 1");
+        let e = parse_landmarks(Path::new("marks.txt"), "3 = 5\n", Numbering::default())
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("marks.txt:1: the file gives neither iBUG point 0 nor point 68"),
+            "{e}"
+        );
         let e = parse("68 = 5\n", LandmarkBase::Zero).unwrap_err();
         assert_eq!(e, "marks.txt:1: iBUG point 68 (0-based) is outside 0..=67");
         let e = parse("0 5\n", LandmarkBase::Zero).unwrap_err();
@@ -310,5 +377,60 @@ mod tests {
         let e = parse("{\n\"0\": 1,\n", LandmarkBase::Zero).unwrap_err();
         assert!(e.starts_with("marks.txt:3: "), "{e}");
         assert!(parse("# nothing\n", LandmarkBase::Zero).is_err());
+    }
+
+    /// eos's `share/ibug_to_sfm.txt` (Apache-2.0, github.com/patrikhuber/eos), abridged: a TOML
+    /// file, iBUG numbers from 1, SFM vertex indices from 0, a contour table after the mapping.
+    const EOS: &str = "# Mapping from the 68-point ibug annotations to the Surrey Face Model (SFM) mesh vertex indices.
+# This file uses TOML syntax (https://github.com/toml-lang/toml).
+
+# Mappings from input landmarks (ibug, lhs) to output landmarks (SFM, rhs):
+[landmark_mappings]
+            # 1 to 8 are the right contour landmarks
+ 9 =    33  # chin bottom
+            # 10 to 17 are the left contour landmarks
+18 =   225  # right eyebrow outer-corner (18)
+            # 61 not defined - would be right inner corner of the mouth
+68 =   404  # lower lip right top outer
+
+
+# Definitions of which 2D landmarks make up the right and left face contours:
+[contour_landmarks]
+right = [  1,
+           2,
+           8
+        ]
+left  = [ 10,
+          17
+        ]
+";
+
+    #[test]
+    fn eos_toml_files_read_with_points_from_one_and_vertices_from_zero() {
+        let m = parse_landmarks(Path::new("ibug_to_sfm.txt"), EOS, Numbering::default()).unwrap();
+        assert_eq!(
+            (m.count(), m.get(8), m.get(17), m.get(67)),
+            (3, Some(33), Some(225), Some(404))
+        );
+        // Told explicitly, the same; vertices from 1 shift the vertices only.
+        let told = Numbering {
+            point: Some(LandmarkBase::One),
+            vertex: LandmarkBase::Zero,
+        };
+        assert_eq!(parse_landmarks(Path::new("f"), EOS, told).unwrap(), m);
+        let m1 = parse_landmarks(Path::new("f"), EOS, one()).unwrap();
+        assert_eq!((m1.get(8), m1.get(67)), (Some(32), Some(403)));
+        // Told the points count from 0, point 68 is out of range, and the error says where.
+        let zero = Numbering {
+            point: Some(LandmarkBase::Zero),
+            vertex: LandmarkBase::Zero,
+        };
+        let e = parse_landmarks(Path::new("f"), EOS, zero)
+            .unwrap_err()
+            .to_string();
+        assert_eq!(e, "f:11: iBUG point 68 (0-based) is outside 0..=67");
+        // A plain file with point 0 is read from 0 without being told.
+        let z = parse_landmarks(Path::new("f"), "0 = 7\n67 = 9\n", Numbering::default()).unwrap();
+        assert_eq!((z.get(0), z.get(67)), (Some(7), Some(9)));
     }
 }

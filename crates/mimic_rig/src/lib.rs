@@ -4,6 +4,7 @@
 //! given, and the checks of `mimic rig check`.
 
 pub mod check;
+pub mod eyes;
 pub mod frame;
 pub mod gltf_mesh;
 pub mod head_template;
@@ -23,7 +24,8 @@ pub use check::{Warning, check_rig};
 pub use frame::{FaceFrame, FramePoints};
 pub use head_template::{FindSettings, FoundLandmarks, TemplateHead, find_landmarks};
 pub use landmarks::{
-    IBUG_POINTS, LandmarkBase, Landmarks, landmarks_json, load_landmarks, parse_landmarks,
+    IBUG_POINTS, LandmarkBase, Landmarks, Numbering, landmarks_json, load_landmarks,
+    parse_landmarks,
 };
 pub use new::{Defaults, GeneratedRig, guess_units, make_rig};
 pub use overrides::apply_overrides;

@@ -1,6 +1,7 @@
 //! `mimic rig new`: a rig from a mesh and its iBUG landmarks.
 
 use crate::RigNewError;
+use crate::eyes::{EyeOpening, eye_opening};
 use crate::frame::{FaceFrame, FramePoints};
 use crate::landmarks::Landmarks;
 use crate::parts::{FrozenCounts, frozen_mask, pieces};
@@ -32,6 +33,13 @@ pub struct Defaults {
     /// Vertices of the controlled pieces farther than this from every landmark are frozen
     /// (the back of the head, the neck).
     pub back_of_head: f32,
+    /// Membrane weight `ks` of the thin shell, in IOD^-2 (`ks IOD^2`), for masks whose eyes are
+    /// closed skin ([`crate::eyes`]); chosen by leave-one-out over a morphable model's
+    /// expressions (docs/rigging.md, "Which solver").
+    pub shell_stiffness: f32,
+    /// The solver to write; `None` picks it from the eyes (closed skin: the thin shell, open
+    /// lids or unknown: the RBF).
+    pub solver: Option<SolverKind>,
 }
 
 impl Default for Defaults {
@@ -43,6 +51,8 @@ impl Default for Defaults {
             lower_radius: 0.16,
             split_band: 0.16,
             back_of_head: 1.0,
+            shell_stiffness: 20.0,
+            solver: None,
         }
     }
 }
@@ -68,6 +78,9 @@ pub struct GeneratedRig {
     pub solver: SolverSettings,
     /// The face-unit lengths the settings came from.
     pub defaults: Defaults,
+    /// Across the eyes: open holes (RBF with the lid / brow split) or closed skin (thin shell);
+    /// `None` when the lid landmarks are missing (then open is assumed).
+    pub eyes: Option<EyeOpening>,
     /// Things the user should know (missing controls, a tilted head, ...).
     pub warnings: Vec<String>,
 }
@@ -220,8 +233,16 @@ pub fn make_rig(
     );
     let (regions, top_split) = region_settings(mesh, &controls, frame.iod, defaults)?;
     let iod = f64::from(frame.iod);
+    // Eyes of closed skin (a morphable model's mask): the thin shell; open lids: the RBF with its
+    // lid / brow split (docs/rigging.md, "Which solver").
+    let eyes = eye_opening(&mesh.positions, &mesh.triangles, marks);
+    let by_eyes = if eyes.is_some_and(|e| !e.open()) {
+        SolverKind::Shell
+    } else {
+        SolverKind::Rbf
+    };
     let solver = SolverSettings {
-        kind: SolverKind::Rbf,
+        kind: defaults.solver.unwrap_or(by_eyes),
         kernel: RbfKernel::Exponential {
             radius: f64::from(defaults.radius) * iod,
         },
@@ -231,7 +252,10 @@ pub fn make_rig(
         constraint_weight: 10.0,
         regions: true,
         top_split,
-        shell: mimic_types::ShellSettings::default(),
+        shell: mimic_types::ShellSettings {
+            stiffness: f64::from(defaults.shell_stiffness) / (iod * iod),
+            ..mimic_types::ShellSettings::default()
+        },
     };
     Ok(GeneratedRig {
         name: name.to_string(),
@@ -243,6 +267,7 @@ pub fn make_rig(
         regions,
         solver,
         defaults,
+        eyes,
         warnings,
     })
 }

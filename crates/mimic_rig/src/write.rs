@@ -2,7 +2,7 @@
 
 use crate::new::GeneratedRig;
 use crate::parts::ranges;
-use mimic_types::RbfKernel;
+use mimic_types::{RbfKernel, SolverKind};
 use std::fmt::Write as _;
 use std::path::{Component, Path, PathBuf};
 
@@ -76,6 +76,36 @@ pub fn relative_path(from: &Path, target: &Path) -> String {
     parts.join("/")
 }
 
+/// The solver's name as rig files write it.
+fn kind_name(kind: SolverKind) -> &'static str {
+    match kind {
+        SolverKind::Rbf => "rbf",
+        SolverKind::Laplacian => "laplacian",
+        SolverKind::Shell => "shell",
+    }
+}
+
+/// Why the rig has its solver, in a few words (the eye measure of [`crate::eyes`]).
+fn solver_reason(rig: &GeneratedRig) -> String {
+    let kind = kind_name(rig.solver.kind);
+    let eyes = match rig.eyes {
+        Some(e) if e.open() => format!(
+            "the eyes are open (over the skin the lids are {:.2} times their straight distance apart)",
+            e.ratio
+        ),
+        Some(e) => format!(
+            "the eyes are closed skin (over the skin the lids are {:.2} times their straight distance apart)",
+            e.ratio
+        ),
+        None => "the lid landmarks are missing, so open eyes are assumed".to_string(),
+    };
+    if rig.defaults.solver.is_some() {
+        format!("{kind}, as asked ({eyes})")
+    } else {
+        format!("{kind}, because {eyes}")
+    }
+}
+
 /// The rig as TOML text; `mesh` is written as given (relative to the rig file).
 pub fn write_rig_toml(rig: &GeneratedRig, mesh: &str, vertex_count: usize) -> String {
     let d = rig.defaults;
@@ -94,7 +124,8 @@ pub fn write_rig_toml(rig: &GeneratedRig, mesh: &str, vertex_count: usize) -> St
 IOD (eye centre distance) {iod:.4} {units}. Lengths in face units (IOD): region band {band}, kernel {radius} \
 (exponential, geodesic), top split band {sb}, brow kernel {ur} and lid kernel {lr} (Matern 3/2). Frozen: \
 {unused} vertices in no triangle, {pieces} pieces with no control ({unc} vertices: eyeballs, teeth, lashes, ...), \
-{far} vertices farther than {boh} IOD from every landmark (back of the head, neck).",
+{far} vertices farther than {boh} IOD from every landmark (back of the head, neck). Solver: {solver}.",
+        solver = solver_reason(rig),
         units = rig.units,
         ox = f.origin.x,
         oy = f.origin.y,
@@ -146,7 +177,12 @@ IOD (eye centre distance) {iod:.4} {units}. Lengths in face units (IOD): region 
     );
     let _ = writeln!(t, "band = {}  # {} IOD", num(f64::from(reg.band)), d.band);
     let s = rig.solver;
-    t.push_str("\n[solver]\nkind = \"rbf\"\n");
+    let _ = writeln!(
+        t,
+        "\n[solver]\nkind = \"{}\"  # {}",
+        kind_name(s.kind),
+        solver_reason(rig)
+    );
     let _ = writeln!(t, "kernel = {}  # {} IOD", kernel(s.kernel), d.radius);
     t.push_str(
         "affine = false\ndistance = \"geodesic\"\nweights = \"mean_value\"\nconstraint_weight = 10.0\nregions = true\n",
@@ -169,6 +205,12 @@ IOD (eye centre distance) {iod:.4} {units}. Lengths in face units (IOD): region 
         }
         let _ = writeln!(t, "top_split = {{ {} }}", fields.join(", "));
     }
+    let _ = writeln!(
+        t,
+        "shell = {{ stiffness = {} }}  # {} / IOD^2 (used by the thin shell)",
+        num(s.shell.stiffness),
+        d.shell_stiffness
+    );
     let _ = iod;
     for c in &rig.controls {
         let _ = write!(

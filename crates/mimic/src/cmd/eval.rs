@@ -87,7 +87,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         p.is_file().then_some(p)
     });
     let marks = match (&landmarks_path, args.controls.as_str()) {
-        (Some(p), "ibug68") => Some(mimic_rig::load_landmarks(p, mimic_rig::LandmarkBase::Zero)?),
+        (Some(p), "ibug68") => Some(mimic_rig::load_landmarks(
+            p,
+            mimic_rig::Numbering::default(),
+        )?),
         _ => None,
     };
     let registration = mimic_rig::register::apply_control_set(

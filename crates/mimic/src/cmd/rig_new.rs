@@ -2,9 +2,10 @@
 
 use anyhow::Context;
 use mimic_rig::{
-    Defaults, FindSettings, LandmarkBase, Landmarks, TemplateHead, find_landmarks, landmarks_json,
-    load_landmarks, make_rig, relative_path, write_rig_toml,
+    Defaults, FindSettings, LandmarkBase, Landmarks, Numbering, TemplateHead, find_landmarks,
+    landmarks_json, load_landmarks, make_rig, relative_path, write_rig_toml,
 };
+use mimic_types::SolverKind;
 use std::path::Path;
 use std::path::PathBuf;
 
@@ -26,9 +27,14 @@ pub struct Args {
     /// object `--landmarks` reads, to inspect and fix them.
     #[arg(long)]
     pub landmarks_out: Option<PathBuf>,
-    /// Where the numbers of an `N = V` landmark file count from (both N and V).
+    /// Where the iBUG numbers N of an `N = V` landmark file count from (default: seen from the
+    /// file, a point 68 and no point 0 meaning 1).
+    #[arg(long, value_parser = parse_base)]
+    pub landmark_base: Option<LandmarkBase>,
+    /// Where the vertex indices V of an `N = V` landmark file count from (eos's files for the
+    /// Surrey and Basel models: 0; OBJ numbering: 1).
     #[arg(long, default_value = "0", value_parser = parse_base)]
-    pub landmark_base: LandmarkBase,
+    pub vertex_base: LandmarkBase,
     /// Length unit of the mesh (default: guessed from the distance between the eyes).
     #[arg(long, value_parser = ["m", "cm", "mm", "in", "model"])]
     pub units: Option<String>,
@@ -51,6 +57,14 @@ pub struct Args {
     /// distances from every landmark (the back of the head, the neck).
     #[arg(long, value_name = "IOD", default_value_t = Defaults::default().back_of_head)]
     pub frozen_beyond: f32,
+    /// The rig's solver: `auto` measures the eyes (open lids: `rbf` with the lid / brow split;
+    /// closed skin, as in morphable face models: `shell`; docs/rigging.md, "Which solver").
+    #[arg(long, default_value = "auto", value_parser = ["auto", "rbf", "shell", "laplacian"])]
+    pub solver: String,
+    /// With `--landmarks`: leave the iBUG points the file lacks out, instead of taking them from
+    /// a registration of the ICT head (which the given points check).
+    #[arg(long)]
+    pub keep_missing: bool,
 }
 
 impl Args {
@@ -63,8 +77,14 @@ impl Args {
         ];
         if let Some(l) = &self.landmarks {
             words.push(format!("--landmarks {}", l.display()));
-            if self.landmark_base == LandmarkBase::One {
-                words.push("--landmark-base 1".into());
+            if let Some(b) = self.landmark_base {
+                words.push(format!("--landmark-base {}", b.offset()));
+            }
+            if self.vertex_base == LandmarkBase::One {
+                words.push("--vertex-base 1".into());
+            }
+            if self.keep_missing {
+                words.push("--keep-missing".into());
             }
         }
         if let Some(u) = &self.units {
@@ -78,6 +98,9 @@ impl Args {
         }
         if self.frozen_beyond != Defaults::default().back_of_head {
             words.push(format!("--frozen-beyond {}", self.frozen_beyond));
+        }
+        if self.solver != "auto" {
+            words.push(format!("--solver {}", self.solver));
         }
         for o in &self.overrides {
             words.push(format!("--overrides {}", o.display()));
@@ -99,10 +122,19 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let mesh = mimic_rig::load_mesh(&args.mesh)?;
     let configs = mimic_assets::ConfigDirs::locate(None).root;
     let (marks, marks_from) = match &args.landmarks {
-        Some(path) => (
-            load_landmarks(path, args.landmark_base)?,
-            path.display().to_string(),
-        ),
+        Some(path) => {
+            let numbering = Numbering {
+                point: args.landmark_base,
+                vertex: args.vertex_base,
+            };
+            let given = load_landmarks(path, numbering)?;
+            let marks = if given.count() < mimic_rig::IBUG_POINTS && !args.keep_missing {
+                fill_missing(&args.mesh, &mesh, &configs, given)
+            } else {
+                given
+            };
+            (marks, path.display().to_string())
+        }
         None => (
             found_landmarks(&args.mesh, &mesh, &configs)?,
             "landmarks found by template registration".to_string(),
@@ -136,6 +168,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect::<anyhow::Result<Vec<_>>>()?;
     let defaults = Defaults {
         back_of_head: args.frozen_beyond,
+        solver: match args.solver.as_str() {
+            "rbf" => Some(SolverKind::Rbf),
+            "shell" => Some(SolverKind::Shell),
+            "laplacian" => Some(SolverKind::Laplacian),
+            _ => None,
+        },
         ..Defaults::default()
     };
     let rig = make_rig(&mesh, &marks, &name, args.units.as_deref(), defaults)
@@ -224,6 +262,67 @@ fn with_command(text: &str, command: &str) -> String {
 }
 
 /// The landmarks of `mesh` found by registering the ICT head onto it, with the fit on stderr.
+/// The given landmarks with the points they lack taken from the template registration; the given
+/// ones are kept as they are. A registration that fails (or lands far from the given points)
+/// leaves the set as given, with a warning.
+fn fill_missing(
+    path: &Path,
+    mesh: &mimic_types::Mesh,
+    configs: &Path,
+    mut given: Landmarks,
+) -> Landmarks {
+    let missing: Vec<usize> = (0..mimic_rig::IBUG_POINTS)
+        .filter(|&k| given.get(k).is_none())
+        .collect();
+    eprintln!(
+        "the landmarks lack iBUG {missing:?}: taking them from a registration of the ICT head (--keep-missing leaves them out)"
+    );
+    let found = match found_landmarks(path, mesh, configs) {
+        Ok(f) => f,
+        Err(e) => {
+            eprintln!("warning: no registration, the missing landmarks stay missing: {e:#}");
+            return given;
+        }
+    };
+    // The given points check the registration: how far its landmarks are from them.
+    let mut off: Vec<f32> = (0..mimic_rig::IBUG_POINTS)
+        .filter_map(|k| {
+            let (a, b) = (given.get(k)?, found.get(k)?);
+            let p = |v: u32| mesh.positions.get(v as usize).copied();
+            Some(p(a)?.distance(p(b)?))
+        })
+        .collect();
+    off.sort_by(f32::total_cmp);
+    let median = off.get(off.len() / 2).copied().unwrap_or(f32::INFINITY);
+    let eyes = match (given.get(36), given.get(45)) {
+        (Some(a), Some(b)) => mesh
+            .positions
+            .get(a as usize)
+            .zip(mesh.positions.get(b as usize))
+            .map_or(f32::NAN, |(p, q)| p.distance(*q)),
+        _ => f32::NAN,
+    };
+    // The outer eye corners are about 1.4 IOD apart; a registration whose landmarks sit a fifth
+    // of that from the given ones on the median has not found this face.
+    if !(median <= 0.2 * eyes) {
+        eprintln!(
+            "warning: the registration's landmarks are {median:.4} from the given ones on the median (the outer eye corners are {eyes:.4} apart): the missing landmarks stay missing"
+        );
+        return given;
+    }
+    let mut filled = Vec::new();
+    for k in missing {
+        if let Some(v) = found.get(k) {
+            given.vertex[k] = Some(v);
+            filled.push(k);
+        }
+    }
+    eprintln!(
+        "filled iBUG {filled:?} from the registration (its landmarks are {median:.4} from the given ones on the median)"
+    );
+    given
+}
+
 fn found_landmarks(
     path: &Path,
     mesh: &mimic_types::Mesh,
@@ -239,7 +338,7 @@ fn found_landmarks(
         .filter(|d| d.is_finite())
         .fold(0.0, f32::max);
     eprintln!(
-        "no --landmarks: registered the ICT head onto {} ({} nodes, best of {} starts: similarity covers {:.0}% at {:.3} IOD RMS; non-rigid fit covers {:.0}%, residual {:.3} IOD RMS; landmarks at most {worst:.3} IOD from their vertices); {} of 68 landmarks found (--landmarks-out writes them)",
+        "registered the ICT head onto {} ({} nodes, best of {} starts: similarity covers {:.0}% at {:.3} IOD RMS; non-rigid fit covers {:.0}%, residual {:.3} IOD RMS; landmarks at most {worst:.3} IOD from their vertices); {} of 68 landmarks found (--landmarks-out writes them)",
         path.display(),
         found.nodes,
         found.starts,
