@@ -368,3 +368,110 @@ fn a_glb_head_gives_the_same_rig_as_its_obj() {
     assert_eq!(a.frozen, b.frozen);
     assert_eq!(a.mesh.triangles, b.mesh.triangles);
 }
+
+/// A landmark file as eos ships them (TOML, `[landmark_mappings]`, iBUG numbers from 1, vertices
+/// from 0, a `[contour_landmarks]` table after it) that lacks the jaw contour and the inner mouth
+/// corners, as eos's Surrey Face Model mapping does: the base is seen from the file, the 18
+/// missing points come from the ICT registration, and on the ICT head the rig is the one made
+/// from the whole landmark list. Open eyes: the RBF.
+#[test]
+fn an_eos_mapping_without_the_jaw_contour_gives_the_whole_lists_rig() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let obj = ict_dir().join("generic_neutral_mesh.obj");
+    let list: Vec<u32> = serde_json::from_str(
+        &std::fs::read_to_string(repo().join("configs/rigs/ict-face.landmarks.json")).unwrap(),
+    )
+    .unwrap();
+    // eos leaves out iBUG 1-8 and 10-17 (the contour) and 61, 65 (inner mouth corners), 1-based.
+    let lacking = |k: usize| (1..=8).contains(&k) || (10..=17).contains(&k) || k == 61 || k == 65;
+    let mut toml = String::from(
+        "# Mappings from input landmarks (ibug, lhs) to output landmarks (mesh, rhs):\n[landmark_mappings]\n",
+    );
+    for (i, v) in list.iter().enumerate() {
+        let k = i + 1;
+        if lacking(k) {
+            toml.push_str(&format!("            # {k} not defined\n"));
+        } else {
+            toml.push_str(&format!("{k:2} = {v:5}  # point {k}\n"));
+        }
+    }
+    toml.push_str("\n[contour_landmarks]\nright = [ 1,\n  2 ]\nleft = [ 10,\n 11 ]\n");
+    let eos = d.join("ibug_to_ict.txt");
+    std::fs::write(&eos, toml).unwrap();
+    let out = d.join("eos.toml");
+    let o = mimic(&[
+        "rig",
+        "new",
+        obj.to_str().unwrap(),
+        "-o",
+        out.to_str().unwrap(),
+        "--landmarks",
+        eos.to_str().unwrap(),
+        "--units",
+        "cm",
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    assert!(
+        stderr.contains(
+            "filled iBUG [0, 1, 2, 3, 4, 5, 6, 7, 9, 10, 11, 12, 13, 14, 15, 16, 60, 64]"
+        ),
+        "{stderr}"
+    );
+    let whole = d.join("whole.toml");
+    rig_new(&obj, &whole, "cm");
+    let (a, b) = (
+        mimic_assets::load_rig(&out).unwrap(),
+        mimic_assets::load_rig(&whole).unwrap(),
+    );
+    assert_eq!(a.controls, b.controls);
+    assert_eq!(a.frozen, b.frozen);
+    assert_eq!(a.solver.kind, mimic_types::SolverKind::Rbf);
+    let written = std::fs::read_to_string(&out).unwrap();
+    assert!(
+        written.contains("kind = \"rbf\"  # rbf, because the eyes are open"),
+        "{written}"
+    );
+    // --keep-missing leaves the four controls that need the missing points out.
+    let kept = d.join("kept.toml");
+    let o = mimic(&[
+        "rig",
+        "new",
+        obj.to_str().unwrap(),
+        "-o",
+        kept.to_str().unwrap(),
+        "--landmarks",
+        eos.to_str().unwrap(),
+        "--keep-missing",
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    assert!(stdout.contains("34 controls"), "{stdout}");
+    // --solver shell is written as asked.
+    let shell = d.join("shell.toml");
+    let o = mimic(&[
+        "rig",
+        "new",
+        obj.to_str().unwrap(),
+        "-o",
+        shell.to_str().unwrap(),
+        "--landmarks",
+        repo()
+            .join("configs/rigs/ict-face.landmarks.json")
+            .to_str()
+            .unwrap(),
+        "--solver",
+        "shell",
+    ]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    let r = mimic_assets::load_rig(&shell).unwrap();
+    assert_eq!(r.solver.kind, mimic_types::SolverKind::Shell);
+    // 20 / IOD^2 with the ICT head's IOD of 6.3029 cm (docs/rigging.md).
+    let ks = 20.0 / (6.3029f64 * 6.3029);
+    assert!(
+        (r.solver.shell.stiffness - ks).abs() < 1e-3 * ks,
+        "{}",
+        r.solver.shell.stiffness
+    );
+}

@@ -5,7 +5,7 @@
     reason = "a test: a failed unwrap is the failure report"
 )]
 
-use mimic_rig::{Defaults, LandmarkBase, load_landmarks, make_rig};
+use mimic_rig::{Defaults, Numbering, load_landmarks, make_rig};
 use std::path::PathBuf;
 
 fn repo() -> PathBuf {
@@ -17,7 +17,7 @@ fn rules_reproduce_the_hand_rig_on_the_ict_head() {
     let hand = mimic_assets::load_rig(&repo().join("configs/rigs/ict-face.toml")).unwrap();
     let marks = load_landmarks(
         &repo().join("configs/rigs/ict-face.landmarks.json"),
-        LandmarkBase::Zero,
+        Numbering::default(),
     )
     .unwrap();
     let rig = make_rig(&hand.mesh, &marks, "t", None, Defaults::default()).unwrap();

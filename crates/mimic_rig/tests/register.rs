@@ -11,7 +11,7 @@ use glam::Vec3;
 use mimic_rig::register::{
     RegisterSettings, Template, dense_controls, fdp_pairs, register, rig_iod,
 };
-use mimic_rig::{LandmarkBase, load_landmarks};
+use mimic_rig::{Numbering, load_landmarks};
 use std::path::PathBuf;
 
 fn repo() -> PathBuf {
@@ -27,7 +27,7 @@ fn icts_ibug_landmarks_are_recovered_from_an_ibug_template_on_candide3() {
     let rig = mimic_assets::load_rig(&configs().join("rigs/ict-face.toml")).unwrap();
     let truth = load_landmarks(
         &configs().join("rigs/ict-face.landmarks.json"),
-        LandmarkBase::Zero,
+        Numbering::default(),
     )
     .unwrap();
     let candide = mimic_assets::load_obj(&configs().join("meshes/candide3/candide3.obj")).unwrap();
@@ -106,7 +106,7 @@ fn dense_sets_of_the_shipped_layouts_land_on_the_free_face() {
     let rig = mimic_assets::load_rig(&configs().join("rigs/ict-face.toml")).unwrap();
     let marks = load_landmarks(
         &configs().join("rigs/ict-face.landmarks.json"),
-        LandmarkBase::Zero,
+        Numbering::default(),
     )
     .unwrap();
     for (name, at_least) in [("kinect121", 80), ("mediapipe478", 380), ("ibug68", 68)] {
