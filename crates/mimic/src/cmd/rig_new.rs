@@ -304,7 +304,8 @@ fn fill_missing(
     };
     // The outer eye corners are about 1.4 IOD apart; a registration whose landmarks sit a fifth
     // of that from the given ones on the median has not found this face.
-    if !(median <= 0.2 * eyes) {
+    let close = median <= 0.2 * eyes;
+    if !close {
         eprintln!(
             "warning: the registration's landmarks are {median:.4} from the given ones on the median (the outer eye corners are {eyes:.4} apart): the missing landmarks stay missing"
         );
