@@ -61,6 +61,7 @@ struct RegionLines {
 struct SolverLines {
     kernel: Option<Spanned<toml::Value>>,
     constraint_weight: Option<Spanned<toml::Value>>,
+    rbf_ridge: Option<Spanned<toml::Value>>,
     top_split: Option<Spanned<SplitLines>>,
 }
 
@@ -89,6 +90,7 @@ impl SettingLines {
             "regions.band" => regions.and_then(|r| at(&r.get_ref().band)),
             "solver.kernel" => solver.and_then(|s| at(&s.get_ref().kernel)),
             "solver.constraint_weight" => solver.and_then(|s| at(&s.get_ref().constraint_weight)),
+            "solver.rbf_ridge" => solver.and_then(|s| at(&s.get_ref().rbf_ridge)),
             "solver.top_split.at" => split.and_then(|t| at(&t.get_ref().at)),
             "solver.top_split.band" => split.and_then(|t| at(&t.get_ref().band)),
             "solver.top_split.upper_kernel" => split.and_then(|t| at(&t.get_ref().upper_kernel)),
@@ -396,6 +398,10 @@ kind = "laplacian"
         );
         assert!(
             kernel("constraint_weight = 1e300").contains("tri.toml:13: solver.constraint_weight")
+        );
+        assert!(
+            kernel("rbf_ridge = 2.0")
+                .contains("tri.toml:13: solver.rbf_ridge = 2: must be finite, >= 0 and <= 1")
         );
         let split = |s: &str| kernel(&format!("top_split = {{ {s} }}"));
         assert!(split("at = nan").contains("tri.toml:13: solver.top_split.at = NaN"));

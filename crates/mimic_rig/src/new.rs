@@ -256,6 +256,7 @@ pub fn make_rig(
             stiffness: f64::from(defaults.shell_stiffness) / (iod * iod),
             ..mimic_types::ShellSettings::default()
         },
+        rbf_ridge: 0.0,
     };
     Ok(GeneratedRig {
         name: name.to_string(),

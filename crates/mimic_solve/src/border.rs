@@ -106,6 +106,7 @@ mod tests {
             regions,
             top_split: None,
             shell: Default::default(),
+            rbf_ridge: 0.0,
         }
     }
 
@@ -146,6 +147,7 @@ mod tests {
             kernel: s.kernel,
             affine: false,
             metric: rbf::Metric::Euclidean,
+            ridge: 0.0,
             system: "test",
         })
         .unwrap()

@@ -31,6 +31,12 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
     }
     if settings.kind == SolverKind::Rbf {
         rbf::check_kernel(settings.kernel, settings.affine)?;
+        let ridge = settings.rbf_ridge;
+        if !(ridge.is_finite() && (0.0..=1.0).contains(&ridge)) {
+            return Err(SolveError::InvalidSetting(format!(
+                "RBF ridge {ridge}: must be finite, >= 0 and <= 1"
+            )));
+        }
         if let Some(split) = settings.top_split {
             if !(split.at.is_finite() && split.band.is_finite() && split.band >= 0.0) {
                 return Err(SolveError::InvalidSetting(format!(
@@ -175,6 +181,7 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
                     kernel,
                     affine: settings.affine,
                     metric,
+                    ridge: settings.rbf_ridge,
                     system: &system,
                 })?
             }

@@ -93,6 +93,9 @@ pub struct RbfInputs<'a> {
     pub affine: bool,
     /// How distances are measured.
     pub metric: Metric<'a>,
+    /// Added to the diagonal of the kernel matrix: 0 interpolates the controls, more smooths
+    /// ([`mimic_types::SolverSettings::rbf_ridge`]).
+    pub ridge: f64,
     /// Names the solve in errors (e.g. `RBF of region top`).
     pub system: &'a str,
 }
@@ -215,6 +218,7 @@ fn rbf_columns_distinct(inputs: &RbfInputs<'_>) -> Result<Vec<f64>, SolveError> 
         kernel,
         affine,
         metric,
+        ridge,
         system,
         ..
     } = *inputs;
@@ -251,7 +255,7 @@ fn rbf_columns_distinct(inputs: &RbfInputs<'_>) -> Result<Vec<f64>, SolveError> 
     // Kernels of graph distances need not be positive definite: those go through LU too.
     let x = if affine || table {
         let m = Mat::<f64>::from_fn(size, size, |i, j| match (i < k, j < k) {
-            (true, true) => phi(between(i, j)),
+            (true, true) => phi(between(i, j)) + if i == j { ridge } else { 0.0 },
             (true, false) => affine_entry(c[i], j - k),
             (false, true) => affine_entry(c[j], i - k),
             (false, false) => 0.0,
@@ -271,7 +275,9 @@ fn rbf_columns_distinct(inputs: &RbfInputs<'_>) -> Result<Vec<f64>, SolveError> 
         }
         x
     } else {
-        let m = Mat::<f64>::from_fn(k, k, |i, j| phi(between(i, j)));
+        let m = Mat::<f64>::from_fn(k, k, |i, j| {
+            phi(between(i, j)) + if i == j { ridge } else { 0.0 }
+        });
         let llt = m.llt(Side::Lower).map_err(|e| SolveError::Singular {
             system: system.to_string(),
             detail: format!("{e:?}"),
@@ -390,6 +396,7 @@ mod tests {
                 kernel,
                 affine,
                 metric: Metric::Euclidean,
+                ridge: 0.0,
                 system: "t",
             })
             .unwrap();
@@ -422,6 +429,7 @@ mod tests {
                 kernel,
                 affine: true,
                 metric: Metric::Euclidean,
+                ridge: 0.0,
                 system: "t",
             })
             .unwrap();
@@ -440,6 +448,72 @@ mod tests {
     }
 
     #[test]
+    fn a_ridge_smooths_the_controls_by_the_ridge_regression_formula() {
+        // At the centres themselves, the columns are Phi (Phi + lambda I)^-1 (ridge regression's
+        // smoother matrix): the identity at lambda = 0, shrunk towards 0 as lambda grows. The
+        // truth here: Phi from the kernel's closed form, the inverse by Gauss-Jordan in f64.
+        let (_, centres, fdps) = setup();
+        let k = centres.len();
+        let radius = 0.3;
+        let phi =
+            |a: usize, b: usize| (-(centres[a] - centres[b]).as_dvec3().length() / radius).exp();
+        for lambda in [0.0, 0.05, 0.25, 1.0] {
+            let cols = rbf_columns(&RbfInputs {
+                positions: &centres,
+                frozen: &[],
+                centres: &centres,
+                fdps: &fdps,
+                kernel: RbfKernel::Exponential { radius },
+                affine: false,
+                metric: Metric::Euclidean,
+                ridge: lambda,
+                system: "t",
+            })
+            .unwrap();
+            // [Phi + lambda I | I] reduced to [I | (Phi + lambda I)^-1].
+            let mut a: Vec<Vec<f64>> = (0..k)
+                .map(|i| {
+                    (0..2 * k)
+                        .map(|j| match j < k {
+                            true => phi(i, j) + if i == j { lambda } else { 0.0 },
+                            false => f64::from(u8::from(j - k == i)),
+                        })
+                        .collect()
+                })
+                .collect();
+            for c in 0..k {
+                let p = (c..k)
+                    .max_by(|&x, &y| a[x][c].abs().total_cmp(&a[y][c].abs()))
+                    .unwrap();
+                a.swap(c, p);
+                let d = a[c][c];
+                a[c].iter_mut().for_each(|v| *v /= d);
+                for r in (0..k).filter(|&r| r != c) {
+                    let f = a[r][c];
+                    let row_c = a[c].clone();
+                    a[r].iter_mut().zip(&row_c).for_each(|(v, w)| *v -= f * w);
+                }
+            }
+            for i in 0..k {
+                for j in 0..k {
+                    let want: f64 = (0..k).map(|l| phi(i, l) * a[l][k + j]).sum();
+                    // Two f64 solves of Phi + lambda I, whose condition is at most Phi's (~1e6
+                    // here, as in the test above; the ridge only lowers it): 1e-8.
+                    assert!(
+                        (cols[i * k + j] - want).abs() < 1e-8,
+                        "lambda {lambda}: ({i}, {j}) {} vs {want}",
+                        cols[i * k + j]
+                    );
+                }
+            }
+            if lambda > 0.0 {
+                // Shrinks: every control's own weight below 1.
+                assert!((0..k).all(|i| cols[i * k + i] < 1.0));
+            }
+        }
+    }
+
+    #[test]
     fn without_affine_term_the_field_decays_away_from_controls() {
         // exp(-r/s) columns far from every control (r >> s) vanish: a far point's row is ~0.
         let (_, centres, fdps) = setup();
@@ -452,6 +526,7 @@ mod tests {
             kernel: RbfKernel::Exponential { radius: 0.3 },
             affine: false,
             metric: Metric::Euclidean,
+            ridge: 0.0,
             system: "t",
         })
         .unwrap();
@@ -470,6 +545,7 @@ mod tests {
             kernel: RbfKernel::default(),
             affine: false,
             metric: Metric::Euclidean,
+            ridge: 0.0,
             system: "t",
         })
         .unwrap();
@@ -490,6 +566,7 @@ mod tests {
             kernel: RbfKernel::ThinPlate,
             affine: false,
             metric: Metric::Euclidean,
+            ridge: 0.0,
             system: "t",
         });
         assert!(matches!(thin, Err(SolveError::InvalidSetting(_))));
@@ -501,6 +578,7 @@ mod tests {
             kernel: RbfKernel::Gaussian { radius: 0.0 },
             affine: false,
             metric: Metric::Euclidean,
+            ridge: 0.0,
             system: "t",
         });
         assert!(matches!(zero, Err(SolveError::InvalidSetting(_))));
@@ -514,6 +592,7 @@ mod tests {
             kernel: RbfKernel::ThinPlate,
             affine: true,
             metric: Metric::Euclidean,
+            ridge: 0.0,
             system: "t",
         });
         assert!(matches!(r, Err(SolveError::Singular { .. })), "{r:?}");
@@ -528,6 +607,7 @@ mod tests {
             kernel: RbfKernel::default(),
             affine: false,
             metric: Metric::Euclidean,
+            ridge: 0.0,
             system: "t",
         })
         .unwrap();

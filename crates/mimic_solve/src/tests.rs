@@ -21,6 +21,7 @@ fn settings(kind: SolverKind, regions: bool) -> SolverSettings {
             regions,
             ..mimic_types::ShellSettings::default()
         },
+        rbf_ridge: 0.0,
     }
 }
 

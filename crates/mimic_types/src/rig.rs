@@ -326,6 +326,10 @@ pub struct SolverSettings {
     pub top_split: Option<TopSplit>,
     /// Settings of the thin-shell solver (the others ignore them).
     pub shell: ShellSettings,
+    /// RBF smoothing: `ridge` added to the diagonal of the kernel matrix (whose entries are at
+    /// most 1), so the field no longer passes exactly through the controls and passes less of
+    /// their noise (docs/quality.md, "Dense control sets"); 0 interpolates. At most 1.
+    pub rbf_ridge: f64,
 }
 
 /// How the thin-shell solve treats the socket vertices ([`ShellSettings::sockets`]).
@@ -519,6 +523,13 @@ impl SolverSettings {
             ));
         }
         self.shell.validate()?;
+        if !(self.rbf_ridge.is_finite() && (0.0..=1.0).contains(&self.rbf_ridge)) {
+            return Err(SettingError::new(
+                "solver.rbf_ridge",
+                self.rbf_ridge,
+                "must be finite, >= 0 and <= 1",
+            ));
+        }
         if let Some(split) = &self.top_split {
             if !split.at.is_finite() {
                 return Err(SettingError::new(
@@ -568,6 +579,7 @@ impl Default for SolverSettings {
             regions: true,
             top_split: None,
             shell: ShellSettings::default(),
+            rbf_ridge: 0.0,
         }
     }
 }
@@ -624,6 +636,16 @@ mod tests {
             });
             assert_eq!(e.key, "solver.constraint_weight", "{w}");
         }
+        for r in [-0.1, 1.5, f64::NAN, f64::INFINITY] {
+            let e = err(SolverSettings { rbf_ridge: r, ..ok });
+            assert_eq!(e.key, "solver.rbf_ridge", "{r}");
+        }
+        SolverSettings {
+            rbf_ridge: 0.25,
+            ..ok
+        }
+        .validate()
+        .unwrap();
         let split = TopSplit {
             at: 4.0,
             band: 1.0,

@@ -40,6 +40,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         solver: args.solver,
         regions: None,
         radius: None,
+        rbf_ridge: None,
         configs: args.configs.clone(),
     };
     let path = rig_args.rig_path();

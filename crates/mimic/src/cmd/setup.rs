@@ -56,6 +56,10 @@ pub struct RigArgs {
     /// RBF kernel radius in rig units (default: the rig's).
     #[arg(long)]
     pub radius: Option<f64>,
+    /// RBF smoothing added to the kernel matrix's diagonal, 0 to 1 (default: the rig's
+    /// `rbf_ridge`, 0 unless set: exact at the controls; docs/quality.md, "Dense control sets").
+    #[arg(long)]
+    pub rbf_ridge: Option<f64>,
     /// Config directory (default: ./configs or $MIMIC_CONFIGS).
     #[arg(long)]
     pub configs: Option<PathBuf>,
@@ -93,6 +97,9 @@ impl RigArgs {
         }
         if let Some(radius) = self.radius {
             s.kernel = s.kernel.with_radius(radius);
+        }
+        if let Some(ridge) = self.rbf_ridge {
+            s.rbf_ridge = ridge;
         }
         s
     }
