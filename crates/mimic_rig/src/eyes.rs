@@ -36,7 +36,7 @@ impl EyeOpening {
 }
 
 /// Measures the lid pairs of `marks` over the mesh (`positions`, `triangles`); `None` when no
-/// pair has both landmarks on distinct positions.
+/// pair has both landmarks. Lids on one position count as closed (ratio 1).
 pub fn eye_opening(
     positions: &[Vec3],
     triangles: &[[u32; 3]],
@@ -46,7 +46,6 @@ pub fn eye_opening(
         .iter()
         .filter_map(|&(a, b)| Some((marks.get(a)? as usize, marks.get(b)? as usize)))
         .filter(|&(a, b)| a < positions.len() && b < positions.len())
-        .filter(|&(a, b)| (positions[a] - positions[b]).length() > 0.0)
         .collect();
     if pairs.is_empty() {
         return None;
@@ -56,7 +55,12 @@ pub fn eye_opening(
         .iter()
         .map(|&(a, b)| {
             let straight = f64::from((positions[a] - positions[b]).length());
-            graph.distances_from(a)[b] / straight
+            // Lids on one position (or one vertex) meet: closed, whatever the path.
+            if straight > 0.0 {
+                graph.distances_from(a)[b] / straight
+            } else {
+                1.0
+            }
         })
         .collect();
     ratios.sort_by(f64::total_cmp);
@@ -126,7 +130,7 @@ mod tests {
     }
 
     #[test]
-    fn missing_lid_landmarks_give_no_measure() {
+    fn missing_lid_landmarks_give_no_measure_and_meeting_lids_are_closed() {
         let n = 10;
         let (p, t) = grid(n, false);
         let mut m = marks(n);
@@ -136,10 +140,12 @@ mod tests {
         assert_eq!(eye_opening(&p, &t, &m), None);
         m.vertex[37] = Some(0);
         m.vertex[41] = Some(0);
+        let e = eye_opening(&p, &t, &m).unwrap();
         assert_eq!(
-            eye_opening(&p, &t, &m),
-            None,
-            "coincident lids are not measured"
+            (e.pairs, e.ratio),
+            (1, 1.0),
+            "lids on one vertex are closed"
         );
+        assert!(!e.open());
     }
 }
