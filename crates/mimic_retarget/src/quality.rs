@@ -137,18 +137,7 @@ pub fn noise_gain(basis: &Basis) -> f64 {
         .fold(0f64, f64::max)
 }
 
-/// Median of `values` (sorted here; the mean of the middle two for an even count, NaN for none).
-pub fn median(values: &mut [f64]) -> f64 {
-    values.sort_by(f64::total_cmp);
-    let n = values.len();
-    if n == 0 {
-        f64::NAN
-    } else if n % 2 == 1 {
-        values[n / 2]
-    } else {
-        0.5 * (values[n / 2 - 1] + values[n / 2])
-    }
-}
+pub use mimic_solve::stats::median;
 
 /// Morph targets as the "solver" of an evaluation: weights fitted to a shape's control
 /// displacements (no smoothing) deform the neutral, `u = sum w_k dP_k`.
@@ -291,12 +280,5 @@ mod tests {
         let empty = ErrorStats::of(&mut [], &[]);
         assert_eq!(empty.vertices, 0);
         assert!(ErrorStats::of(&mut [1.0], &[0.0]).ratio.is_nan());
-    }
-
-    #[test]
-    fn median_of_odd_even_and_no_values() {
-        assert_eq!(median(&mut [3.0, 1.0, 2.0]), 2.0);
-        assert_eq!(median(&mut [4.0, 1.0, 3.0, 2.0]), 2.5);
-        assert!(median(&mut []).is_nan());
     }
 }

@@ -63,14 +63,10 @@ pub fn eye_opening(
             }
         })
         .collect();
-    ratios.sort_by(f64::total_cmp);
-    let k = ratios.len();
-    let ratio = if k % 2 == 1 {
-        ratios[k / 2]
-    } else {
-        0.5 * (ratios[k / 2 - 1] + ratios[k / 2])
-    };
-    Some(EyeOpening { ratio, pairs: k })
+    Some(EyeOpening {
+        ratio: mimic_solve::stats::median(&mut ratios),
+        pairs: ratios.len(),
+    })
 }
 
 #[cfg(test)]

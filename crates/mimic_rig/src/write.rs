@@ -2,7 +2,7 @@
 
 use crate::new::GeneratedRig;
 use crate::parts::ranges;
-use mimic_types::{RbfKernel, SolverKind};
+use mimic_types::RbfKernel;
 use std::fmt::Write as _;
 use std::path::{Component, Path, PathBuf};
 
@@ -76,18 +76,9 @@ pub fn relative_path(from: &Path, target: &Path) -> String {
     parts.join("/")
 }
 
-/// The solver's name as rig files write it.
-fn kind_name(kind: SolverKind) -> &'static str {
-    match kind {
-        SolverKind::Rbf => "rbf",
-        SolverKind::Laplacian => "laplacian",
-        SolverKind::Shell => "shell",
-    }
-}
-
 /// Why the rig has its solver, in a few words (the eye measure of [`crate::eyes`]).
 fn solver_reason(rig: &GeneratedRig) -> String {
-    let kind = kind_name(rig.solver.kind);
+    let kind = rig.solver.kind.name();
     let eyes = match rig.eyes {
         Some(e) if e.open() => format!(
             "the eyes are open (over the skin the lids are {:.2} times their straight distance apart)",
@@ -180,7 +171,7 @@ IOD (eye centre distance) {iod:.4} {units}. Lengths in face units (IOD): region 
     let _ = writeln!(
         t,
         "\n[solver]\nkind = \"{}\"  # {}",
-        kind_name(s.kind),
+        s.kind.name(),
         solver_reason(rig)
     );
     let _ = writeln!(t, "kernel = {}  # {} IOD", kernel(s.kernel), d.radius);

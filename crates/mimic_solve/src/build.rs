@@ -32,7 +32,7 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
     if settings.kind == SolverKind::Rbf {
         rbf::check_kernel(settings.kernel, settings.affine)?;
         let ridge = settings.rbf_ridge;
-        if !(ridge.is_finite() && (0.0..=1.0).contains(&ridge)) {
+        if !SolverSettings::valid_rbf_ridge(ridge) {
             return Err(SolveError::InvalidSetting(format!(
                 "RBF ridge {ridge}: must be finite, >= 0 and <= 1"
             )));

@@ -22,6 +22,7 @@ pub mod normals;
 pub mod rbf;
 pub mod regions;
 pub mod shell;
+pub mod stats;
 #[cfg(test)]
 mod test_meshes;
 #[cfg(test)]

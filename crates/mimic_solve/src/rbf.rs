@@ -248,6 +248,8 @@ fn rbf_columns_distinct(inputs: &RbfInputs<'_>) -> Result<Vec<f64>, SolveError> 
             centre_vertices,
         } => 0.5 * (to_vertex[a][centre_vertices[b]] + to_vertex[b][centre_vertices[a]]),
     };
+    // Kernel matrix entry between centres a and b, the ridge on its diagonal.
+    let entry = |a: usize, b: usize| phi(between(a, b)) + if a == b { ridge } else { 0.0 };
     let table = matches!(metric, Metric::Table { .. });
     let extra = if affine { 4 } else { 0 };
     let size = k + extra;
@@ -255,7 +257,7 @@ fn rbf_columns_distinct(inputs: &RbfInputs<'_>) -> Result<Vec<f64>, SolveError> 
     // Kernels of graph distances need not be positive definite: those go through LU too.
     let x = if affine || table {
         let m = Mat::<f64>::from_fn(size, size, |i, j| match (i < k, j < k) {
-            (true, true) => phi(between(i, j)) + if i == j { ridge } else { 0.0 },
+            (true, true) => entry(i, j),
             (true, false) => affine_entry(c[i], j - k),
             (false, true) => affine_entry(c[j], i - k),
             (false, false) => 0.0,
@@ -275,9 +277,7 @@ fn rbf_columns_distinct(inputs: &RbfInputs<'_>) -> Result<Vec<f64>, SolveError> 
         }
         x
     } else {
-        let m = Mat::<f64>::from_fn(k, k, |i, j| {
-            phi(between(i, j)) + if i == j { ridge } else { 0.0 }
-        });
+        let m = Mat::<f64>::from_fn(k, k, entry);
         let llt = m.llt(Side::Lower).map_err(|e| SolveError::Singular {
             system: system.to_string(),
             detail: format!("{e:?}"),

@@ -236,19 +236,9 @@ fn rbf_translation_bound(c: &Case, shift: Vec3, bmax: f32) -> f32 {
         }
     }
     let delta = e / d_min;
-    let (phi, lip): (Box<dyn Fn(f64) -> f64>, f64) = if c.gaussian {
-        let r = c.radius;
-        (
-            Box::new(move |d: f64| (-(d / r) * (d / r)).exp()),
-            2.0 / std::f64::consts::E,
-        )
-    } else {
-        let r = c.radius;
-        (
-            Box::new(move |d: f64| (-d / r).exp()),
-            1.0 / std::f64::consts::E,
-        )
-    };
+    let kernel = c.settings().kernel;
+    let phi = |d: f64| mimic_solve::rbf::kernel_value(kernel, d);
+    let lip = if c.gaussian { 2.0 } else { 1.0 } / std::f64::consts::E;
     let vertices: Vec<usize> = rig.controls.iter().map(|k| k.vertex as usize).collect();
     let between: Vec<Vec<f64>> = if c.geodesic {
         let graph = EdgeGraph::new(p, &rig.mesh.triangles);

@@ -195,6 +195,20 @@ pub enum SolverKind {
     Shell,
 }
 
+impl SolverKind {
+    /// Every solver, in declaration order.
+    pub const ALL: [SolverKind; 3] = [SolverKind::Rbf, SolverKind::Laplacian, SolverKind::Shell];
+
+    /// Lower-case name as written in rig files (`kind = "..."`).
+    pub fn name(self) -> &'static str {
+        match self {
+            SolverKind::Rbf => "rbf",
+            SolverKind::Laplacian => "laplacian",
+            SolverKind::Shell => "shell",
+        }
+    }
+}
+
 /// Radial kernel of the RBF solver; `r` is a distance in rig units.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
@@ -506,6 +520,11 @@ impl SolverSettings {
     /// Largest Laplacian constraint weight a rig may set (its square enters the normal equations).
     pub const MAX_CONSTRAINT_WEIGHT: f64 = 1e6;
 
+    /// Whether `ridge` is a usable [`SolverSettings::rbf_ridge`]: finite, from 0 to 1.
+    pub fn valid_rbf_ridge(ridge: f64) -> bool {
+        ridge.is_finite() && (0.0..=1.0).contains(&ridge)
+    }
+
     /// Range checks of every numeric solver setting, whichever solver the rig picks (the command
     /// line may switch it): kernel radii, the constraint weight in (0, 1e6], a finite top split.
     pub fn validate(&self) -> Result<(), crate::SettingError> {
@@ -523,7 +542,7 @@ impl SolverSettings {
             ));
         }
         self.shell.validate()?;
-        if !(self.rbf_ridge.is_finite() && (0.0..=1.0).contains(&self.rbf_ridge)) {
+        if !Self::valid_rbf_ridge(self.rbf_ridge) {
             return Err(SettingError::new(
                 "solver.rbf_ridge",
                 self.rbf_ridge,

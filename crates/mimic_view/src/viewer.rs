@@ -15,7 +15,7 @@ use glam::{Mat4, Quat, Vec3};
 use mimic_render::{Deform, Overlay, Renderer, RigGpu, Shading, View};
 use mimic_retarget::{FrameOutput, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
-use mimic_types::{LandmarkFrame, Layout, MorphTarget, Rig, SolverKind, SolverSettings};
+use mimic_types::{LandmarkFrame, Layout, MorphTarget, Rig, SolverSettings};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -56,11 +56,7 @@ pub struct LocalSetup {
 
 /// Name of a solver as the title shows it.
 fn solver_label(s: &SolverSettings) -> &'static str {
-    match s.kind {
-        SolverKind::Rbf => "rbf",
-        SolverKind::Laplacian => "laplacian",
-        SolverKind::Shell => "shell",
-    }
+    s.kind.name()
 }
 
 /// One solver of a local replay: its retargeter, its GPU rig and what it computed so far.

@@ -168,12 +168,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect::<anyhow::Result<Vec<_>>>()?;
     let defaults = Defaults {
         back_of_head: args.frozen_beyond,
-        solver: match args.solver.as_str() {
-            "rbf" => Some(SolverKind::Rbf),
-            "shell" => Some(SolverKind::Shell),
-            "laplacian" => Some(SolverKind::Laplacian),
-            _ => None,
-        },
+        // `auto` names no solver: picked from the eyes.
+        solver: SolverKind::ALL
+            .into_iter()
+            .find(|k| k.name() == args.solver),
         ..Defaults::default()
     };
     let rig = make_rig(&mesh, &marks, &name, args.units.as_deref(), defaults)
@@ -261,7 +259,6 @@ fn with_command(text: &str, command: &str) -> String {
     format!("{first}\n# Regenerate: {command}\n{rest}")
 }
 
-/// The landmarks of `mesh` found by registering the ICT head onto it, with the fit on stderr.
 /// The given landmarks with the points they lack taken from the template registration; the given
 /// ones are kept as they are. A registration that fails (or lands far from the given points)
 /// leaves the set as given, with a warning.
@@ -285,23 +282,19 @@ fn fill_missing(
         }
     };
     // The given points check the registration: how far its landmarks are from them.
+    let at = |marks: &Landmarks, k: usize| {
+        marks
+            .get(k)
+            .and_then(|v| mesh.positions.get(v as usize).copied())
+    };
     let mut off: Vec<f32> = (0..mimic_rig::IBUG_POINTS)
-        .filter_map(|k| {
-            let (a, b) = (given.get(k)?, found.get(k)?);
-            let p = |v: u32| mesh.positions.get(v as usize).copied();
-            Some(p(a)?.distance(p(b)?))
-        })
+        .filter_map(|k| Some(at(&given, k)?.distance(at(&found, k)?)))
         .collect();
     off.sort_by(f32::total_cmp);
     let median = off.get(off.len() / 2).copied().unwrap_or(f32::INFINITY);
-    let eyes = match (given.get(36), given.get(45)) {
-        (Some(a), Some(b)) => mesh
-            .positions
-            .get(a as usize)
-            .zip(mesh.positions.get(b as usize))
-            .map_or(f32::NAN, |(p, q)| p.distance(*q)),
-        _ => f32::NAN,
-    };
+    let eyes = at(&given, 36)
+        .zip(at(&given, 45))
+        .map_or(f32::NAN, |(p, q)| p.distance(q));
     // The outer eye corners are about 1.4 IOD apart; a registration whose landmarks sit a fifth
     // of that from the given ones on the median has not found this face.
     let close = median <= 0.2 * eyes;
@@ -324,6 +317,7 @@ fn fill_missing(
     given
 }
 
+/// The landmarks of `mesh` found by registering the ICT head onto it, with the fit on stderr.
 fn found_landmarks(
     path: &Path,
     mesh: &mimic_types::Mesh,
