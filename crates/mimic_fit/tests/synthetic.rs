@@ -100,18 +100,12 @@ fn sequence(model: &Candide3, corr: &[ModelCorrespondence], point_count: usize) 
         .map(|i| {
             forward.vertices(&true_pose(i), &true_au(i), &[], &mut verts);
             let mut frame = vec![PointObservation::default(); point_count];
-            for c in corr {
-                let x: DVec3 = c
-                    .blend()
-                    .unwrap()
-                    .iter()
-                    .map(|&(v, w)| verts[v] * f64::from(w))
-                    .sum();
+            for (point, x) in points(corr, &verts) {
                 let pixel =
                     camera.project(x) + DVec2::new(rng.normal(), rng.normal()) * PIXEL_NOISE;
                 let position = (rng.uniform() >= MISSING_DEPTH)
                     .then(|| camera.back_project(pixel, -x.z + DEPTH_NOISE_M * rng.normal()));
-                frame[c.point] = PointObservation {
+                frame[point] = PointObservation {
                     pixel: Some(pixel),
                     position,
                 };
