@@ -312,21 +312,24 @@ impl VertexFans {
         // 8 positions named by `idx` as x, y, z registers (lane k = idx[k]).
         // SAFETY (of the caller): every index read below is < position_count, and 4 floats at
         // STRIDE * index are readable.
-        let load8 = |idx: &[u32]| -> (__m256, __m256, __m256) {
-            // SAFETY: idx holds 8 indices below position_count; 4 floats at STRIDE * v readable.
-            if GATHER && STRIDE == 4 {
-                // SAFETY: as above; the gathers read f32 4 * idx[k] + axis of `positions`.
-                return unsafe {
-                    let i = _mm256_slli_epi32::<2>(_mm256_loadu_si256(idx.as_ptr().cast()));
-                    (
+        // 8 positions named by `idx[0..8]` as x, y, z registers (lane k = idx[k]). Called
+        // directly in this function's body (not through an iterator adaptor) so that it is
+        // inlined with the AVX2 features: an adaptor's closure is compiled without them and
+        // called once per step, with every live register spilled around the call.
+        let load8 = |idx: *const u32| -> (__m256, __m256, __m256) {
+            // SAFETY: idx points at 8 indices below position_count (the caller's range);
+            // 4 floats at STRIDE * v are readable for each.
+            unsafe {
+                if GATHER && STRIDE == 4 {
+                    // The gathers read f32 4 * idx[k] + axis of `positions`.
+                    let i = _mm256_slli_epi32::<2>(_mm256_loadu_si256(idx.cast()));
+                    return (
                         _mm256_i32gather_ps::<4>(base, i),
                         _mm256_i32gather_ps::<4>(base.add(1), i),
                         _mm256_i32gather_ps::<4>(base.add(2), i),
-                    )
-                };
-            }
-            unsafe {
-                let at = |k: usize| base.add(idx[k] as usize * STRIDE);
+                    );
+                }
+                let at = |k: usize| base.add(*idx.add(k) as usize * STRIDE);
                 let r0 = _mm256_loadu2_m128(at(4), at(0));
                 let r1 = _mm256_loadu2_m128(at(5), at(1));
                 let r2 = _mm256_loadu2_m128(at(6), at(2));
@@ -344,84 +347,86 @@ impl VertexFans {
         };
         let mut normals = [Vec3A::ZERO; HALF];
         // Each group of 16 as two halves of 8 lanes (the second only where it has lanes in use).
-        let halves = self
-            .groups
-            .iter()
-            .enumerate()
-            .flat_map(|(g, &[first, steps, lanes])| {
-                (0..(lanes as usize).div_ceil(HALF)).map(move |h| (g, first, steps, lanes, h))
-            });
-        for (g, first, steps, lanes, h) in halves {
-            let centre = &self.centres[g * GROUP + h * HALF..][..HALF];
+        for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
             let entries = &self.entries[first as usize..][..steps as usize * GROUP];
-            let lanes = (lanes as usize - h * HALF).min(HALF);
-            let (px, py, pz) = load8(centre);
-            let (mut sx, mut sy, mut sz) = (
-                _mm256_setzero_ps(),
-                _mm256_setzero_ps(),
-                _mm256_setzero_ps(),
-            );
-            let mut steps = entries.chunks_exact(GROUP).map(|e| &e[h * HALF..][..HALF]);
-            if let Some(e0) = steps.next() {
-                let (qx, qy, qz) = load8(e0);
-                let (mut ax, mut ay, mut az) = (
-                    _mm256_sub_ps(qx, px),
-                    _mm256_sub_ps(qy, py),
-                    _mm256_sub_ps(qz, pz),
+            for h in 0..(lanes as usize).div_ceil(HALF) {
+                let centre = &self.centres[g * GROUP + h * HALF..][..HALF];
+                let lanes = (lanes as usize - h * HALF).min(HALF);
+                let (px, py, pz) = load8(centre.as_ptr());
+                let (mut sx, mut sy, mut sz) = (
+                    _mm256_setzero_ps(),
+                    _mm256_setzero_ps(),
+                    _mm256_setzero_ps(),
                 );
-                for e in steps {
-                    let (qx, qy, qz) = load8(e);
-                    let (bx, by, bz) = (
+                // Step l of this half: entries[l * GROUP + h * HALF..][..HALF].
+                let half = entries.as_ptr().wrapping_add(h * HALF);
+                if steps > 0 {
+                    let (qx, qy, qz) = load8(half);
+                    let (mut ax, mut ay, mut az) = (
                         _mm256_sub_ps(qx, px),
                         _mm256_sub_ps(qy, py),
                         _mm256_sub_ps(qz, pz),
                     );
-                    // a x b, each component one multiply and one fused multiply-subtract.
-                    let cx = _mm256_fmsub_ps(ay, bz, _mm256_mul_ps(az, by));
-                    let cy = _mm256_fmsub_ps(az, bx, _mm256_mul_ps(ax, bz));
-                    let cz = _mm256_fmsub_ps(ax, by, _mm256_mul_ps(ay, bx));
-                    sx = _mm256_add_ps(sx, cx);
-                    sy = _mm256_add_ps(sy, cy);
-                    sz = _mm256_add_ps(sz, cz);
-                    (ax, ay, az) = (bx, by, bz);
+                    for l in 1..steps as usize {
+                        // SAFETY: l < steps, so the 8 entries at l * GROUP + h * HALF lie in
+                        // `entries` (steps * GROUP long).
+                        let (qx, qy, qz) = load8(unsafe { half.add(l * GROUP) });
+                        let (bx, by, bz) = (
+                            _mm256_sub_ps(qx, px),
+                            _mm256_sub_ps(qy, py),
+                            _mm256_sub_ps(qz, pz),
+                        );
+                        // a x b, each component one multiply and one fused multiply-subtract.
+                        let cx = _mm256_fmsub_ps(ay, bz, _mm256_mul_ps(az, by));
+                        let cy = _mm256_fmsub_ps(az, bx, _mm256_mul_ps(ax, bz));
+                        let cz = _mm256_fmsub_ps(ax, by, _mm256_mul_ps(ay, bx));
+                        sx = _mm256_add_ps(sx, cx);
+                        sy = _mm256_add_ps(sy, cy);
+                        sz = _mm256_add_ps(sz, cz);
+                        (ax, ay, az) = (bx, by, bz);
+                    }
                 }
-            }
-            // 1 / length: the 12-bit reciprocal square root refined by one Newton step
-            // (y (3 - x y^2) / 2, relative error within a few eps), and 0 where the squared length
-            // is not a finite normal number (zero, subnormal, overflowed or NaN sums).
-            let len2 = _mm256_fmadd_ps(sz, sz, _mm256_fmadd_ps(sy, sy, _mm256_mul_ps(sx, sx)));
-            let y = _mm256_rsqrt_ps(len2);
-            let xy2 = _mm256_mul_ps(_mm256_mul_ps(len2, y), y);
-            let inv = _mm256_mul_ps(
-                _mm256_mul_ps(_mm256_set1_ps(0.5), y),
-                _mm256_sub_ps(_mm256_set1_ps(3.0), xy2),
-            );
-            let ok = _mm256_and_ps(
-                _mm256_cmp_ps::<_CMP_GE_OQ>(len2, _mm256_set1_ps(f32::MIN_POSITIVE)),
-                _mm256_cmp_ps::<_CMP_LT_OQ>(len2, _mm256_set1_ps(f32::INFINITY)),
-            );
-            let inv = _mm256_and_ps(inv, ok);
-            let (nx, ny, nz) = (
-                _mm256_mul_ps(sx, inv),
-                _mm256_mul_ps(sy, inv),
-                _mm256_mul_ps(sz, inv),
-            );
-            // Back to one (x, y, z, 0) vector per lane.
-            let zero = _mm256_setzero_ps();
-            let t0 = _mm256_unpacklo_ps(nx, ny); // x0 y0 x1 y1 | x4 y4 x5 y5
-            let t1 = _mm256_unpackhi_ps(nx, ny); // x2 y2 x3 y3 | x6 y6 x7 y7
-            let t2 = _mm256_unpacklo_ps(nz, zero); // z0 0 z1 0 | z4 0 z5 0
-            let t3 = _mm256_unpackhi_ps(nz, zero); // z2 0 z3 0 | z6 0 z7 0
-            let out = normals.as_mut_ptr().cast::<f32>();
-            // SAFETY: `normals` holds 8 Vec3A = 32 f32; lane k goes to out[4k..4k + 4].
-            unsafe {
-                _mm256_storeu2_m128(out.add(16), out, _mm256_shuffle_ps::<0x44>(t0, t2));
-                _mm256_storeu2_m128(out.add(20), out.add(4), _mm256_shuffle_ps::<0xEE>(t0, t2));
-                _mm256_storeu2_m128(out.add(24), out.add(8), _mm256_shuffle_ps::<0x44>(t1, t3));
-                _mm256_storeu2_m128(out.add(28), out.add(12), _mm256_shuffle_ps::<0xEE>(t1, t3));
-            }
-            for (&v, n) in centre.iter().zip(&normals).take(lanes) {
-                write(v as usize, Vec3::from(*n));
+                // 1 / length: the 12-bit reciprocal square root refined by one Newton step
+                // (y (3 - x y^2) / 2, relative error within a few eps), and 0 where the squared length
+                // is not a finite normal number (zero, subnormal, overflowed or NaN sums).
+                let len2 = _mm256_fmadd_ps(sz, sz, _mm256_fmadd_ps(sy, sy, _mm256_mul_ps(sx, sx)));
+                let y = _mm256_rsqrt_ps(len2);
+                let xy2 = _mm256_mul_ps(_mm256_mul_ps(len2, y), y);
+                let inv = _mm256_mul_ps(
+                    _mm256_mul_ps(_mm256_set1_ps(0.5), y),
+                    _mm256_sub_ps(_mm256_set1_ps(3.0), xy2),
+                );
+                let ok = _mm256_and_ps(
+                    _mm256_cmp_ps::<_CMP_GE_OQ>(len2, _mm256_set1_ps(f32::MIN_POSITIVE)),
+                    _mm256_cmp_ps::<_CMP_LT_OQ>(len2, _mm256_set1_ps(f32::INFINITY)),
+                );
+                let inv = _mm256_and_ps(inv, ok);
+                let (nx, ny, nz) = (
+                    _mm256_mul_ps(sx, inv),
+                    _mm256_mul_ps(sy, inv),
+                    _mm256_mul_ps(sz, inv),
+                );
+                // Back to one (x, y, z, 0) vector per lane.
+                let zero = _mm256_setzero_ps();
+                let t0 = _mm256_unpacklo_ps(nx, ny); // x0 y0 x1 y1 | x4 y4 x5 y5
+                let t1 = _mm256_unpackhi_ps(nx, ny); // x2 y2 x3 y3 | x6 y6 x7 y7
+                let t2 = _mm256_unpacklo_ps(nz, zero); // z0 0 z1 0 | z4 0 z5 0
+                let t3 = _mm256_unpackhi_ps(nz, zero); // z2 0 z3 0 | z6 0 z7 0
+                let out = normals.as_mut_ptr().cast::<f32>();
+                // SAFETY: `normals` holds 8 Vec3A = 32 f32; lane k goes to out[4k..4k + 4].
+                unsafe {
+                    _mm256_storeu2_m128(out.add(16), out, _mm256_shuffle_ps::<0x44>(t0, t2));
+                    _mm256_storeu2_m128(out.add(20), out.add(4), _mm256_shuffle_ps::<0xEE>(t0, t2));
+                    _mm256_storeu2_m128(out.add(24), out.add(8), _mm256_shuffle_ps::<0x44>(t1, t3));
+                    _mm256_storeu2_m128(
+                        out.add(28),
+                        out.add(12),
+                        _mm256_shuffle_ps::<0xEE>(t1, t3),
+                    );
+                }
+                for (&v, n) in centre.iter().zip(&normals).take(lanes) {
+                    write(v as usize, Vec3::from(*n));
+                }
             }
         }
     }

@@ -24,15 +24,18 @@ impl VertexFans {
     ) {
         // 16 positions named by `idx` as x, y, z registers (lane k = idx[k]).
         let load16 = |idx: &[u32]| -> (__m512, __m512, __m512) {
+            // Written out row by row, not through `array::map`: a closure passed to a core
+            // function is compiled without AVX-512 and called per row, spilling every register.
             // SAFETY: idx holds 16 indices below position_count, and 4 floats at STRIDE * v are
             // readable for each (caller).
-            let [r0, r1, r2, r3] = [0usize, 1, 2, 3].map(|j| unsafe {
-                let at = |k: usize| _mm_loadu_ps(base.add(idx[k] as usize * STRIDE));
+            let at = |k: usize| unsafe { _mm_loadu_ps(base.add(idx[k] as usize * STRIDE)) };
+            let row = |j: usize| {
                 let r = _mm512_castps128_ps512(at(j));
                 let r = _mm512_insertf32x4::<1>(r, at(j + 4));
                 let r = _mm512_insertf32x4::<2>(r, at(j + 8));
                 _mm512_insertf32x4::<3>(r, at(j + 12))
-            });
+            };
+            let (r0, r1, r2, r3) = (row(0), row(1), row(2), row(3));
             // Per 128-bit lane c (vertices 4c..4c + 4), as the AVX2 kernel's transpose.
             let t0 = _mm512_unpacklo_ps(r0, r1); // x0 x1 y0 y1
             let t1 = _mm512_unpackhi_ps(r0, r1); // z0 z1 .. ..
@@ -55,16 +58,15 @@ impl VertexFans {
                 _mm512_setzero_ps(),
                 _mm512_setzero_ps(),
             );
-            let mut steps = entries.chunks_exact(GROUP);
-            if let Some(e0) = steps.next() {
-                let (qx, qy, qz) = load16(e0);
+            if steps > 0 {
+                let (qx, qy, qz) = load16(&entries[..GROUP]);
                 let (mut ax, mut ay, mut az) = (
                     _mm512_sub_ps(qx, px),
                     _mm512_sub_ps(qy, py),
                     _mm512_sub_ps(qz, pz),
                 );
-                for e in steps {
-                    let (qx, qy, qz) = load16(e);
+                for l in 1..steps as usize {
+                    let (qx, qy, qz) = load16(&entries[l * GROUP..][..GROUP]);
                     let (bx, by, bz) = (
                         _mm512_sub_ps(qx, px),
                         _mm512_sub_ps(qy, py),
