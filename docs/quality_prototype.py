@@ -88,12 +88,21 @@ def ramp(y, border, band):
     return np.clip((y - border) / band + 0.5, 0, 1) if band > 0 else (y >= border).astype(float)
 
 
-def rbf_columns(G, subset, kernel):
+def rbf_columns(G, subset, kernel, prior=None):
+    """Cardinal columns of `kernel` on the controls `subset`; `prior = (E, tau2)` adds the
+    covariance `tau2 E E^T` of example fields (columns of E) to the kernel (a Gaussian-process
+    posterior mean with the examples as a second, data-driven covariance)."""
     phi = np.array([[0.5 * (G[a][CV[b]] + G[b][CV[a]]) for b in subset] for a in subset])
-    return kernel(G[subset].T) @ np.linalg.solve(kernel(phi), np.eye(len(subset)))
+    kcc, knc = kernel(phi), kernel(G[subset].T)
+    if prior is not None:
+        E, tau2 = prior
+        ec = E[CV[subset]]
+        kcc, knc = kcc + tau2 * ec @ ec.T, knc + tau2 * E @ ec.T
+    return knc @ np.linalg.solve(kcc, np.eye(len(subset)))
 
 
-def build(G, kernel=exponential(2.0), split=None, top_from=2.3, bottom_below=-1.8, band=1.4):
+def build(G, kernel=exponential(2.0), split=None, top_from=2.3, bottom_below=-1.8, band=1.4,
+          prior=None):
     """Regions on; `split = (at, band, upper_kernel, lower_kernel)` as the rig's top_split."""
     y = V[:, 1]
     top, bottom = ramp(y, top_from, band), 1 - ramp(y, bottom_below, band)
@@ -111,7 +120,7 @@ def build(G, kernel=exponential(2.0), split=None, top_from=2.3, bottom_below=-1.
     for weight, region, upper, k in parts:
         sub = [j for j in range(len(CV)) if CR[j] == region
                and (upper is None or (V[CV[j], 1] >= split[0]) == upper)]
-        B[:, sub] += weight[:, None] * rbf_columns(G, sub, k)
+        B[:, sub] += weight[:, None] * rbf_columns(G, sub, k, prior)
     B[FROZEN] = 0
     return B
 
@@ -142,14 +151,20 @@ def with_jaw(J, R):
     return J + R @ (np.eye(len(CV)) - J[CV])
 
 
-def evaluate(B, label):
-    ratios = []
+def shape_ratio(B, s):
+    D = TRUE[s] - V
+    e = np.linalg.norm(B @ D[CV] - D, axis=1)[~FROZEN]
+    return e.mean() / np.linalg.norm(D, axis=1)[~FROZEN].mean()
+
+
+def evaluate(B, label, per_shape=None):
+    """`per_shape(s)`: a basis per held-out shape (leave-one-out); else `B` for all."""
+    ratios, gain = [], 0.0
     for s in SHAPES:
-        D = TRUE[s] - V
-        e = np.linalg.norm(B @ D[CV] - D, axis=1)[~FROZEN]
-        ratios.append(e.mean() / np.linalg.norm(D, axis=1)[~FROZEN].mean())
+        Bs = B if per_shape is None else per_shape(s)
+        ratios.append(shape_ratio(Bs, s))
+        gain = max(gain, np.abs(Bs).sum(1).max())
     r = sorted(ratios)
-    gain = np.abs(B).sum(1).max()
     print(f"{label:<44} median {(r[3] + r[4]) / 2:.3f} max {r[-1]:.3f} gain {gain:.2f} | "
           + " ".join(f"{x:.3f}" for x in ratios))
 
@@ -169,6 +184,20 @@ def main():
     for s in (0.7, 0.5):
         Gs = distances(lambda a, b, s=s: np.where(mouth[a] & mouth[b], s, 1.0))
         evaluate(build(Gs), f"mouth socket edges x {s}")
+    # The other shipped shapes as a covariance prior (each held-out shape left out of it, and
+    # its left/right twin too with `pairs`): x, y, z of each shape's displacement as 3 fields.
+    twin = {"mouthSmile_L": "mouthSmile_R", "browInnerUp_L": "browInnerUp_R", "eyeBlink_L": "eyeBlink_R"}
+    twin.update({b: a for a, b in list(twin.items())})
+
+    def examples(held, pairs):
+        E = np.stack([(TRUE[t] - V)[:, a] for t in SHAPES
+                      if t != held and not (pairs and twin.get(held) == t) for a in range(3)], 1)
+        E[FROZEN] = 0
+        return E
+    for tau2 in (0.3, 3.0, 10.0):
+        for pairs in (False, True):
+            evaluate(None, f"example prior tau2 {tau2}, leave-{'pair' if pairs else 'one'}-out",
+                     lambda s: build(G, split=split, prior=(examples(s, pairs), tau2)))
 
 
 if __name__ == "__main__":
