@@ -184,6 +184,12 @@ def main():
     for s in (0.7, 0.5):
         Gs = distances(lambda a, b, s=s: np.where(mouth[a] & mouth[b], s, 1.0))
         evaluate(build(Gs), f"mouth socket edges x {s}")
+    # Two levels: a wide exponential field interpolating the controls, the defaults interpolating
+    # what it leaves at them (B = a Bc + Bf (I - a Bc[controls])).
+    Bf = build(G, split=split)
+    for radius, a in ((4.0, 0.5), (4.0, 1.0), (6.0, 0.5)):
+        Bc = build(G, kernel=exponential(radius), split=(4.6, 1.0, exponential(radius), exponential(radius)))
+        evaluate(a * Bc + Bf @ (np.eye(len(CV)) - a * Bc[CV]), f"two levels, exp {radius} cm, a {a}")
     # The other shipped shapes as a covariance prior (each held-out shape left out of it, and
     # its left/right twin too with `pairs`): x, y, z of each shape's displacement as 3 fields.
     twin = {"mouthSmile_L": "mouthSmile_R", "browInnerUp_L": "browInnerUp_R", "eyeBlink_L": "eyeBlink_R"}
