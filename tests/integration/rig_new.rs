@@ -47,9 +47,9 @@ fn transform_obj(from: &Path, to: &Path, f: &dyn Fn(Vec3) -> Vec3, g: &dyn Fn(Ve
     std::fs::write(to, out).unwrap();
 }
 
-fn rig_new(mesh: &Path, out: &Path, units: &str) {
-    let marks = repo().join("configs/rigs/ict-face.landmarks.json");
-    let o = mimic(&[
+/// `mimic rig new MESH -o OUT --landmarks MARKS EXTRA...`.
+fn rig_new_from(mesh: &Path, out: &Path, marks: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
         "rig",
         "new",
         mesh.to_str().unwrap(),
@@ -57,9 +57,14 @@ fn rig_new(mesh: &Path, out: &Path, units: &str) {
         out.to_str().unwrap(),
         "--landmarks",
         marks.to_str().unwrap(),
-        "--units",
-        units,
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    mimic(&args)
+}
+
+fn rig_new(mesh: &Path, out: &Path, units: &str) {
+    let marks = repo().join("configs/rigs/ict-face.landmarks.json");
+    let o = rig_new_from(mesh, out, &marks, &["--units", units]);
     let (stdout, stderr) = text(&o);
     assert!(o.status.success(), "{stdout}\n{stderr}");
     assert!(stdout.contains("38 controls"), "{stdout}");
@@ -400,17 +405,7 @@ fn an_eos_mapping_without_the_jaw_contour_gives_the_whole_lists_rig() {
     let eos = d.join("ibug_to_ict.txt");
     std::fs::write(&eos, toml).unwrap();
     let out = d.join("eos.toml");
-    let o = mimic(&[
-        "rig",
-        "new",
-        obj.to_str().unwrap(),
-        "-o",
-        out.to_str().unwrap(),
-        "--landmarks",
-        eos.to_str().unwrap(),
-        "--units",
-        "cm",
-    ]);
+    let o = rig_new_from(&obj, &out, &eos, &["--units", "cm"]);
     let (stdout, stderr) = text(&o);
     assert!(o.status.success(), "{stdout}\n{stderr}");
     assert!(
@@ -435,35 +430,14 @@ fn an_eos_mapping_without_the_jaw_contour_gives_the_whole_lists_rig() {
     );
     // --keep-missing leaves the four controls that need the missing points out.
     let kept = d.join("kept.toml");
-    let o = mimic(&[
-        "rig",
-        "new",
-        obj.to_str().unwrap(),
-        "-o",
-        kept.to_str().unwrap(),
-        "--landmarks",
-        eos.to_str().unwrap(),
-        "--keep-missing",
-    ]);
+    let o = rig_new_from(&obj, &kept, &eos, &["--keep-missing"]);
     let (stdout, stderr) = text(&o);
     assert!(o.status.success(), "{stdout}\n{stderr}");
     assert!(stdout.contains("34 controls"), "{stdout}");
     // --solver shell is written as asked.
     let shell = d.join("shell.toml");
-    let o = mimic(&[
-        "rig",
-        "new",
-        obj.to_str().unwrap(),
-        "-o",
-        shell.to_str().unwrap(),
-        "--landmarks",
-        repo()
-            .join("configs/rigs/ict-face.landmarks.json")
-            .to_str()
-            .unwrap(),
-        "--solver",
-        "shell",
-    ]);
+    let marks = repo().join("configs/rigs/ict-face.landmarks.json");
+    let o = rig_new_from(&obj, &shell, &marks, &["--solver", "shell"]);
     assert!(o.status.success(), "{:?}", text(&o));
     let r = mimic_assets::load_rig(&shell).unwrap();
     assert_eq!(r.solver.kind, mimic_types::SolverKind::Shell);

@@ -80,12 +80,9 @@ pub fn relative_path(from: &Path, target: &Path) -> String {
 fn solver_reason(rig: &GeneratedRig) -> String {
     let kind = rig.solver.kind.name();
     let eyes = match rig.eyes {
-        Some(e) if e.open() => format!(
-            "the eyes are open (over the skin the lids are {:.2} times their straight distance apart)",
-            e.ratio
-        ),
         Some(e) => format!(
-            "the eyes are closed skin (over the skin the lids are {:.2} times their straight distance apart)",
+            "the eyes are {} (over the skin the lids are {:.2} times their straight distance apart)",
+            if e.open() { "open" } else { "closed skin" },
             e.ratio
         ),
         None => "the lid landmarks are missing, so open eyes are assumed".to_string(),

@@ -54,11 +54,6 @@ pub struct LocalSetup {
     pub expressions: Vec<MorphTarget>,
 }
 
-/// Name of a solver as the title shows it.
-fn solver_label(s: &SolverSettings) -> &'static str {
-    s.kind.name()
-}
-
 /// One solver of a local replay: its retargeter, its GPU rig and what it computed so far.
 struct Slot {
     settings: SolverSettings,
@@ -338,7 +333,7 @@ impl Viewer {
     /// The solver shown (`live` for a live feed).
     pub fn solver(&self) -> &'static str {
         match &self.source {
-            Source::Local(l) => solver_label(&l.slots[l.active].settings),
+            Source::Local(l) => l.slots[l.active].settings.kind.name(),
             Source::Live(_) => "live",
         }
     }
@@ -422,7 +417,7 @@ impl Viewer {
         let (rig, layout, retarget) = (l.rig.clone(), l.layout.clone(), l.settings.clone());
         let build = move || -> Result<Retargeter, String> {
             let basis = build_basis(&rig, &settings)
-                .map_err(|e| format!("building the {} basis: {e}", solver_label(&settings)))?;
+                .map_err(|e| format!("building the {} basis: {e}", settings.kind.name()))?;
             Retargeter::new(&rig, &layout, basis, retarget).map_err(|e| e.to_string())
         };
         if l.blocking {
@@ -441,7 +436,7 @@ impl Viewer {
                 })
                 .map_err(|e| ViewError::Solver(format!("cannot start the basis thread: {e}")))?;
             l.slots[other].building = Some(rx);
-            self.note = format!("building the {} basis", solver_label(&settings));
+            self.note = format!("building the {} basis", settings.kind.name());
         }
         Ok(())
     }
