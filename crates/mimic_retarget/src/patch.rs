@@ -7,7 +7,7 @@
 use glam::Vec3;
 use mimic_solve::Basis;
 use mimic_solve::deform::MovingDeform;
-use mimic_solve::normals::VertexFans;
+use mimic_solve::normals::{FanKernel, VertexFans};
 
 /// Moving rows of a basis and the neighbourhood whose normals follow them.
 #[derive(Clone, Debug)]
@@ -25,6 +25,8 @@ pub(crate) struct MovingPatch {
     /// the fan pass's 16-byte loads): the moving rows are rewritten by every
     /// [`MovingPatch::deform`], the others never move and keep their rest position.
     local_positions: Vec<f32>,
+    /// The fan pass's kernel ([`FanKernel::best`] unless set).
+    fan_kernel: FanKernel,
 }
 
 impl MovingPatch {
@@ -81,7 +83,15 @@ impl MovingPatch {
                 .collect(),
             local_vertices,
             fans,
+            fan_kernel: FanKernel::best(),
         }
+    }
+
+    /// The same patch with its normals computed by `kernel` (the best the CPU has where it
+    /// lacks it).
+    pub(crate) fn with_fan_kernel(mut self, kernel: FanKernel) -> Self {
+        self.fan_kernel = kernel.available();
+        self
     }
 
     /// The same patch with the deform's weights stored as binary16 when `on`
@@ -115,9 +125,11 @@ impl MovingPatch {
     /// summed in registers, normalised and written once.
     pub(crate) fn normals(&mut self, normals: &mut [Vec3]) {
         let targets = &self.local_vertices;
-        self.fans.normals_packed(&self.local_positions, |k, n| {
-            normals[targets[k] as usize] = n;
-        });
+        let kernel = self.fan_kernel;
+        self.fans
+            .normals_packed_by(kernel, &self.local_positions, |k, n| {
+                normals[targets[k] as usize] = n;
+            });
     }
 }
 

@@ -4,6 +4,7 @@ use crate::gate::{GateReading, GateReason, angle_deg, face_size};
 use crate::patch::MovingPatch;
 use crate::{Neutral, OneEuro, RetargetSettings, SourceToTarget};
 use glam::{Quat, Vec3};
+use mimic_solve::normals::FanKernel;
 use mimic_solve::{Basis, kabsch::fit_similarity, vertex_normals};
 use mimic_types::layout::mean_of_valid;
 use mimic_types::{ControlName, Fdp, HeadPose, LandmarkFrame, Layout, Rig};
@@ -270,6 +271,7 @@ impl Retargeter {
                 MovingPatch::new(&basis, &rig.mesh.triangles, &rig.mesh.positions)
                     .with_f16_weights(settings.f16_weights)
                     .map_err(RetargetError::F16Weights)?
+                    .with_fan_kernel(settings.fan_kernel.unwrap_or_else(FanKernel::best))
             } else {
                 // No positions: an empty patch, so no per-retargeter copy of the moving rows.
                 let empty = Basis::from_row_major(0, m, Vec::new())

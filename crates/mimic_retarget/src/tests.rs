@@ -384,6 +384,45 @@ fn positions_off_gives_the_same_displacements_and_keeps_the_rest_mesh() {
 }
 
 #[test]
+fn each_fan_kernel_gives_the_same_positions_and_normals_within_the_kernels_bound() {
+    use mimic_solve::normals::FanKernel;
+    // One retargeter per normal kernel (one the CPU lacks runs the best it has), same frames:
+    // the kernels sum the same terms, so positions are identical and the normals differ only by
+    // their normalisations, at most 9 eps per component (mimic_solve's fan tests).
+    let kernels = [FanKernel::Portable, FanKernel::Avx2, FanKernel::Avx512];
+    let mut runs = kernels.map(|k| {
+        let (r, neutral) = setup(RetargetSettings {
+            fan_kernel: Some(k),
+            ..plain()
+        });
+        let out = r.new_output();
+        (r, out, neutral)
+    });
+    for k in 0..10i64 {
+        let mut outs = Vec::new();
+        for (r, out, neutral) in runs.iter_mut() {
+            let rot = Quat::from_rotation_y(0.02 * k as f32);
+            let mut moved: Vec<Vec3> = neutral.iter().map(|p| rot * *p).collect();
+            if let Some(p) = moved.last_mut() {
+                *p += rot * Vec3::new(0.0, -0.001 * k as f32, 0.0);
+            }
+            r.step(&frame(k * 33_000, moved), out);
+            outs.push(out.clone());
+        }
+        for o in &outs[1..] {
+            assert_eq!(o.positions, outs[0].positions);
+            for (a, b) in o.normals.iter().zip(&outs[0].normals) {
+                assert!(
+                    (*a - *b).abs().max_element() <= 9.0 * f32::EPSILON,
+                    "frame {k}: {a} vs {b}"
+                );
+            }
+        }
+    }
+    assert!(runs[0].1.normals.iter().any(|n| n.z.abs() < 0.999));
+}
+
+#[test]
 fn lost_frames_without_points_are_lost_not_rejected() {
     let (mut r, neutral) = setup(plain());
     let mut out = r.new_output();

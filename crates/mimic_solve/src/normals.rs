@@ -58,28 +58,70 @@ pub enum FanKernel {
 }
 
 impl FanKernel {
-    /// The fastest kernel this CPU runs (runtime-detected).
+    /// The fastest kernel this CPU runs (runtime-detected, once): AVX-512 where the CPU has it
+    /// at full width, AVX2 on CPUs that run 512-bit operations as two 256-bit halves (AMD Zen 4,
+    /// where the 16-lane kernel measured 5-10 % slower than the 8-lane one: docs/performance.md),
+    /// else portable.
     pub fn best() -> Self {
-        #[cfg(target_arch = "x86_64")]
-        {
-            if crate::basis::avx2_fma() && std::arch::is_x86_feature_detected!("avx512f") {
-                return Self::Avx512;
+        static BEST: std::sync::OnceLock<FanKernel> = std::sync::OnceLock::new();
+        *BEST.get_or_init(|| {
+            #[cfg(target_arch = "x86_64")]
+            {
+                if crate::basis::avx2_fma()
+                    && std::arch::is_x86_feature_detected!("avx512f")
+                    && !splits_512_bit_ops()
+                {
+                    return Self::Avx512;
+                }
+                if crate::basis::avx2_fma() {
+                    return Self::Avx2;
+                }
             }
-            if crate::basis::avx2_fma() {
-                return Self::Avx2;
+            Self::Portable
+        })
+    }
+
+    /// Whether this CPU runs `self`.
+    pub fn supported(self) -> bool {
+        match self {
+            Self::Portable => true,
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx2 => crate::basis::avx2_fma(),
+            #[cfg(target_arch = "x86_64")]
+            Self::Avx512 => {
+                crate::basis::avx2_fma() && std::arch::is_x86_feature_detected!("avx512f")
             }
+            #[cfg(not(target_arch = "x86_64"))]
+            Self::Avx2 | Self::Avx512 => false,
         }
-        Self::Portable
     }
 
     /// `self` where this CPU runs it, else the best kernel it runs ([`FanKernel::best`]).
     pub fn available(self) -> Self {
-        let best = Self::best();
-        match (self, best) {
-            (Self::Portable, _) | (Self::Avx2, Self::Avx2 | Self::Avx512) => self,
-            _ => best,
-        }
+        if self.supported() { self } else { Self::best() }
     }
+}
+
+/// True on AMD family 19h (Zen 3 and Zen 4; only Zen 4 has AVX-512), whose 512-bit operations
+/// issue as two 256-bit halves, so a 16-lane kernel does the 8-lane one's work in the same ops.
+#[cfg(target_arch = "x86_64")]
+fn splits_512_bit_ops() -> bool {
+    // SAFETY: CPUID exists on every x86_64 CPU, with leaves 0 and 1 (a safe function in newer
+    // Rust, an unsafe one at the MSRV).
+    #[allow(unused_unsafe)]
+    let (vendor, signature) = unsafe {
+        use std::arch::x86_64::__cpuid;
+        (__cpuid(0), __cpuid(1).eax)
+    };
+    let amd = (vendor.ebx, vendor.edx, vendor.ecx) == (0x6874_7541, 0x6974_6e65, 0x444d_4163);
+    // Family: the base field (bits 8-11) plus the extended one (bits 20-27) when the base is 0xF.
+    let base = (signature >> 8) & 0xF;
+    let family = if base == 0xF {
+        base + ((signature >> 20) & 0xFF)
+    } else {
+        base
+    };
+    amd && family == 0x19
 }
 
 /// Triangle fans around the first `count` vertices of a mesh, for gathering their area-weighted
@@ -749,6 +791,19 @@ mod tests {
         }
         let none = VertexFans::new(0, 0, &[]);
         none.normals(&[], |_, _| unreachable!("no fans"));
+    }
+
+    #[test]
+    fn kernel_choice_runs_only_what_the_cpu_has() {
+        let best = FanKernel::best();
+        assert!(best.supported(), "{best:?}");
+        assert!(FanKernel::Portable.supported());
+        for k in [FanKernel::Portable, FanKernel::Avx2, FanKernel::Avx512] {
+            let expected = if k.supported() { k } else { best };
+            assert_eq!(k.available(), expected, "{k:?}");
+        }
+        // The AVX2 kernel needs AVX2 and FMA, the AVX-512 one AVX-512F on top.
+        assert!(!FanKernel::Avx512.supported() || FanKernel::Avx2.supported());
     }
 
     #[test]

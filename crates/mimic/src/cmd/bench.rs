@@ -315,7 +315,8 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
     let deform = mimic_solve::deform::MovingDeform::new(basis, &p.rig.mesh.positions);
     let floor_buf = vec![1f32; deform.bytes_read() / 4];
     let baseline_steps = (args.steps / 4).max(50);
-    let mut base: [Vec<u32>; 10] = Default::default();
+    let mut base: [Vec<u32>; 12] = Default::default();
+    use mimic_solve::normals::FanKernel;
     let mut u_packed = vec![0f32; 3 * n + 1];
     let mut local_packed = vec![0f32; 3 * moving.rows.len()];
     let ns = elapsed_ns;
@@ -343,6 +344,13 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         let t = Instant::now();
         fans.normals_packed(&u_packed, |v, nv| normals[v] = nv);
         base[8].push(ns(t));
+        // Each fan kernel the CPU has (one it lacks runs the best it has: same figure twice).
+        let t = Instant::now();
+        fans.normals_packed_by(FanKernel::Avx2, &u_packed, |v, nv| normals[v] = nv);
+        base[10].push(ns(t));
+        let t = Instant::now();
+        fans.normals_packed_by(FanKernel::Avx512, &u_packed, |v, nv| normals[v] = nv);
+        base[11].push(ns(t));
         let t = Instant::now();
         moving.basis.apply(&d, &mut u_rows);
         let moved = moving.rows.iter().zip(&u_rows).zip(&rest_rows);
@@ -374,12 +382,15 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         bn_gather,
         bn_packed,
         deform_packed,
+        bn_avx2,
+        bn_avx512,
     ] = base.map(|mut v| median_p99_us(&mut v).0);
     let numpy = if args.numpy {
         Some(numpy_reference(basis, &moving.rows)?)
     } else {
         None
     };
+    let fan_kernels = bench_fan_kernels(args, &p, &frames, span_us)?;
     let sessions = match args.sessions {
         Some(k) if k > 0 => Some(bench_sessions(args, &p, &frames, span_us, k)?),
         _ => None,
@@ -413,6 +424,10 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
             "normals_speedup": if normals_m > 0.0 { bn / normals_m } else { 0.0 },
             "normals_fans_gather_median_us": bn_gather,
             "normals_fans_packed_median_us": bn_packed,
+            "fan_kernel": format!("{:?}", FanKernel::best()),
+            "normals_fans_avx2_median_us": bn_avx2,
+            "normals_fans_avx512_median_us": bn_avx512,
+            "fan_kernel_avx512_supported": FanKernel::Avx512.supported(),
             "deform_packed_kernel_median_us": deform_packed,
             "previous_deform_median_us": prev_deform,
             "deform_kernel_median_us": deform_alone,
@@ -424,6 +439,7 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
             "read_median_us": floor,
         },
         "numpy": numpy,
+        "fan_kernels_in_step": fan_kernels,
         "sessions": sessions,
         "load_average": {"start": load_start, "end": load_average()},
     });
@@ -449,6 +465,25 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         println!(
             "  A/B: normals by fans on packed 12-byte positions {bn_packed:.1} us (16-byte {bn_fans:.1} us); deform kernel with a packed copy {deform_packed:.1} us (16-byte copy: below)"
         );
+        println!(
+            "  fan kernels on packed positions: AVX2 {bn_avx2:.1} us, AVX-512 {bn_avx512:.1} us{}; the step uses {:?}",
+            if FanKernel::Avx512.supported() {
+                ""
+            } else {
+                " (no AVX-512 here: the best kernel the CPU has)"
+            },
+            FanKernel::best()
+        );
+        if let Some(fk) = report["fan_kernels_in_step"].as_object() {
+            let at = |k: &str, f: &str| fk[k][f].as_f64().unwrap_or(0.0);
+            println!(
+                "  in the step, alternating: normals AVX2 {:.1} us, AVX-512 {:.1} us; whole step {:.1} / {:.1} us",
+                at("Avx2", "normals_median_us"),
+                at("Avx512", "normals_median_us"),
+                at("Avx2", "step_median_us"),
+                at("Avx512", "step_median_us"),
+            );
+        }
         println!(
             "  deform: previous (blocked product in index order, then add and scatter) {prev_deform:.1} us, current kernel alone {deform_alone:.1} us; floor (one read of its {} kB) {floor:.1} us",
             deform.bytes_read() / 1000
@@ -477,6 +512,59 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         );
     }
     Ok(report)
+}
+
+/// The step with each fan kernel (normals) the CPU has, two retargeters stepped alternately on
+/// the same frames so that both see the same VM speed states; `None` where the CPU has no
+/// AVX-512 (nothing to compare). Reports the median normals stage and whole step of each.
+fn bench_fan_kernels(
+    args: &Args,
+    p: &crate::cmd::setup::Prepared,
+    frames: &[mimic_types::LandmarkFrame],
+    span_us: i64,
+) -> anyhow::Result<Option<serde_json::Value>> {
+    use mimic_solve::normals::FanKernel;
+    if !FanKernel::Avx512.supported() {
+        return Ok(None);
+    }
+    let basis = std::sync::Arc::new(p.retargeter.basis().clone());
+    let kernels = [FanKernel::Avx2, FanKernel::Avx512];
+    let mut runs = kernels.map(|k| {
+        let mut settings = args.pipeline.settings();
+        settings.fan_kernel = Some(k);
+        mimic_retarget::Retargeter::new(&p.rig, &p.layout, basis.clone(), settings)
+            .map(|r| (r.new_output(), r, StageSamples::with_capacity(args.steps)))
+    });
+    for r in &runs {
+        if let Err(e) = r {
+            anyhow::bail!("fan kernel retargeter: {e}");
+        }
+    }
+    let mut runs: Vec<_> = runs.iter_mut().filter_map(|r| r.as_mut().ok()).collect();
+    for k in 0..args.steps.max(100) {
+        let mut f = frames[k % frames.len()].clone();
+        f.timestamp_us += (k / frames.len()) as i64 * span_us;
+        for (out, r, samples) in runs.iter_mut() {
+            let t = Instant::now();
+            let status = r.step(&f, out);
+            let ns = elapsed_ns(t);
+            if status == FrameStatus::Tracked {
+                samples.push(ns, &out.times);
+            }
+        }
+    }
+    let mut report = serde_json::Map::new();
+    for (kernel, (_, _, samples)) in kernels.iter().zip(runs.iter_mut()) {
+        let (stages, step) = samples.summary();
+        report.insert(
+            format!("{kernel:?}"),
+            json!({
+                "normals_median_us": stages.get(Stage::Normals).median_us,
+                "step_median_us": step.median_us,
+            }),
+        );
+    }
+    Ok(Some(serde_json::Value::Object(report)))
 }
 
 /// Steps 1 session, then `k` at once, then 1 and `k` again (A/B pairs), at least 20 000 steps
