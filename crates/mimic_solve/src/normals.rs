@@ -128,13 +128,15 @@ fn splits_512_bit_ops() -> bool {
 /// normals vertex by vertex (the same normals as [`vertex_normals`], up to f32 rounding).
 ///
 /// Vertex `v`'s fan is a list of neighbours `w_0, w_1, ..., w_r` such that each consecutive pair
-/// `(w_l, w_{l+1})` closes a triangle `(v, w_l, w_{l+1})` in the mesh's orientation; its normal is
-/// the normalised `sum_l (p[w_l] - p[v]) x (p[w_{l+1}] - p[v])`, each triangle's cross product
-/// taken at `v`'s own corner. Triangles sharing an edge at `v` share its difference vector, so a
-/// closed fan of `k` triangles reads `k + 1` neighbours, and no sum is scattered to memory.
-/// Where the triangles around `v` do not form one chain (boundary, non-manifold), the chains are
-/// joined by `v` itself, whose difference vector is zero and adds exactly nothing; the same
-/// padding evens out fan lengths.
+/// `(w_l, w_{l+1})` closes a triangle `(v, w_l, w_{l+1})` in the mesh's orientation. Where the
+/// triangles around `v` do not form one chain (boundary, non-manifold), the chains are joined by
+/// `v` itself, and a list that does not end at `w_0` ends with `v`: every list is a closed
+/// polygon, each pair through `v` a degenerate triangle. The area vector of a closed polygon,
+/// `sum_l (p[w_l] - o) x (p[w_{l+1}] - o)`, is the same for every origin `o`: with `o = p[v]` it is
+/// the sum of the fan's triangles' cross products at `v`'s corner (the area-weighted normal); the
+/// kernels take `o = p[w_0]`, whose difference vector is zero, so they read no centre and skip a
+/// step. Padding past a list's end repeats `w_0` (zero difference vector, adds exactly nothing).
+/// A closed fan of `k` triangles reads `k + 1` neighbours, and no sum is scattered to memory.
 ///
 /// Fans are stored in groups of 16 vertices of (nearly) equal fan length, step-major (entry `l`
 /// of the 16 fans side by side), so that [`VertexFans::normals`] can run the 16 fans in the lanes
@@ -173,8 +175,10 @@ impl VertexFans {
             for l in 0..steps {
                 for k in 0..GROUP {
                     let v = lane(k);
-                    // Past its end, a fan is padded with its own centre: zero difference vector.
-                    entries.push(fans[v].get(l).copied().unwrap_or(v as u32));
+                    // Past its end, a fan is padded with its first entry (its origin): zero
+                    // difference vector; an empty fan with its own centre.
+                    let pad = fans[v].first().copied().unwrap_or(v as u32);
+                    entries.push(fans[v].get(l).copied().unwrap_or(pad));
                 }
             }
         }
@@ -291,7 +295,7 @@ impl VertexFans {
             let at = |v: usize| Vec3A::from_slice(&positions[3 * v..3 * v + 3]);
             for k in 0..lanes as usize {
                 let v = self.centres[g * GROUP + k] as usize;
-                let acc = fan_sum(at(v), entries.iter().skip(k).step_by(GROUP), at);
+                let acc = fan_sum(entries.iter().skip(k).step_by(GROUP), at);
                 write(v, Vec3::from(acc.normalize_or_zero()));
             }
         }
@@ -326,7 +330,7 @@ impl VertexFans {
             for k in 0..lanes as usize {
                 let v = self.centres[g * GROUP + k] as usize;
                 let fan = entries.iter().skip(k).step_by(GROUP);
-                let acc = fan_sum(positions[v], fan, |w| positions[w]);
+                let acc = fan_sum(fan, |w| positions[w]);
                 write(v, Vec3::from(acc.normalize_or_zero()));
             }
         }
@@ -394,7 +398,6 @@ impl VertexFans {
             for h in 0..(lanes as usize).div_ceil(HALF) {
                 let centre = &self.centres[g * GROUP + h * HALF..][..HALF];
                 let lanes = (lanes as usize - h * HALF).min(HALF);
-                let (px, py, pz) = load8(centre.as_ptr());
                 let (mut sx, mut sy, mut sz) = (
                     _mm256_setzero_ps(),
                     _mm256_setzero_ps(),
@@ -402,14 +405,18 @@ impl VertexFans {
                 );
                 // Step l of this half: entries[l * GROUP + h * HALF..][..HALF].
                 let half = entries.as_ptr().wrapping_add(h * HALF);
-                if steps > 0 {
-                    let (qx, qy, qz) = load8(half);
+                if steps > 1 {
+                    // Each fan's first entry is its origin (see `VertexFans`): its difference
+                    // vector is zero, so the sum starts with entries 1 and 2.
+                    let (px, py, pz) = load8(half);
+                    // SAFETY: 1 < steps: the 8 entries at GROUP + h * HALF lie in `entries`.
+                    let (qx, qy, qz) = load8(unsafe { half.add(GROUP) });
                     let (mut ax, mut ay, mut az) = (
                         _mm256_sub_ps(qx, px),
                         _mm256_sub_ps(qy, py),
                         _mm256_sub_ps(qz, pz),
                     );
-                    for l in 1..steps as usize {
+                    for l in 2..steps as usize {
                         // SAFETY: l < steps, so the 8 entries at l * GROUP + h * HALF lie in
                         // `entries` (steps * GROUP long).
                         let (qx, qy, qz) = load8(unsafe { half.add(l * GROUP) });
@@ -476,15 +483,13 @@ impl VertexFans {
 
 /// The un-normalised fan sum `sum_l (p[w_l] - c) x (p[w_l+1] - c)` around centre `c`, one fan
 /// at a time (the portable paths), as its components in x, y, z order.
-fn fan_sum<'a>(
-    c: Vec3A,
-    mut fan: impl Iterator<Item = &'a u32>,
-    at: impl Fn(usize) -> Vec3A,
-) -> Vec3A {
+fn fan_sum<'a>(mut fan: impl Iterator<Item = &'a u32>, at: impl Fn(usize) -> Vec3A) -> Vec3A {
     let mut acc = Vec3A::ZERO;
-    if let Some(&w0) = fan.next() {
+    // The first entry is the origin (its difference vector is zero), as in the vector kernels.
+    if let (Some(&w0), Some(&w1)) = (fan.next(), fan.next()) {
+        let c = at(w0 as usize);
         // a x b = (a * b.yzx - a.yzx * b).yzx: sum the inner vectors, rotate at the end.
-        let mut a = at(w0 as usize) - c;
+        let mut a = at(w1 as usize) - c;
         let mut a_r = a.yzx();
         for &w in fan {
             let b = at(w as usize) - c;
@@ -540,6 +545,11 @@ fn chain_fans(count: usize, vertex_count: usize, triangles: &[[u32; 3]]) -> Vec<
                     fan.push(cur);
                 }
             }
+            // A list that does not end where it starts (an open chain, or several) ends with `v`
+            // itself, so that it is a closed polygon whose sum does not depend on the origin.
+            if fan.first() != fan.last() {
+                fan.push(v as u32);
+            }
             fan
         })
         .collect()
@@ -584,8 +594,10 @@ mod tests {
             .zip(&k)
             .map(|((s, l2), &k)| {
                 let len = s.length();
+                // The fan kernels' difference vectors run from a neighbour, not the centre:
+                // up to two edges long, so their products' rounding is bounded with 4 l2.
                 let tol = if len > 0.0 {
-                    2.0 * (6 + k) as f64 * eps * l2 / len + 8.0 * eps
+                    2.0 * (6 + k) as f64 * eps * 4.0 * l2 / len + 8.0 * eps
                 } else {
                     f64::INFINITY
                 };

@@ -52,20 +52,21 @@ impl VertexFans {
         for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
             let centre = &self.centres[g * GROUP..][..GROUP];
             let entries = &self.entries[first as usize..][..steps as usize * GROUP];
-            let (px, py, pz) = load16(centre);
             let (mut sx, mut sy, mut sz) = (
                 _mm512_setzero_ps(),
                 _mm512_setzero_ps(),
                 _mm512_setzero_ps(),
             );
-            if steps > 0 {
-                let (qx, qy, qz) = load16(&entries[..GROUP]);
+            if steps > 1 {
+                // Each fan's first entry is its origin (as the AVX2 kernel).
+                let (px, py, pz) = load16(&entries[..GROUP]);
+                let (qx, qy, qz) = load16(&entries[GROUP..][..GROUP]);
                 let (mut ax, mut ay, mut az) = (
                     _mm512_sub_ps(qx, px),
                     _mm512_sub_ps(qy, py),
                     _mm512_sub_ps(qz, pz),
                 );
-                for l in 1..steps as usize {
+                for l in 2..steps as usize {
                     let (qx, qy, qz) = load16(&entries[l * GROUP..][..GROUP]);
                     let (bx, by, bz) = (
                         _mm512_sub_ps(qx, px),
