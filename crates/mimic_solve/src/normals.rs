@@ -108,7 +108,10 @@ impl FanKernel {
 fn splits_512_bit_ops() -> bool {
     // SAFETY: CPUID exists on every x86_64 CPU, with leaves 0 and 1 (a safe function in newer
     // Rust, an unsafe one at the MSRV).
-    #[allow(unused_unsafe)]
+    #[allow(
+        unused_unsafe,
+        reason = "__cpuid is safe in newer Rust, unsafe at the MSRV"
+    )]
     let (vendor, signature) = unsafe {
         use std::arch::x86_64::__cpuid;
         (__cpuid(0), __cpuid(1).eax)
