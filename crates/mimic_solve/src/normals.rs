@@ -394,7 +394,6 @@ impl VertexFans {
                 )
             }
         };
-        let mut normals = [Vec3A::ZERO; HALF];
         // Each group of 16 as two halves of 8 lanes (the second only where it has lanes in use).
         for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
             let entries = &self.entries[first as usize..][..steps as usize * GROUP];
@@ -464,28 +463,43 @@ impl VertexFans {
                 let t1 = _mm256_unpackhi_ps(nx, ny); // x2 y2 x3 y3 | x6 y6 x7 y7
                 let t2 = _mm256_unpacklo_ps(nz, zero); // z0 0 z1 0 | z4 0 z5 0
                 let t3 = _mm256_unpackhi_ps(nz, zero); // z2 0 z3 0 | z6 0 z7 0
-                let out = normals.as_mut_ptr().cast::<f32>();
-                // SAFETY: `normals` holds 8 Vec3A = 32 f32; lane k goes to out[4k..4k + 4].
-                unsafe {
-                    _mm256_storeu2_m128(out.add(16), out, _mm256_shuffle_ps::<0x44>(t0, t2));
-                    _mm256_storeu2_m128(out.add(20), out.add(4), _mm256_shuffle_ps::<0xEE>(t0, t2));
-                    _mm256_storeu2_m128(out.add(24), out.add(8), _mm256_shuffle_ps::<0x44>(t1, t3));
-                    _mm256_storeu2_m128(
-                        out.add(28),
-                        out.add(12),
-                        _mm256_shuffle_ps::<0xEE>(t1, t3),
-                    );
-                }
-                for (&v, n) in centre.iter().zip(&normals).take(lanes) {
-                    write(v as usize, Vec3::from(*n));
+                // Lane k in the low half of rows[k] (k < 4) or the high half of rows[k - 4],
+                // written straight from the registers (no round trip through memory).
+                let rows = [
+                    _mm256_shuffle_ps::<0x44>(t0, t2),
+                    _mm256_shuffle_ps::<0xEE>(t0, t2),
+                    _mm256_shuffle_ps::<0x44>(t1, t3),
+                    _mm256_shuffle_ps::<0xEE>(t1, t3),
+                ];
+                let low = |r: __m256| Vec3::from(Vec3A::from(_mm256_castps256_ps128(r)));
+                let high = |r: __m256| Vec3::from(Vec3A::from(_mm256_extractf128_ps::<1>(r)));
+                if lanes == HALF {
+                    // Every lane in use (all but the last group's): unrolled, rows in registers.
+                    write(centre[0] as usize, low(rows[0]));
+                    write(centre[1] as usize, low(rows[1]));
+                    write(centre[2] as usize, low(rows[2]));
+                    write(centre[3] as usize, low(rows[3]));
+                    write(centre[4] as usize, high(rows[0]));
+                    write(centre[5] as usize, high(rows[1]));
+                    write(centre[6] as usize, high(rows[2]));
+                    write(centre[7] as usize, high(rows[3]));
+                } else {
+                    for (k, &v) in centre.iter().enumerate().take(lanes) {
+                        let n = if k < 4 {
+                            low(rows[k])
+                        } else {
+                            high(rows[k - 4])
+                        };
+                        write(v as usize, n);
+                    }
                 }
             }
         }
     }
 }
 
-/// The un-normalised fan sum `sum_l (p[w_l] - c) x (p[w_l+1] - c)` around centre `c`, one fan
-/// at a time (the portable paths), as its components in x, y, z order.
+/// The un-normalised fan sum `sum_l (p[w_l] - p[w_0]) x (p[w_l+1] - p[w_0])`, the first entry as
+/// origin (see [`VertexFans`]), one fan at a time (the portable paths), in x, y, z order.
 fn fan_sum<'a>(mut fan: impl Iterator<Item = &'a u32>, at: impl Fn(usize) -> Vec3A) -> Vec3A {
     let mut acc = Vec3A::ZERO;
     // The first entry is the origin (its difference vector is zero), as in the vector kernels.
