@@ -1,7 +1,9 @@
 //! Throughput of many independent sessions: one [`Retargeter`] per session, each stepped on its
-//! own named thread over the same looped frames, one basis shared by all (`Arc<Basis>`).
+//! own named thread over the same looped frames, one basis shared by all (`Arc<Basis>`); and
+//! several retargeters stepped alternately on one thread, so that an A/B of their settings sees
+//! the same machine speed states.
 
-use crate::{FrameStatus, Retargeter};
+use crate::{FrameStatus, RetargetError, Retargeter, StageSamples, elapsed_ns};
 use mimic_types::LandmarkFrame;
 use std::time::{Duration, Instant};
 
@@ -31,6 +33,110 @@ pub enum SessionsError {
     /// A session thread could not be started or panicked.
     #[error("session thread {0}: {1}")]
     Thread(usize, String),
+    /// A session's retargeter could not be made.
+    #[error("session retargeter: {0}")]
+    Retargeter(#[from] RetargetError),
+}
+
+/// What [`compare_sessions`] measured: one session against `sessions` at once.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SessionsComparison {
+    /// Sessions run at once in the "many" runs.
+    pub sessions: usize,
+    /// Cores this process may use.
+    pub cores: usize,
+    /// Steps each session took in every run.
+    pub steps_per_session: usize,
+    /// The best of the one-session runs, frames per second.
+    pub one_frames_per_second: f64,
+    /// The best of the many-session runs, frames per second over all sessions.
+    pub many_frames_per_second: f64,
+    /// `many / one` (0 where one is 0).
+    pub speedup: f64,
+    /// The many-session figure per core in use (`sessions` or the cores, whichever is fewer).
+    pub per_core_frames_per_second: f64,
+    /// Every run, in the order run.
+    pub runs: ComparisonRuns,
+}
+
+/// The runs behind a [`SessionsComparison`].
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct ComparisonRuns {
+    /// One session at a time.
+    pub one: Vec<SessionsReport>,
+    /// `sessions` at once.
+    pub many: Vec<SessionsReport>,
+}
+
+/// Steps 1 session, then `sessions` at once, then 1 and `sessions` again (A/B pairs, so both see
+/// the machine's speed states), each run `steps` steps a session ([`step_sessions`]) with fresh
+/// retargeters from `make`; reports the best run of each.
+pub fn compare_sessions(
+    make: impl Fn() -> Result<Retargeter, RetargetError>,
+    frames: &[LandmarkFrame],
+    span_us: i64,
+    steps: usize,
+    sessions: usize,
+) -> Result<SessionsComparison, SessionsError> {
+    let fresh = |count: usize| (0..count).map(|_| make()).collect::<Result<Vec<_>, _>>();
+    let mut runs = ComparisonRuns {
+        one: Vec::new(),
+        many: Vec::new(),
+    };
+    for _ in 0..2 {
+        runs.one
+            .push(step_sessions(fresh(1)?, frames, span_us, steps)?);
+        runs.many
+            .push(step_sessions(fresh(sessions)?, frames, span_us, steps)?);
+    }
+    let best = |v: &[SessionsReport]| v.iter().map(|r| r.frames_per_second).fold(0f64, f64::max);
+    let (one, many) = (best(&runs.one), best(&runs.many));
+    let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+    Ok(SessionsComparison {
+        sessions,
+        cores,
+        steps_per_session: steps,
+        one_frames_per_second: one,
+        many_frames_per_second: many,
+        speedup: if one > 0.0 { many / one } else { 0.0 },
+        per_core_frames_per_second: many / sessions.clamp(1, cores) as f64,
+        runs,
+    })
+}
+
+/// Steps every retargeter once per frame, in turn, `steps` frames over `frames` (looped, each
+/// loop shifted by `span_us` so time runs forward), on this thread; returns each one's timings
+/// of its tracked frames (whole step and stages), in the order given. Interleaving puts every
+/// retargeter in the same machine speed states: an A/B of settings in one run.
+pub fn step_alternately(
+    retargeters: &mut [Retargeter],
+    frames: &[LandmarkFrame],
+    span_us: i64,
+    steps: usize,
+) -> Result<Vec<StageSamples>, SessionsError> {
+    if frames.is_empty() {
+        return Err(SessionsError::NoFrames);
+    }
+    let mut outs: Vec<_> = retargeters.iter().map(Retargeter::new_output).collect();
+    let mut samples: Vec<_> = retargeters
+        .iter()
+        .map(|_| StageSamples::with_capacity(steps))
+        .collect();
+    let mut frame = frames[0].clone();
+    for s in 0..steps {
+        let src = &frames[s % frames.len()];
+        frame.clone_from(src);
+        frame.timestamp_us = src.timestamp_us + (s / frames.len()) as i64 * span_us;
+        for ((r, out), samples) in retargeters.iter_mut().zip(&mut outs).zip(&mut samples) {
+            let t = Instant::now();
+            let status = r.step(&frame, out);
+            let ns = elapsed_ns(t);
+            if status == FrameStatus::Tracked {
+                samples.push(ns, &out.times);
+            }
+        }
+    }
+    Ok(samples)
 }
 
 /// Steps every retargeter `steps` times over `frames` (looped, each loop shifted by `span_us`
@@ -170,6 +276,87 @@ mod tests {
         assert!(report.frames_per_second > 0.0 && report.wall_s > 0.0);
         assert!(matches!(
             step_sessions(Vec::new(), &[], 0, 1),
+            Err(SessionsError::NoFrames)
+        ));
+    }
+
+    /// The frames of the tests above: the neutral, the first control moving a little.
+    fn frames_and_parts() -> (mimic_types::Rig, mimic_types::Layout, Vec<LandmarkFrame>) {
+        let (rig, layout) = crate::tests::rig_and_layout();
+        let neutral = crate::tests::neutral_points(&rig, &layout);
+        let frames = (0..20)
+            .map(|k| {
+                let mut points = neutral.clone();
+                points[0] += Vec3::new(0.0, 0.0005 * (k % 4) as f32, 0.0);
+                LandmarkFrame::new(k * 33_333, points)
+            })
+            .collect();
+        (rig, layout, frames)
+    }
+
+    #[test]
+    fn compare_sessions_runs_two_ab_pairs_and_reports_the_best_of_each() {
+        let (rig, layout, frames) = frames_and_parts();
+        let basis = Arc::new(mimic_solve::build_basis(&rig, &rig.solver).unwrap());
+        let make = || Retargeter::new(&rig, &layout, basis.clone(), RetargetSettings::default());
+        let c = compare_sessions(make, &frames, 20 * 33_333, 40, 2).unwrap();
+        assert_eq!((c.runs.one.len(), c.runs.many.len()), (2, 2));
+        assert!(
+            c.runs
+                .one
+                .iter()
+                .all(|r| r.sessions == 1 && r.steps_per_session == 40)
+        );
+        assert!(
+            c.runs
+                .many
+                .iter()
+                .all(|r| r.sessions == 2 && r.tracked == 80)
+        );
+        let best =
+            |v: &[SessionsReport]| v.iter().map(|r| r.frames_per_second).fold(0f64, f64::max);
+        assert_eq!(c.one_frames_per_second, best(&c.runs.one));
+        assert_eq!(c.many_frames_per_second, best(&c.runs.many));
+        assert_eq!(
+            c.speedup,
+            c.many_frames_per_second / c.one_frames_per_second
+        );
+        assert_eq!(
+            c.per_core_frames_per_second,
+            c.many_frames_per_second / 2usize.min(c.cores) as f64
+        );
+        // Every session's retargeter is made fresh, and they all share the one basis.
+        assert_eq!(Arc::strong_count(&basis), 1);
+    }
+
+    #[test]
+    fn step_alternately_times_every_tracked_step_of_each_retargeter() {
+        let (rig, layout, frames) = frames_and_parts();
+        let basis = Arc::new(mimic_solve::build_basis(&rig, &rig.solver).unwrap());
+        let make =
+            || Retargeter::new(&rig, &layout, basis.clone(), RetargetSettings::default()).unwrap();
+        // The same frames through one retargeter here: how many steps are tracked.
+        let mut one = make();
+        let mut out = one.new_output();
+        let tracked = (0..50)
+            .filter(|&s| {
+                let mut f = frames[s % 20].clone();
+                f.timestamp_us += (s / 20) as i64 * 20 * 33_333;
+                one.step(&f, &mut out) == FrameStatus::Tracked
+            })
+            .count();
+        assert!(
+            tracked > 0 && tracked < 50,
+            "{tracked}: calibration, then tracked"
+        );
+        let mut both = [make(), make()];
+        let samples = step_alternately(&mut both, &frames, 20 * 33_333, 50).unwrap();
+        assert_eq!(samples.len(), 2);
+        for s in &samples {
+            assert_eq!(s.steps(), tracked);
+        }
+        assert!(matches!(
+            step_alternately(&mut both, &[], 0, 1),
             Err(SessionsError::NoFrames)
         ));
     }

@@ -5,9 +5,13 @@ use anyhow::Context;
 use glam::Vec3;
 use mimic_assets::ConfigDirs;
 use mimic_fit::capture::{CaptureFrame, FitSummary};
-use mimic_retarget::{FrameStatus, Stage, StageSamples, elapsed_ns, median_p99_us};
+use mimic_retarget::{
+    FrameStatus, Retargeter, Stage, StageSamples, elapsed_ns, median_p99_us, throughput,
+};
+use mimic_solve::normals::FanKernel;
 use serde_json::json;
 use std::path::PathBuf;
+use std::sync::Arc;
 use std::time::Instant;
 
 /// Arguments of `mimic bench`.
@@ -316,7 +320,6 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
     let floor_buf = vec![1f32; deform.bytes_read() / 4];
     let baseline_steps = (args.steps / 4).max(50);
     let mut base: [Vec<u32>; 12] = Default::default();
-    use mimic_solve::normals::FanKernel;
     let mut u_packed = vec![0f32; 3 * n + 1];
     let mut local_packed = vec![0f32; 3 * moving.rows.len()];
     let ns = elapsed_ns;
@@ -390,11 +393,17 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
     } else {
         None
     };
-    let fan_kernels = crate::cmd::bench_runs::bench_fan_kernels(args, &p, &frames, span_us)?;
+    let fan_kernels = bench_fan_kernels(args, &p, &frames, span_us)?;
     let sessions = match args.sessions {
-        Some(k) if k > 0 => Some(crate::cmd::bench_runs::bench_sessions(
-            args, &p, &frames, span_us, k,
-        )?),
+        Some(k) if k > 0 => {
+            let basis = Arc::new(basis.clone());
+            let make =
+                || Retargeter::new(&p.rig, &p.layout, basis.clone(), args.pipeline.settings());
+            // Long enough (about 0.2-2 s a run) that thread start and timer noise do not count.
+            let steps = args.steps.max(20_000);
+            let report = throughput::compare_sessions(make, &frames, span_us, steps, k)?;
+            Some(serde_json::to_value(report)?)
+        }
         _ => None,
     };
 
@@ -514,6 +523,45 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         );
     }
     Ok(report)
+}
+
+/// The step with each fan kernel (normals) the CPU has: one retargeter per kernel, stepped
+/// alternately on the same frames ([`throughput::step_alternately`]); `None` where the CPU has
+/// no AVX-512 (nothing to compare). Reports the median normals stage and whole step of each.
+fn bench_fan_kernels(
+    args: &Args,
+    p: &crate::cmd::setup::Prepared,
+    frames: &[mimic_types::LandmarkFrame],
+    span_us: i64,
+) -> anyhow::Result<Option<serde_json::Value>> {
+    if !FanKernel::Avx512.supported() {
+        return Ok(None);
+    }
+    let basis = Arc::new(p.retargeter.basis().clone());
+    let kernels = [FanKernel::Avx2, FanKernel::Avx512];
+    let mut retargeters = kernels
+        .iter()
+        .map(|&k| {
+            let mut settings = args.pipeline.settings();
+            settings.fan_kernel = Some(k);
+            Retargeter::new(&p.rig, &p.layout, basis.clone(), settings)
+        })
+        .collect::<Result<Vec<_>, _>>()
+        .context("fan kernel retargeter")?;
+    let samples =
+        throughput::step_alternately(&mut retargeters, frames, span_us, args.steps.max(100))?;
+    let mut report = serde_json::Map::new();
+    for (kernel, mut samples) in kernels.iter().zip(samples) {
+        let (stages, step) = samples.summary();
+        report.insert(
+            format!("{kernel:?}"),
+            json!({
+                "normals_median_us": stages.get(Stage::Normals).median_us,
+                "step_median_us": step.median_us,
+            }),
+        );
+    }
+    Ok(Some(serde_json::Value::Object(report)))
 }
 
 /// CANDIDE-3 fitting speed on a recording whose layout lists correspondences (`None` otherwise):

@@ -1,7 +1,6 @@
 //! One module per subcommand.
 
 pub mod bench;
-pub mod bench_runs;
 pub mod eval;
 pub mod import;
 pub mod info;
