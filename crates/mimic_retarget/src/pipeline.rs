@@ -1,13 +1,18 @@
 //! The retargeter: setup once, then one allocation-free `step` per frame.
 
-use crate::gate::{GateReading, GateReason, angle_deg, face_size};
+use crate::gate::{GateReading, face_size};
 use crate::patch::MovingPatch;
+
+mod hold;
+mod neutral;
+mod pose;
 use crate::{Neutral, OneEuro, RetargetSettings, SourceToTarget};
 use glam::{Quat, Vec3};
 use mimic_solve::normals::FanKernel;
-use mimic_solve::{Basis, kabsch::fit_similarity, vertex_normals};
+use mimic_solve::{Basis, vertex_normals};
 use mimic_types::layout::mean_of_valid;
 use mimic_types::{ControlName, Fdp, HeadPose, LandmarkFrame, Layout, Rig};
+pub(crate) use neutral::Accumulator;
 use std::sync::Arc;
 use std::time::Instant;
 
@@ -151,17 +156,6 @@ pub struct FrameOutput {
     pub filled: u32,
     /// Time spent per stage.
     pub times: StageTimes,
-}
-
-/// Neutral being accumulated from the first frames.
-#[derive(Debug, Clone, PartialEq)]
-pub(crate) struct Accumulator {
-    pub(crate) wanted: usize,
-    pub(crate) frames: usize,
-    pub(crate) first: Vec<Vec3>,
-    pub(crate) first_valid: Vec<bool>,
-    pub(crate) sum: Vec<Vec3>,
-    pub(crate) count: Vec<u32>,
 }
 
 /// Ties a layout to a rig and turns landmark frames into deformed meshes.
@@ -579,276 +573,10 @@ impl Retargeter {
     pub fn moving_vertex_count(&self) -> usize {
         self.patch.moving_count()
     }
-
-    fn lost(&mut self, t_us: i64, out: &mut FrameOutput) -> FrameStatus {
-        self.stats.lost += 1;
-        let since = *self.lost_since_us.get_or_insert(t_us);
-        self.gated_since_us = None;
-        self.hold_and_ease(since, t_us, out);
-        for f in &mut self.filters {
-            f.iter_mut().for_each(OneEuro::reset);
-        }
-        out.pose = self.last_pose;
-        out.status = FrameStatus::Lost;
-        self.deform(out);
-        out.status
-    }
-
-    /// `out.displacements`: the last accepted `d`, held `lost_hold_secs` after `since`, then eased
-    /// to neutral over `lost_ease_secs`.
-    fn hold_and_ease(&self, since: i64, t_us: i64, out: &mut FrameOutput) {
-        let elapsed = t_us.saturating_sub(since) as f32 * 1e-6;
-        let ease = self.settings.lost_ease_secs.max(1e-6);
-        let k = 1.0 - ((elapsed - self.settings.lost_hold_secs) / ease).clamp(0.0, 1.0);
-        for (o, d) in out.displacements.iter_mut().zip(&self.last_d) {
-            *o = *d * k;
-        }
-    }
-
-    /// Judges the raw `d` of this frame (in `raw_d`) and its head pose; `Some` holds the frame.
-    fn gate(&mut self, pose: &HeadPose, t_us: i64) -> Option<GateReason> {
-        let g = self.settings.gate;
-        let secs = |t: Option<i64>| {
-            t.map(|t| (t_us.saturating_sub(t) as f32 * 1e-6).max(0.0))
-                .unwrap_or(0.0)
-        };
-        let mut r = GateReading {
-            since_accepted_s: secs(self.accepted_time_us),
-            frame_dt_s: secs(self.previous_time_us),
-            holding_s: self.gated_since_us.map(|t| secs(Some(t))),
-            rotation_deg: angle_deg(pose.rotation),
-            turn_deg: angle_deg(pose.rotation * self.accepted_rotation.inverse()),
-            ..GateReading::default()
-        };
-        for (d, bound) in self.raw_d.iter().zip(&self.gate_bounds) {
-            r.displacement = r.displacement.max(ratio(d.length(), *bound));
-        }
-        r.reason = if g.enabled { r.judge(&g) } else { None };
-        self.gate_reading = r;
-        r.reason
-    }
-
-    /// Limits each control's step from the previous output to `gate.max_control_speed` over
-    /// the typical frame time; true if some control was clamped.
-    fn clamp_speed(&self, t_us: i64, out: &mut FrameOutput) -> bool {
-        let g = &self.settings.gate;
-        if !g.enabled {
-            return false;
-        }
-        let dt = if let Some(typical) = self.typical_interval() {
-            typical
-        } else {
-            self.previous_time_us
-                .map(|t| (t_us.saturating_sub(t) as f32 * 1e-6).clamp(0.0, 1.0))
-                .unwrap_or(0.0)
-        };
-        let limit = (g.step_floor + g.max_control_speed * dt) * self.face_size;
-        let mut clamped = false;
-        for (d, p) in out.displacements.iter_mut().zip(&self.previous_out) {
-            let step = *d - *p;
-            let len = step.length();
-            if len > limit {
-                *d = *p + step * (limit / len);
-                clamped = true;
-            }
-        }
-        clamped
-    }
-
-    /// Median of the intervals seen so far (of the last [`INTERVALS`]), seconds.
-    fn typical_interval(&self) -> Option<f32> {
-        let mut sorted = self.intervals;
-        let seen = sorted.iter().filter(|t| **t > 0.0).count();
-        if seen == 0 {
-            return None;
-        }
-        sorted.sort_unstable_by(|a, b| b.total_cmp(a));
-        Some(sorted[seen / 2])
-    }
-
-    /// A tracked frame the gate refused: counted, last expression held then eased, pose held.
-    fn hold_gated(
-        &mut self,
-        t_us: i64,
-        filled: u32,
-        to_target: &SourceToTarget,
-        out: &mut FrameOutput,
-    ) -> FrameStatus {
-        self.stats.tracked += 1;
-        self.stats.gated += 1;
-        self.stats.filled_controls += u64::from(filled);
-        let since = *self.gated_since_us.get_or_insert(t_us);
-        self.hold_and_ease(since, t_us, out);
-        self.lost_since_us = None;
-        out.filled = filled;
-        out.pose = self.last_pose;
-        out.target_rotation = to_target.rotation_in_target(self.last_pose.rotation);
-        out.status = FrameStatus::Tracked;
-        self.deform(out);
-        out.status
-    }
-
-    fn calibrate(&mut self, frame: &LandmarkFrame, out: &mut FrameOutput) -> FrameStatus {
-        self.stats.calibrating += 1;
-        out.status = FrameStatus::Calibrating;
-        out.displacements.iter_mut().for_each(|d| *d = Vec3::ZERO);
-        let Some(acc) = self.accumulator.as_mut() else {
-            return out.status;
-        };
-        let p = frame.points.len();
-        // Align this frame to the first one by the stable points, then add it in.
-        let pose = if acc.frames == 0 {
-            for i in 0..p {
-                acc.first_valid[i] = frame.is_valid(i);
-                acc.first[i] = frame.points[i];
-            }
-            Some(HeadPose::IDENTITY)
-        } else {
-            self.stable_src.clear();
-            self.stable_dst.clear();
-            for &i in &self.layout.stable {
-                if frame.is_valid(i) && acc.first_valid[i] {
-                    self.stable_src.push(acc.first[i]);
-                    self.stable_dst.push(frame.points[i]);
-                }
-            }
-            fit_similarity(&self.stable_src, &self.stable_dst, false)
-        };
-        if let Some(pose) = pose {
-            for i in 0..p {
-                if frame.is_valid(i) {
-                    acc.sum[i] += pose.inverse_apply(frame.points[i]);
-                    acc.count[i] += 1;
-                }
-            }
-            acc.frames += 1;
-        }
-        if acc.frames >= acc.wanted {
-            for i in 0..p {
-                self.neutral_valid[i] = acc.count[i] > 0;
-                self.neutral_points[i] = if acc.count[i] > 0 {
-                    acc.sum[i] / acc.count[i] as f32
-                } else {
-                    Vec3::ZERO
-                };
-            }
-            if self.finish_neutral() {
-                self.accumulator = None;
-                self.last_time_us = Some(frame.timestamp_us);
-                self.accepted_time_us = Some(frame.timestamp_us);
-            } else if let Some(acc) = self.accumulator.as_mut() {
-                // Some control never had a valid point: keep accumulating.
-                acc.wanted += 1;
-            }
-        }
-        out.pose = HeadPose::IDENTITY;
-        self.deform(out);
-        out.status
-    }
-
-    /// Head pose from the stable pairs in `stable_src`/`stable_dst`, refitted once without pairs whose
-    /// residual exceeds `stable_trim` times the median residual (if at least 3 remain).
-    fn robust_pose(&mut self) -> Option<HeadPose> {
-        let pose = fit_similarity(&self.stable_src, &self.stable_dst, false)?;
-        self.stable_residual.clear();
-        for (s, d) in self.stable_src.iter().zip(&self.stable_dst) {
-            self.stable_residual.push(pose.apply(*s).distance(*d));
-        }
-        let k = self.stable_residual.len();
-        self.stable_sorted.clear();
-        self.stable_sorted.extend_from_slice(&self.stable_residual);
-        self.stable_sorted.sort_unstable_by(f32::total_cmp);
-        let mut limit = self.settings.stable_trim * self.stable_sorted[k / 2];
-        let floor = self.pose_trim_floor();
-        if floor > 0.0 {
-            limit = limit.max(floor);
-        }
-        let keep = self.stable_residual.iter().filter(|r| **r <= limit).count();
-        if keep == k || keep < 3 {
-            return Some(pose);
-        }
-        let mut w = 0;
-        for r in 0..k {
-            if self.stable_residual[r] <= limit {
-                self.stable_src[w] = self.stable_src[r];
-                self.stable_dst[w] = self.stable_dst[r];
-                w += 1;
-            }
-        }
-        self.stable_src.truncate(w);
-        self.stable_dst.truncate(w);
-        fit_similarity(&self.stable_src, &self.stable_dst, false).or(Some(pose))
-    }
-
-    /// Residual (source units) below which a stable point is never trimmed from the head pose:
-    /// `gate.pose_trim_floor` IODs of the face, 0 with the gate off (`docs/gate.md`).
-    fn pose_trim_floor(&self) -> f32 {
-        let g = &self.settings.gate;
-        match self.to_target {
-            Some(t) if g.enabled && t.scale > 0.0 && self.face_size.is_finite() => {
-                g.pose_trim_floor * self.face_size / t.scale
-            }
-            _ => 0.0,
-        }
-    }
-
-    /// Derives the neutral controls and the source-to-target map; false if the neutral is unusable.
-    fn finish_neutral(&mut self) -> bool {
-        let neutral = LandmarkFrame {
-            timestamp_us: 0,
-            points: self.neutral_points.clone(),
-            valid: self.neutral_valid.clone(),
-            tracked: true,
-        };
-        for (j, points) in self.source_points.iter().enumerate() {
-            match mean_of_valid(points, &neutral) {
-                Some(p) => self.neutral_controls[j] = p,
-                None => return false,
-            }
-        }
-        let stable_ok = self
-            .layout
-            .stable
-            .iter()
-            .filter(|&&i| self.neutral_valid[i])
-            .count()
-            >= 3;
-        self.to_target = SourceToTarget::fit(
-            &self.neutral_controls,
-            &self.target_controls,
-            self.settings.allow_mirror,
-            self.settings.per_axis_scale,
-        );
-        if let Some(s) = &self.to_target {
-            tracing::info!(
-                scale = s.scale,
-                mirrored = s.mirrored,
-                rms_residual = s.rms_residual,
-                "neutral fixed; source-to-target map fitted"
-            );
-        }
-        // Outliers are judged in target units against the rig's (clean) control spread.
-        let m = self.target_controls.len().max(1) as f32;
-        let centre = self.target_controls.iter().fold(Vec3::ZERO, |a, p| a + *p) / m;
-        let rms_radius = (self
-            .target_controls
-            .iter()
-            .map(|p| p.distance_squared(centre))
-            .sum::<f32>()
-            / m)
-            .sqrt();
-        self.outlier_limit = self.settings.outlier_fraction * rms_radius;
-        stable_ok && self.to_target.is_some()
-    }
 }
 
 /// Frame intervals the speed clamp takes the median of.
 pub(crate) const INTERVALS: usize = 15;
-
-/// `x / limit`, 0 when `x` is 0, infinite past a zero limit; NaN stays NaN (and fails the gate).
-fn ratio(x: f32, limit: f32) -> f32 {
-    if x == 0.0 { 0.0 } else { x / limit }
-}
 
 fn nanos(a: Instant, b: Instant) -> u32 {
     u32::try_from(b.duration_since(a).as_nanos()).unwrap_or(u32::MAX)
