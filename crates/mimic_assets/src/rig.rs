@@ -62,6 +62,7 @@ struct SolverLines {
     kernel: Option<Spanned<toml::Value>>,
     constraint_weight: Option<Spanned<toml::Value>>,
     rbf_ridge: Option<Spanned<toml::Value>>,
+    shell_blend: Option<Spanned<toml::Value>>,
     top_split: Option<Spanned<SplitLines>>,
 }
 
@@ -91,6 +92,7 @@ impl SettingLines {
             "solver.kernel" => solver.and_then(|s| at(&s.get_ref().kernel)),
             "solver.constraint_weight" => solver.and_then(|s| at(&s.get_ref().constraint_weight)),
             "solver.rbf_ridge" => solver.and_then(|s| at(&s.get_ref().rbf_ridge)),
+            "solver.shell_blend" => solver.and_then(|s| at(&s.get_ref().shell_blend)),
             "solver.top_split.at" => split.and_then(|t| at(&t.get_ref().at)),
             "solver.top_split.band" => split.and_then(|t| at(&t.get_ref().band)),
             "solver.top_split.upper_kernel" => split.and_then(|t| at(&t.get_ref().upper_kernel)),
@@ -403,6 +405,9 @@ kind = "laplacian"
             kernel("rbf_ridge = 2.0")
                 .contains("tri.toml:13: solver.rbf_ridge = 2: must be finite, >= 0 and <= 1")
         );
+        assert!(kernel("shell_blend = [0.0, 0.0, 1.5]").contains(
+            "tri.toml:13: solver.shell_blend = 1.5: each share must be finite, >= 0 and <= 1"
+        ));
         let split = |s: &str| kernel(&format!("top_split = {{ {s} }}"));
         assert!(split("at = nan").contains("tri.toml:13: solver.top_split.at = NaN"));
         assert!(

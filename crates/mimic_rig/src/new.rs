@@ -257,6 +257,7 @@ pub fn make_rig(
             ..mimic_types::ShellSettings::default()
         },
         rbf_ridge: 0.0,
+        shell_blend: [0.0; 3],
     };
     Ok(GeneratedRig {
         name: name.to_string(),

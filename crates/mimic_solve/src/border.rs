@@ -107,6 +107,7 @@ mod tests {
             top_split: None,
             shell: Default::default(),
             rbf_ridge: 0.0,
+            shell_blend: [0.0; 3],
         }
     }
 

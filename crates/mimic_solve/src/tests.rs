@@ -22,6 +22,7 @@ fn settings(kind: SolverKind, regions: bool) -> SolverSettings {
             ..mimic_types::ShellSettings::default()
         },
         rbf_ridge: 0.0,
+        shell_blend: [0.0; 3],
     }
 }
 
@@ -322,4 +323,106 @@ fn bad_rigs_are_errors() {
         build_basis(&r, &s),
         Err(SolveError::InvalidSetting(_))
     ));
+}
+
+#[test]
+fn shell_blend_mixes_the_two_bases_by_region_weight() {
+    let r = test_rig(0.1);
+    let m = r.controls.len();
+    let rbf = build_basis(&r, &settings(SolverKind::Rbf, true)).unwrap();
+    // The blend's shell is the rig's own (`settings.shell`, here with its region cut).
+    let shell = build_basis(
+        &r,
+        &SolverSettings {
+            kind: SolverKind::Shell,
+            ..settings(SolverKind::Rbf, true)
+        },
+    )
+    .unwrap();
+    let shares = [0.0, 0.25, 0.75];
+    let blended = build_basis(
+        &r,
+        &SolverSettings {
+            shell_blend: shares,
+            ..settings(SolverKind::Rbf, true)
+        },
+    )
+    .unwrap();
+    // Off, the setting builds no shell: the RBF basis bit for bit.
+    let off = build_basis(
+        &r,
+        &SolverSettings {
+            shell_blend: [0.0; 3],
+            ..settings(SolverKind::Rbf, true)
+        },
+    )
+    .unwrap();
+    assert_eq!(off.as_slice(), rbf.as_slice());
+    let (mut in_top, mut blended_rows) = (0, 0);
+    for (i, p) in r.mesh.positions.iter().enumerate() {
+        let w = r.regions.weights(p.y);
+        let s: f64 = (0..3).map(|k| shares[k] * f64::from(w[k])).sum();
+        let srow = shell.row(i);
+        let big = srow.iter().fold(0f32, |a, v| a.max(v.abs()));
+        for j in 0..m {
+            // The shell's entry, unless below the cutoff of its row's largest (only where blended).
+            let y = if s > 0.0 && srow[j].abs() < 0.01 * big {
+                0.0
+            } else {
+                f64::from(srow[j])
+            };
+            let want = (1.0 - s) * f64::from(rbf.row(i)[j]) + s * y;
+            // Both built in f64 and rounded to f32 once: a few ulps of the larger input.
+            let scale = f64::from(rbf.row(i)[j].abs().max(srow[j].abs())).max(1e-6);
+            let got = f64::from(blended.row(i)[j]);
+            assert!(
+                (got - want).abs() <= 4.0 * f64::from(f32::EPSILON) * scale,
+                "row {i} column {j}: {got} vs {want}"
+            );
+        }
+        if s == 0.0 {
+            in_top += 1;
+            assert_eq!(blended.row(i), rbf.row(i), "row {i}: top share 0");
+        } else {
+            blended_rows += 1;
+        }
+    }
+    assert!(in_top > 0 && blended_rows > 0, "{in_top} / {blended_rows}");
+    // Both bases reproduce a control where it is alone in its region (far from the bands), so the
+    // blend does too.
+    let mut seed = 7;
+    let d = random_d(&mut seed, m, 0.05);
+    let (ur, us, ub) = (apply(&rbf, &d), apply(&shell, &d), apply(&blended, &d));
+    let dmax = d.iter().fold(0f32, |a, v| a.max(v.abs().max_element()));
+    let mut checked = 0;
+    for (c, dj) in r.controls.iter().zip(&d) {
+        let v = c.vertex as usize;
+        if (ur[v] - *dj).abs().max_element() <= 1e-4 * dmax
+            && (us[v] - *dj).abs().max_element() <= 1e-4 * dmax
+        {
+            checked += 1;
+            assert!(
+                (ub[v] - *dj).abs().max_element() <= 2e-4 * dmax,
+                "{}: {} vs {}",
+                c.fdp,
+                ub[v],
+                dj
+            );
+        }
+    }
+    assert!(checked >= m / 2, "{checked} of {m} controls checked");
+}
+
+#[test]
+fn shell_blend_out_of_range_is_an_error() {
+    let r = test_rig(0.1);
+    let e = build_basis(
+        &r,
+        &SolverSettings {
+            shell_blend: [0.0, 0.0, 1.5],
+            ..settings(SolverKind::Rbf, true)
+        },
+    )
+    .unwrap_err();
+    assert!(e.to_string().contains("shell_blend"), "{e}");
 }

@@ -344,6 +344,12 @@ pub struct SolverSettings {
     /// most 1), so the field no longer passes exactly through the controls and passes less of
     /// their noise (docs/quality.md, "Dense control sets"); 0 interpolates. At most 1.
     pub rbf_ridge: f64,
+    /// RBF or Laplacian: the share of the thin-shell basis (with [`SolverSettings::shell`])
+    /// blended into each region, `[top, middle, bottom]` in `[0, 1]`: a vertex's row is
+    /// `(1 - s) B + s B_shell` with `s` the regions' shares weighted by the vertex's region
+    /// weights. Both bases reproduce the controls, so the blend does too. `[0, 0, 0]` (the
+    /// default) builds no shell.
+    pub shell_blend: [f64; 3],
 }
 
 /// How the thin-shell solve treats the socket vertices ([`ShellSettings::sockets`]).
@@ -525,6 +531,20 @@ impl SolverSettings {
         ridge.is_finite() && (0.0..=1.0).contains(&ridge)
     }
 
+    /// Range check of [`SolverSettings::shell_blend`]: each share finite, in `[0, 1]`.
+    pub fn validate_shell_blend(&self) -> Result<(), crate::SettingError> {
+        for share in self.shell_blend {
+            if !(share.is_finite() && (0.0..=1.0).contains(&share)) {
+                return Err(crate::SettingError::new(
+                    "solver.shell_blend",
+                    share,
+                    "each share must be finite, >= 0 and <= 1",
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Range checks of every numeric solver setting, whichever solver the rig picks (the command
     /// line may switch it): kernel radii, the constraint weight in (0, 1e6], a finite top split.
     pub fn validate(&self) -> Result<(), crate::SettingError> {
@@ -549,6 +569,7 @@ impl SolverSettings {
                 "must be finite, >= 0 and <= 1",
             ));
         }
+        self.validate_shell_blend()?;
         if let Some(split) = &self.top_split {
             if !split.at.is_finite() {
                 return Err(SettingError::new(
@@ -599,6 +620,7 @@ impl Default for SolverSettings {
             top_split: None,
             shell: ShellSettings::default(),
             rbf_ridge: 0.0,
+            shell_blend: [0.0; 3],
         }
     }
 }
@@ -661,6 +683,19 @@ mod tests {
         }
         SolverSettings {
             rbf_ridge: 0.25,
+            ..ok
+        }
+        .validate()
+        .unwrap();
+        for b in [-0.1, 1.5, f64::NAN] {
+            let e = err(SolverSettings {
+                shell_blend: [0.0, 0.0, b],
+                ..ok
+            });
+            assert_eq!(e.key, "solver.shell_blend", "{b}");
+        }
+        SolverSettings {
+            shell_blend: [0.0, 0.5, 1.0],
             ..ok
         }
         .validate()

@@ -205,7 +205,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "rig {} ({}), controls {} ({}), solver {:?}, regions {}, top split {:?}, kernel {:?}, affine {}, distance {:?}, weights {:?}, constraint weight {}, shell {:?}, band {}; setup {:.0} ms",
+        "rig {} ({}), controls {} ({}), solver {:?}, regions {}, top split {:?}, kernel {:?}, affine {}, distance {:?}, weights {:?}, constraint weight {}, shell {:?}, shell blend {:?}, band {}; setup {:.0} ms",
         args.rig.rig,
         rig.units,
         args.controls,
@@ -219,6 +219,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         settings.weights,
         settings.constraint_weight,
         settings.shell,
+        settings.shell_blend,
         rig.regions.band,
         setup_ms
     );

@@ -326,6 +326,20 @@ pub struct SolverTuningArgs {
     /// unless `--socket-decay` says (default: the rig's).
     #[arg(long, value_parser = parse_socket_vertices)]
     pub socket_vertices: Option<SocketRanges>,
+    /// RBF or Laplacian: the thin shell's share in the top, middle and bottom regions
+    /// (`0,0,1`: the mouth and jaw from the shell) (default: the rig's `solver.shell_blend`).
+    #[arg(long, value_parser = parse_shares)]
+    pub shell_blend: Option<[f64; 3]>,
+}
+
+/// Parses three comma-separated numbers (`top,middle,bottom`).
+pub fn parse_shares(text: &str) -> Result<[f64; 3], String> {
+    let v: Vec<f64> = text
+        .split(',')
+        .map(|x| x.trim().parse::<f64>().map_err(|e| format!("`{x}`: {e}")))
+        .collect::<Result<_, _>>()?;
+    <[f64; 3]>::try_from(v.as_slice())
+        .map_err(|_| format!("`{text}`: expected three shares, top,middle,bottom (e.g. 0,0,1)"))
 }
 
 impl SolverTuningArgs {
@@ -391,6 +405,9 @@ impl SolverTuningArgs {
         }
         if let Some(ks) = self.shell_stiffness {
             s.shell.stiffness = ks;
+        }
+        if let Some(shares) = self.shell_blend {
+            s.shell_blend = shares;
         }
         if let Some(r) = self.shell_regions {
             s.shell.regions = r == Switch::On;
