@@ -204,6 +204,11 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
         };
         regions::blend_into(&mut b, m, &cols, subset, *part, positions, &weights);
     }
+    // The thin shell blended into the RBF's rows by region (before the fade below, which the
+    // shell's part needs too: its field meets the frozen neck at a steeper slope than the fade).
+    if settings.kind == SolverKind::Rbf && settings.shell_blend.iter().any(|&s| s > 0.0) {
+        blend_shell(rig, settings, &mut b)?;
+    }
     // The RBF knows nothing of the frozen vertices: fade its rows to zero toward them
     // (`border`), so the face meets a frozen neck without a step; controls keep their rows.
     if let Some(fade) = graph
@@ -211,9 +216,6 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
         .and_then(|graph| border::BorderFade::new(graph, &rig.frozen, &all, settings.kernel))
     {
         fade.apply(&mut b, m);
-    }
-    if settings.kind != SolverKind::Shell && settings.shell_blend.iter().any(|&s| s > 0.0) {
-        blend_shell(rig, settings, &mut b)?;
     }
     for (row, &frozen) in b.chunks_exact_mut(m).zip(&rig.frozen) {
         if frozen {
@@ -228,6 +230,7 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
 /// row `i` becomes `(1 - s_i) b_i + s_i shell_i` with `s_i = sum_r shell_blend[r] alpha_r(y_i)`,
 /// `alpha_r` the rig's region weights (over the rig's own band), and `shell_i` without its
 /// entries below [`SHELL_BLEND_CUTOFF`] of its largest.
+/// Called before the RBF's fade toward the frozen vertices, which then fades both parts.
 fn blend_shell(rig: &Rig, settings: &SolverSettings, b: &mut [f64]) -> Result<(), SolveError> {
     let shell = build_basis(
         rig,

@@ -344,7 +344,7 @@ pub struct SolverSettings {
     /// most 1), so the field no longer passes exactly through the controls and passes less of
     /// their noise (docs/quality.md, "Dense control sets"); 0 interpolates. At most 1.
     pub rbf_ridge: f64,
-    /// RBF or Laplacian: the share of the thin-shell basis (with [`SolverSettings::shell`])
+    /// RBF only: the share of the thin-shell basis (with [`SolverSettings::shell`])
     /// blended into each region, `[top, middle, bottom]` in `[0, 1]`: a vertex's row is
     /// `(1 - s) B + s B_shell` with `s` the regions' shares weighted by the vertex's region
     /// weights. Both bases reproduce the controls, so the blend does too. `[0, 0, 0]` (the

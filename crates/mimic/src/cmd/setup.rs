@@ -326,7 +326,7 @@ pub struct SolverTuningArgs {
     /// unless `--socket-decay` says (default: the rig's).
     #[arg(long, value_parser = parse_socket_vertices)]
     pub socket_vertices: Option<SocketRanges>,
-    /// RBF or Laplacian: the thin shell's share in the top, middle and bottom regions
+    /// RBF: the thin shell's share in the top, middle and bottom regions
     /// (`0,0,1`: the mouth and jaw from the shell) (default: the rig's `solver.shell_blend`).
     #[arg(long, value_parser = parse_shares)]
     pub shell_blend: Option<[f64; 3]>,
