@@ -364,17 +364,18 @@ fn shell_blend_mixes_the_two_bases_by_region_weight() {
         let s: f64 = (0..3).map(|k| shares[k] * f64::from(w[k])).sum();
         let srow = shell.row(i);
         let big = srow.iter().fold(0f32, |a, v| a.max(v.abs()));
-        for j in 0..m {
+        let rrow = rbf.row(i);
+        for (j, ((&sv, &rv), &got)) in srow.iter().zip(rrow).zip(blended.row(i)).enumerate() {
             // The shell's entry, unless below the cutoff of its row's largest (only where blended).
-            let y = if s > 0.0 && srow[j].abs() < 0.01 * big {
+            let y = if s > 0.0 && sv.abs() < 0.01 * big {
                 0.0
             } else {
-                f64::from(srow[j])
+                f64::from(sv)
             };
-            let want = (1.0 - s) * f64::from(rbf.row(i)[j]) + s * y;
+            let want = (1.0 - s) * f64::from(rv) + s * y;
             // Both built in f64 and rounded to f32 once: a few ulps of the larger input.
-            let scale = f64::from(rbf.row(i)[j].abs().max(srow[j].abs())).max(1e-6);
-            let got = f64::from(blended.row(i)[j]);
+            let scale = f64::from(rv.abs().max(sv.abs())).max(1e-6);
+            let got = f64::from(got);
             assert!(
                 (got - want).abs() <= 4.0 * f64::from(f32::EPSILON) * scale,
                 "row {i} column {j}: {got} vs {want}"
