@@ -497,15 +497,16 @@ impl Retargeter {
                 Some(p) => Some(pose.inverse_apply(p) - self.neutral_controls[j]),
                 None => None,
             };
-            let e = match e {
-                Some(e) if to_target.apply(e).length() <= self.outlier_limit => e,
+            // The target-space displacement is computed once: for the outlier check, and kept.
+            let (e, d) = match e.map(|e| (e, to_target.apply(e))) {
+                Some((e, d)) if d.length() <= self.outlier_limit => (e, d),
                 _ => {
                     filled += 1;
-                    self.last_e[j]
+                    (self.last_e[j], to_target.apply(self.last_e[j]))
                 }
             };
             self.raw_e[j] = e;
-            self.raw_d[j] = to_target.apply(e);
+            self.raw_d[j] = d;
         }
         if self.gate(&pose, frame.timestamp_us).is_some() {
             return self.hold_gated(frame.timestamp_us, filled, &to_target, out);
