@@ -1,7 +1,7 @@
 //! Dense control sets end to end: the shipped dense rig scored by `mimic eval` against the ICT
 //! expressions (independent truth), `mimic eval --controls`, and `mimic rig new --controls`.
 
-use crate::{mimic, repo, text};
+use crate::{eval_ict as eval_json, mimic, repo, text};
 
 const SHAPES: [&str; 8] = [
     "jawOpen",
@@ -13,21 +13,6 @@ const SHAPES: [&str; 8] = [
     "eyeBlink_R",
     "mouthFunnel",
 ];
-
-fn eval_json(extra: &[&str], shapes: &[&str]) -> serde_json::Value {
-    let paths: Vec<String> = shapes
-        .iter()
-        .map(|s| format!("configs/meshes/ict-facekit/{s}.obj"))
-        .collect();
-    let mut args = vec!["eval", "--json"];
-    args.extend_from_slice(extra);
-    args.push("--shapes");
-    args.extend(paths.iter().map(String::as_str));
-    let o = mimic(&args);
-    let (stdout, stderr) = text(&o);
-    assert!(o.status.success(), "{stderr}");
-    serde_json::from_str(&stdout).unwrap()
-}
 
 #[test]
 fn the_dense_kinect121_rig_beats_the_38_fdps_on_every_ict_expression() {

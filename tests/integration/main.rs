@@ -71,3 +71,20 @@ pub fn text(o: &Output) -> (String, String) {
         String::from_utf8_lossy(&o.stderr).into_owned(),
     )
 }
+
+/// `mimic eval --json` with `extra` flags on the shipped ICT expressions `shapes` (file stems of
+/// configs/meshes/ict-facekit/); panics unless it succeeds.
+pub fn eval_ict(extra: &[&str], shapes: &[&str]) -> serde_json::Value {
+    let paths: Vec<String> = shapes
+        .iter()
+        .map(|s| format!("configs/meshes/ict-facekit/{s}.obj"))
+        .collect();
+    let mut args = vec!["eval", "--json"];
+    args.extend_from_slice(extra);
+    args.push("--shapes");
+    args.extend(paths.iter().map(String::as_str));
+    let o = mimic(&args);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    serde_json::from_str(&stdout).unwrap()
+}

@@ -18,19 +18,9 @@ const SHAPES: [&str; 8] = [
 
 /// `mimic eval --rig ict-face --solver shell --json` with `extra` flags, on `shapes`.
 fn eval(extra: &[&str], shapes: &[&str]) -> serde_json::Value {
-    let dir = repo().join("configs/meshes/ict-facekit");
-    let paths: Vec<String> = shapes
-        .iter()
-        .map(|s| dir.join(format!("{s}.obj")).display().to_string())
-        .collect();
-    let mut args = vec!["eval", "--rig", "ict-face", "--solver", "shell", "--json"];
+    let mut args = vec!["--rig", "ict-face", "--solver", "shell"];
     args.extend_from_slice(extra);
-    args.push("--shapes");
-    args.extend(paths.iter().map(String::as_str));
-    let o = mimic(&args);
-    let (stdout, stderr) = text(&o);
-    assert!(o.status.success(), "{stderr}");
-    serde_json::from_str(&stdout).unwrap()
+    crate::eval_ict(&args, shapes)
 }
 
 /// Each shape's `all` ratio.
@@ -144,20 +134,10 @@ fn replay_with_the_shell_solver_stays_finite_and_bounded() {
 /// on the same expressions: the mouth and the mean ratio gain, the top region barely moves.
 #[test]
 fn the_shell_blend_improves_the_mouth_and_the_mean_of_the_rbf_rig() {
-    let dir = repo().join("configs/meshes/ict-facekit");
-    let paths: Vec<String> = SHAPES
-        .iter()
-        .map(|s| dir.join(format!("{s}.obj")).display().to_string())
-        .collect();
-    let run = |extra: &[&str]| -> serde_json::Value {
-        let mut args = vec!["eval", "--rig", "ict-face", "--json"];
+    let run = |extra: &[&str]| {
+        let mut args = vec!["--rig", "ict-face"];
         args.extend_from_slice(extra);
-        args.push("--shapes");
-        args.extend(paths.iter().map(String::as_str));
-        let o = mimic(&args);
-        let (stdout, stderr) = text(&o);
-        assert!(o.status.success(), "{stderr}");
-        serde_json::from_str(&stdout).unwrap()
+        crate::eval_ict(&args, &SHAPES)
     };
     let blend = run(&[]);
     let alone = run(&["--shell-blend", "0,0,0"]);
