@@ -16,6 +16,7 @@ pub mod morph;
 pub mod pose;
 pub mod region;
 pub mod rig;
+pub mod shell;
 
 pub use correspondence::ModelCorrespondence;
 pub use fdp::{Fdp, FdpError};
