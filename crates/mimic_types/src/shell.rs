@@ -110,9 +110,9 @@ pub struct ShellSettings {
     /// The mouth and eye sockets, the inside of the head behind the lips and lids.
     pub sockets: Sockets,
     /// Cut the one solve's columns by region, as the Laplacian does (the shell's own switch: the
-    /// solver-wide [`SolverSettings::regions`] is for the RBF and the Laplacian). Off by default:
-    /// each column is already 0 at every other control, and the cut measured worse on the
-    /// median (docs/quality.md, "Thin shell").
+    /// solver-wide [`SolverSettings::regions`](crate::SolverSettings::regions) is for the RBF
+    /// and the Laplacian). Off by default: each column is already 0 at every other control, and
+    /// the cut measured worse on the median (docs/quality.md, "Thin shell").
     pub regions: bool,
 }
 
