@@ -472,14 +472,12 @@ impl Retargeter {
             *slot = mean_of_valid(&self.source_points[j], frame);
         }
         let t1 = Instant::now();
-        self.stable_src.clear();
-        self.stable_dst.clear();
-        for &i in &self.layout.stable {
-            if frame.is_valid(i) && self.neutral_valid[i] {
-                self.stable_src.push(self.neutral_points[i]);
-                self.stable_dst.push(frame.points[i]);
-            }
-        }
+        pose::gather_stable(
+            &self.layout.stable,
+            frame,
+            (&self.neutral_points, &self.neutral_valid),
+            (&mut self.stable_src, &mut self.stable_dst),
+        );
         let Some(pose) = self.robust_pose() else {
             return self.lost(frame.timestamp_us, out);
         };

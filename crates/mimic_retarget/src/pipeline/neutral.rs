@@ -42,14 +42,12 @@ impl Retargeter {
             }
             Some(HeadPose::IDENTITY)
         } else {
-            self.stable_src.clear();
-            self.stable_dst.clear();
-            for &i in &self.layout.stable {
-                if frame.is_valid(i) && acc.first_valid[i] {
-                    self.stable_src.push(acc.first[i]);
-                    self.stable_dst.push(frame.points[i]);
-                }
-            }
+            super::pose::gather_stable(
+                &self.layout.stable,
+                frame,
+                (&acc.first, &acc.first_valid),
+                (&mut self.stable_src, &mut self.stable_dst),
+            );
             fit_similarity(&self.stable_src, &self.stable_dst, false)
         };
         if let Some(pose) = pose {

@@ -2,8 +2,9 @@
 //! without the points it does not explain.
 
 use super::Retargeter;
+use glam::Vec3;
 use mimic_solve::kabsch::fit_similarity;
-use mimic_types::HeadPose;
+use mimic_types::{HeadPose, LandmarkFrame};
 
 impl Retargeter {
     /// Head pose from the stable pairs in `stable_src`/`stable_dst`, refitted once without pairs whose
@@ -49,6 +50,24 @@ impl Retargeter {
                 g.pose_trim_floor * self.face_size / t.scale
             }
             _ => 0.0,
+        }
+    }
+}
+
+/// Fills `src` / `dst` with the stable points valid both in `frame` and in `reference` (points,
+/// validity): the pairs a head pose is fitted to.
+pub(super) fn gather_stable(
+    stable: &[usize],
+    frame: &LandmarkFrame,
+    (points, valid): (&[Vec3], &[bool]),
+    (src, dst): (&mut Vec<Vec3>, &mut Vec<Vec3>),
+) {
+    src.clear();
+    dst.clear();
+    for &i in stable {
+        if frame.is_valid(i) && valid[i] {
+            src.push(points[i]);
+            dst.push(frame.points[i]);
         }
     }
 }
