@@ -207,7 +207,7 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
     // The thin shell blended into the RBF's rows by region (before the fade below, which the
     // shell's part needs too: its field meets the frozen neck at a steeper slope than the fade).
     if settings.kind == SolverKind::Rbf && settings.shell_blend.iter().any(|&s| s > 0.0) {
-        blend_shell(rig, settings, &mut b)?;
+        blend_shell(rig, settings, &weights, &mut b)?;
     }
     // The RBF knows nothing of the frozen vertices: fade its rows to zero toward them
     // (`border`), so the face meets a frozen neck without a step; controls keep their rows.
@@ -228,10 +228,15 @@ pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveE
 
 /// Blends the thin-shell basis into `b` (row-major, n x m) by [`SolverSettings::shell_blend`]:
 /// row `i` becomes `(1 - s_i) b_i + s_i shell_i` with `s_i = sum_r shell_blend[r] alpha_r(y_i)`,
-/// `alpha_r` the rig's region weights (over the rig's own band), and `shell_i` without its
-/// entries below [`SHELL_BLEND_CUTOFF`] of its largest.
+/// `alpha_r = weights[i][r]` the RBF's region weights (over the rig's own band), and `shell_i`
+/// without its entries below [`SHELL_BLEND_CUTOFF`] of its largest.
 /// Called before the RBF's fade toward the frozen vertices, which then fades both parts.
-fn blend_shell(rig: &Rig, settings: &SolverSettings, b: &mut [f64]) -> Result<(), SolveError> {
+fn blend_shell(
+    rig: &Rig,
+    settings: &SolverSettings,
+    weights: &[[f32; 3]],
+    b: &mut [f64],
+) -> Result<(), SolveError> {
     let shell = build_basis(
         rig,
         &SolverSettings {
@@ -241,8 +246,7 @@ fn blend_shell(rig: &Rig, settings: &SolverSettings, b: &mut [f64]) -> Result<()
         },
     )?;
     let m = shell.control_count();
-    for (i, (row, p)) in b.chunks_exact_mut(m).zip(&rig.mesh.positions).enumerate() {
-        let w = rig.regions.weights(p.y);
+    for (i, (row, w)) in b.chunks_exact_mut(m).zip(weights).enumerate() {
         let s: f64 = (0..3)
             .map(|r| settings.shell_blend[r] * f64::from(w[r]))
             .sum();
