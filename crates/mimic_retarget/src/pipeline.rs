@@ -490,9 +490,10 @@ impl Retargeter {
             .map(|t| frame.timestamp_us.saturating_sub(t) as f32 * 1e-6)
             .unwrap_or(0.0);
         let mut filled = 0u32;
+        let back = pose.inverse_affine();
         for j in 0..self.controls_now.len() {
             let e = match self.controls_now[j] {
-                Some(p) => Some(pose.inverse_apply(p) - self.neutral_controls[j]),
+                Some(p) => Some(back.transform_point3(p) - self.neutral_controls[j]),
                 None => None,
             };
             // The target-space displacement is computed once: for the outlier check, and kept.

@@ -1,6 +1,6 @@
 //! Rigid head pose.
 
-use glam::{Mat4, Quat, Vec3};
+use glam::{Affine3A, Mat3A, Mat4, Quat, Vec3, Vec3A};
 use serde::{Deserialize, Serialize};
 
 /// Rigid head motion of a frame relative to the neutral: `x_frame = scale * rotation * x_neutral + translation`.
@@ -38,6 +38,16 @@ impl HeadPose {
         (self.rotation.inverse() * (p - self.translation)) / self.scale
     }
 
+    /// [`HeadPose::inverse_apply`] as one affine map, for mapping many points back: a matrix
+    /// product per point instead of a quaternion product and a division.
+    pub fn inverse_affine(&self) -> Affine3A {
+        let m = Mat3A::from_quat(self.rotation.inverse()) * (1.0 / self.scale);
+        Affine3A {
+            matrix3: m,
+            translation: -(m * Vec3A::from(self.translation)),
+        }
+    }
+
     /// The pose as a 4x4 matrix.
     pub fn to_mat4(&self) -> Mat4 {
         Mat4::from_scale_rotation_translation(
@@ -64,5 +74,33 @@ mod tests {
         // f32 round trip: a few ulps of |p| and |t|.
         assert!((q - p).length() < 1e-5, "{q} vs {p}");
         assert!((pose.to_mat4().transform_point3(p) - pose.apply(p)).length() < 1e-5);
+    }
+
+    #[test]
+    fn inverse_affine_is_inverse_apply() {
+        let mut seed = 7u64;
+        let mut next = || {
+            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+        };
+        for _ in 0..100 {
+            let pose = HeadPose {
+                rotation: Quat::from_euler(glam::EulerRot::XYZ, 3.0 * next(), 3.0 * next(), next())
+                    .normalize(),
+                translation: Vec3::new(next(), next(), next()) * 2.0,
+                scale: 1.0 + 0.5 * next(),
+            };
+            let inverse = pose.inverse_affine();
+            let p = Vec3::new(next(), next(), next());
+            let (a, b) = (inverse.transform_point3(p), pose.inverse_apply(p));
+            // Both are f32 sums of terms up to (|p| + |t|) / scale: a few ulps of that.
+            let size = (p.length() + pose.translation.length()) / pose.scale;
+            assert!((a - b).length() <= 16.0 * f32::EPSILON * size, "{a} vs {b}");
+            // And it undoes apply.
+            let q = pose.apply(p);
+            let back = inverse.transform_point3(q);
+            let size = (q.length() + pose.translation.length()) / pose.scale;
+            assert!((back - p).length() <= 32.0 * f32::EPSILON * size, "{back} vs {p}");
+        }
     }
 }
