@@ -107,17 +107,17 @@ fn top_eigen_newton(n: &[[f64; 4]; 4]) -> Option<(f64, [f64; 4])> {
     for _ in 0..100 {
         let value = ((l * l + c2) * l + c1) * l + c0;
         slope = (4.0 * l * l + 2.0 * c2) * l + c1;
-        if !(slope > 0.0) {
+        if slope.is_nan() || slope <= 0.0 {
             break;
         }
         let next = l - value / slope;
         // Monotone in exact arithmetic: a step that does not go down is rounding at the root.
-        if !(next < l) {
+        if next.is_nan() || next >= l {
             break;
         }
         l = next;
     }
-    if !(slope >= 1e-3 * bound * bound * bound) {
+    if slope.is_nan() || slope < 1e-3 * bound * bound * bound {
         return None;
     }
     let mut m = *n;
@@ -131,7 +131,11 @@ fn top_eigen_newton(n: &[[f64; 4]; 4]) -> Option<(f64, [f64; 4])> {
         let minor = a(0, 0) * (a(1, 1) * a(2, 2) - a(1, 2) * a(2, 1))
             - a(0, 1) * (a(1, 0) * a(2, 2) - a(1, 2) * a(2, 0))
             + a(0, 2) * (a(1, 0) * a(2, 1) - a(1, 1) * a(2, 0));
-        if (r + c) % 2 == 0 { minor } else { -minor }
+        if (r + c).is_multiple_of(2) {
+            minor
+        } else {
+            -minor
+        }
     };
     let mut best = 0;
     let mut best_abs = -1.0;
@@ -353,8 +357,14 @@ mod tests {
             newton_used += 1;
             // Independent truth: Jacobi's pair and the eigen-equation itself, to a few hundred
             // f64 epsilons of the matrix's scale (the documented ~4e3 eps bounds the vector).
-            assert!((l - l_j).abs() <= 64.0 * f64::EPSILON * bound, "case {case}");
-            assert!(eigen_residual(&n, l, &v) <= 1e4 * f64::EPSILON * bound, "case {case}");
+            assert!(
+                (l - l_j).abs() <= 64.0 * f64::EPSILON * bound,
+                "case {case}"
+            );
+            assert!(
+                eigen_residual(&n, l, &v) <= 1e4 * f64::EPSILON * bound,
+                "case {case}"
+            );
             let dot: f64 = v.iter().zip(&v_j).map(|(a, b)| a * b).sum();
             assert!(1.0 - dot.abs() <= 1e4 * f64::EPSILON, "case {case}: {dot}");
         }

@@ -80,7 +80,9 @@ mod tests {
     fn inverse_affine_is_inverse_apply() {
         let mut seed = 7u64;
         let mut next = || {
-            seed = seed.wrapping_mul(6364136223846793005).wrapping_add(1442695040888963407);
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
             (seed >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
         };
         for _ in 0..100 {
@@ -100,7 +102,10 @@ mod tests {
             let q = pose.apply(p);
             let back = inverse.transform_point3(q);
             let size = (q.length() + pose.translation.length()) / pose.scale;
-            assert!((back - p).length() <= 32.0 * f32::EPSILON * size, "{back} vs {p}");
+            assert!(
+                (back - p).length() <= 32.0 * f32::EPSILON * size,
+                "{back} vs {p}"
+            );
         }
     }
 }
