@@ -79,12 +79,7 @@ mod tests {
     #[test]
     fn inverse_affine_is_inverse_apply() {
         let mut seed = 7u64;
-        let mut next = || {
-            seed = seed
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (seed >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
-        };
+        let mut next = || mimic_testkit::lcg(&mut seed);
         for _ in 0..100 {
             let pose = HeadPose {
                 rotation: Quat::from_euler(glam::EulerRot::XYZ, 3.0 * next(), 3.0 * next(), next())
