@@ -102,7 +102,7 @@ fn ab(
     steps: usize,
 ) {
     use mimic_retarget::{Stage, StageSamples, elapsed_ns, median_p99_us};
-    use mimic_solve::normals::{FanKernel, VertexFans};
+    use mimic_solve::{VectorKernel, normals::VertexFans};
     use std::time::Instant;
     let n = rig.mesh.vertex_count();
     let span = frames.last().unwrap().timestamp_us - frames[0].timestamp_us + 33_333;
@@ -182,10 +182,10 @@ fn ab(
             half.deform_packed(black_box(&d), &mut packed_rows, &mut positions)
         });
         time(4, &mut || {
-            fans.normals_packed_by(FanKernel::Avx2, &packed, |v, x| normals[v] = x)
+            fans.normals_packed_by(VectorKernel::Avx2, &packed, |v, x| normals[v] = x)
         });
         time(5, &mut || {
-            fans.normals_packed_by(FanKernel::Avx512, &packed, |v, x| normals[v] = x)
+            fans.normals_packed_by(VectorKernel::Avx512, &packed, |v, x| normals[v] = x)
         });
         time(6, &mut || basis.apply(black_box(&d), &mut u));
         time(7, &mut || {
@@ -203,7 +203,7 @@ fn ab(
         full.rows().len(),
         full.bytes_read() / 1000,
         half.bytes_read() / 1000,
-        FanKernel::best(),
+        VectorKernel::best(),
         load.split_whitespace()
             .take(3)
             .collect::<Vec<_>>()

@@ -7,7 +7,7 @@
 use glam::Vec3;
 use mimic_solve::Basis;
 use mimic_solve::deform::MovingDeform;
-use mimic_solve::normals::{FanKernel, VertexFans};
+use mimic_solve::{VectorKernel, normals::VertexFans};
 
 /// Moving rows of a basis and the neighbourhood whose normals follow them.
 #[derive(Clone, Debug)]
@@ -25,8 +25,8 @@ pub(crate) struct MovingPatch {
     /// the fan pass's 16-byte loads): the moving rows are rewritten by every
     /// [`MovingPatch::deform`], the others never move and keep their rest position.
     local_positions: Vec<f32>,
-    /// The fan pass's kernel ([`FanKernel::best`] unless set).
-    fan_kernel: FanKernel,
+    /// The fan pass's kernel ([`VectorKernel::best`] unless set).
+    kernel: VectorKernel,
 }
 
 impl MovingPatch {
@@ -83,14 +83,14 @@ impl MovingPatch {
                 .collect(),
             local_vertices,
             fans,
-            fan_kernel: FanKernel::best(),
+            kernel: VectorKernel::best(),
         }
     }
 
-    /// The same patch with its normals computed by `kernel` (the best the CPU has where it
-    /// lacks it).
-    pub(crate) fn with_fan_kernel(mut self, kernel: FanKernel) -> Self {
-        self.fan_kernel = kernel.available();
+    /// The same patch with its deform and normals computed by `kernel` (the best the CPU has
+    /// where it lacks it).
+    pub(crate) fn with_kernel(mut self, kernel: VectorKernel) -> Self {
+        self.kernel = kernel.available();
         self
     }
 
@@ -113,7 +113,7 @@ impl MovingPatch {
     /// [`MovingPatch::normals`].
     pub(crate) fn deform(&mut self, d: &[Vec3], positions: &mut [Vec3]) {
         self.deform
-            .deform_packed(d, &mut self.local_positions, positions);
+            .deform_packed_by(self.kernel, d, &mut self.local_positions, positions);
     }
 
     /// Recomputes the area-weighted normals of the vertices the moving rows can affect, from the
@@ -125,7 +125,7 @@ impl MovingPatch {
     /// summed in registers, normalised and written once.
     pub(crate) fn normals(&mut self, normals: &mut [Vec3]) {
         let targets = &self.local_vertices;
-        let kernel = self.fan_kernel;
+        let kernel = self.kernel;
         self.fans
             .normals_packed_by(kernel, &self.local_positions, |k, n| {
                 normals[targets[k] as usize] = n;

@@ -8,7 +8,7 @@ mod neutral;
 mod pose;
 use crate::{Neutral, OneEuro, RetargetSettings, SourceToTarget};
 use glam::{Quat, Vec3};
-use mimic_solve::normals::FanKernel;
+use mimic_solve::VectorKernel;
 use mimic_solve::{Basis, vertex_normals};
 use mimic_types::layout::mean_of_valid;
 use mimic_types::{ControlName, Fdp, HeadPose, LandmarkFrame, Layout, Rig};
@@ -265,7 +265,7 @@ impl Retargeter {
                 MovingPatch::new(&basis, &rig.mesh.triangles, &rig.mesh.positions)
                     .with_f16_weights(settings.f16_weights)
                     .map_err(RetargetError::F16Weights)?
-                    .with_fan_kernel(settings.fan_kernel.unwrap_or_else(FanKernel::best))
+                    .with_kernel(settings.vector_kernel.unwrap_or_else(VectorKernel::best))
             } else {
                 // No positions: an empty patch, so no per-retargeter copy of the moving rows.
                 let empty = Basis::from_row_major(0, m, Vec::new())

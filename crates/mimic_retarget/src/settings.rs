@@ -1,7 +1,7 @@
 //! Settings of the per-frame pipeline.
 
 use crate::{GateSettings, OneEuroSettings};
-use mimic_solve::normals::FanKernel;
+use mimic_solve::VectorKernel;
 use mimic_types::LandmarkFrame;
 
 /// Where the neutral (expressionless) face comes from.
@@ -38,10 +38,11 @@ pub struct RetargetSettings {
     /// in registers): each coordinate then moves by at most `sum_j (2^-11 |B_ij| + 2^-25) |d_j|`
     /// from the f32 weights' (`docs/performance.md`, issue #21). Off by default.
     pub f16_weights: bool,
-    /// The normal pass's kernel; `None`: the fastest this CPU runs ([`FanKernel::best`]). One the
-    /// CPU lacks runs the best it has. For A/B benchmarks: the kernels' normals differ by at most
-    /// 9 eps per component.
-    pub fan_kernel: Option<FanKernel>,
+    /// The deform's and the normal pass's kernel; `None`: the fastest this CPU runs
+    /// ([`VectorKernel::best`]). One the CPU lacks runs the best it has. For A/B benchmarks: the
+    /// vector kernels' positions are the same bit for bit, their normals differ by at most 9 eps
+    /// per component.
+    pub vector_kernel: Option<VectorKernel>,
     /// A control whose displacement, scaled to the target, exceeds this fraction of the RMS radius
     /// of the rig's controls is an outlier (e.g. a depth sample that hit the background): it is
     /// held like a missing control.
@@ -66,7 +67,7 @@ impl Default for RetargetSettings {
             normals: true,
             positions: true,
             f16_weights: false,
-            fan_kernel: None,
+            vector_kernel: None,
             outlier_fraction: 0.8,
             stable_trim: 3.0,
             gate: GateSettings::default(),

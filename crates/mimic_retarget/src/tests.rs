@@ -384,15 +384,20 @@ fn positions_off_gives_the_same_displacements_and_keeps_the_rest_mesh() {
 }
 
 #[test]
-fn each_fan_kernel_gives_the_same_positions_and_normals_within_the_kernels_bound() {
-    use mimic_solve::normals::FanKernel;
-    // One retargeter per normal kernel (one the CPU lacks runs the best it has), same frames:
-    // the kernels sum the same terms, so positions are identical and the normals differ only by
-    // their normalisations, at most 9 eps per component (mimic_solve's fan tests).
-    let kernels = [FanKernel::Portable, FanKernel::Avx2, FanKernel::Avx512];
+fn each_vector_kernel_gives_the_same_positions_and_normals_within_the_kernels_bound() {
+    use mimic_solve::VectorKernel;
+    // One retargeter per vector kernel (one the CPU lacks runs the best it has), same frames:
+    // the deform kernels sum the same fused chains, so positions are identical, and the fan
+    // kernels the same terms, so the normals differ only by their normalisations, at most 9 eps
+    // per component (mimic_solve's fan tests).
+    let kernels = [
+        VectorKernel::Portable,
+        VectorKernel::Avx2,
+        VectorKernel::Avx512,
+    ];
     let mut runs = kernels.map(|k| {
         let (r, neutral) = setup(RetargetSettings {
-            fan_kernel: Some(k),
+            vector_kernel: Some(k),
             ..plain()
         });
         let out = r.new_output();

@@ -21,6 +21,7 @@
 //! weights, so each coordinate moves by at most `sum_j (2^-11 |B_ij| + 2^-25) |d_j|` from the
 //! f32 weights' result (plus the f32 rounding of both).
 
+use crate::kernel::VectorKernel;
 use crate::{Basis, SolveError};
 use glam::{Vec3, Vec3A};
 
@@ -230,6 +231,24 @@ impl MovingDeform {
     /// # Panics
     /// As [`MovingDeform::deform`], with `compact.len() < 3 * rows().len()`.
     pub fn deform_packed(&self, d: &[Vec3], compact: &mut [f32], positions: &mut [Vec3]) {
+        self.deform_packed_by(VectorKernel::best(), d, compact, positions);
+    }
+
+    /// [`MovingDeform::deform_packed`] by a given kernel (benchmarks and tests; one the CPU
+    /// lacks runs the best it has): 8 rows a register (AVX2), 16 and 8 (AVX-512: a block's 24
+    /// rows in one 512-bit and one 256-bit register a coordinate), or one row at a time
+    /// (portable). Every kernel sums the same fused chains, so the positions are the same bit
+    /// for bit.
+    ///
+    /// # Panics
+    /// As [`MovingDeform::deform_packed`].
+    pub fn deform_packed_by(
+        &self,
+        kernel: VectorKernel,
+        d: &[Vec3],
+        compact: &mut [f32],
+        positions: &mut [Vec3],
+    ) {
         assert_eq!(
             d.len(),
             self.control_count,
@@ -246,14 +265,18 @@ impl MovingDeform {
             self.vertex_count
         );
         let compact = &mut compact[..3 * self.rows.len()];
+        let kernel = kernel.available();
         #[cfg(target_arch = "x86_64")]
-        if avx2_fma_f16c() {
-            // SAFETY: as in `deform`.
+        if kernel != VectorKernel::Portable && avx2_fma_f16c() {
+            let wide = kernel == VectorKernel::Avx512;
+            // SAFETY: AVX2, FMA and F16C are checked just above, AVX-512F by `available` (it
+            // runs `Avx512` only where the CPU has it); the shapes as in `deform`.
             unsafe {
-                if self.f16_weights() {
-                    self.deform_packed_avx2::<true>(d, compact, positions);
-                } else {
-                    self.deform_packed_avx2::<false>(d, compact, positions);
+                match (wide, self.f16_weights()) {
+                    (true, true) => self.deform_packed_avx512::<true>(d, compact, positions),
+                    (true, false) => self.deform_packed_avx512::<false>(d, compact, positions),
+                    (false, true) => self.deform_packed_avx2::<true>(d, compact, positions),
+                    (false, false) => self.deform_packed_avx2::<false>(d, compact, positions),
                 }
             }
             return;
@@ -262,9 +285,12 @@ impl MovingDeform {
             let kept = self.starts[b] as usize..self.starts[b + 1] as usize;
             let rest = &self.rest[b * 3 * BLOCK..][..3 * BLOCK];
             for (r, o) in out.chunks_exact_mut(3).enumerate() {
+                // The vector kernels' fused chains, one row at a time: the same sums bit for
+                // bit (in software where a CPU has no FMA instruction: slow, but exact).
                 let mut u = Vec3A::ZERO;
                 for (k, &j) in self.cols[kept.clone()].iter().enumerate() {
-                    u += Vec3A::from(d[j as usize]) * self.weight(kept.start + k, r);
+                    let w = Vec3A::splat(self.weight(kept.start + k, r));
+                    u = w.mul_add(Vec3A::from(d[j as usize]), u);
                 }
                 let p = Vec3A::new(rest[r], rest[BLOCK + r], rest[2 * BLOCK + r]) + u;
                 o.copy_from_slice(&p.to_array());
@@ -378,6 +404,57 @@ impl MovingDeform {
         compact: &mut [f32],
         positions: &mut [Vec3],
     ) {
+        // SAFETY: the block function's contract is `block_rows`' (the loop passes it BLOCK
+        // weights a kept column, in-bound columns and 3 * BLOCK rest values); AVX2, FMA and
+        // F16C as this function's (caller); shapes as this function's.
+        unsafe {
+            self.packed_blocks::<HALF>(d, compact, positions, |w, c, dp, r| {
+                block_rows::<HALF>(w, c, dp, r)
+            });
+        }
+    }
+
+    /// [`MovingDeform::deform_packed_avx2`] with each block's 24 rows in one 512-bit and one
+    /// 256-bit register a coordinate ([`block_rows_avx512`]): 6 multiply-adds a kept column
+    /// instead of 9, the same sums, stored by the same loop.
+    ///
+    /// # Safety
+    /// The CPU must support AVX-512F, AVX2, FMA and F16C; shapes as in
+    /// [`MovingDeform::deform_packed_avx2`].
+    #[cfg(target_arch = "x86_64")]
+    #[target_feature(enable = "avx512f,avx2,fma,f16c")]
+    unsafe fn deform_packed_avx512<const HALF: bool>(
+        &self,
+        d: &[Vec3],
+        compact: &mut [f32],
+        positions: &mut [Vec3],
+    ) {
+        // SAFETY: as in `deform_packed_avx2`, with AVX-512F (caller).
+        unsafe {
+            self.packed_blocks::<HALF>(d, compact, positions, |w, c, dp, r| {
+                block_rows_avx512::<HALF>(w, c, dp, r)
+            });
+        }
+    }
+
+    /// The packed kernels' loop over blocks: `rows_of` sums a block's 24 rows (as
+    /// [`block_rows`] does), stored packed to `compact` and, for a run of consecutive vertices,
+    /// from the same registers to `positions`; scattered blocks are copied row by row. Inlined
+    /// into each kernel, so `rows_of` runs with that kernel's CPU features.
+    ///
+    /// # Safety
+    /// The CPU must support AVX2 and FMA, and `rows_of` must be safe to call with a block's
+    /// weights, kept columns, `d` and rest values (`block_rows`' contract); `compact.len() ==
+    /// 3 * rows.len()`, `positions.len() >= vertex_count` and `d.len() == control_count`.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    unsafe fn packed_blocks<const HALF: bool>(
+        &self,
+        d: &[Vec3],
+        compact: &mut [f32],
+        positions: &mut [Vec3],
+        rows_of: impl Fn(*const u8, &[u32], *const f32, &[f32]) -> [[std::arch::x86_64::__m256; 3]; 3],
+    ) {
         const L: usize = 8;
         let mut spare = [0f32; 3 * BLOCK];
         let dp = d.as_ptr().cast::<f32>();
@@ -392,11 +469,12 @@ impl MovingDeform {
             let weights = self.block_weights::<HALF>(kept.clone());
             let cols = &self.cols[kept];
             let rest = &self.rest[b * 3 * BLOCK..][..3 * BLOCK];
-            // SAFETY: as in `deform_avx2`; `dst` points at 3 * BLOCK floats (the block's packed
-            // compact rows when full, else `spare`).
+            let rows = rows_of(weights, cols, dp, rest);
+            let run = self.runs[b];
+            // SAFETY: `dst` points at 3 * BLOCK floats (the block's packed compact rows when
+            // full, else `spare`); a run's 24 positions lie below vertex_count <=
+            // positions.len(); AVX2 (caller).
             unsafe {
-                let rows = block_rows::<HALF>(weights, cols, dp, rest);
-                let run = self.runs[b];
                 for (g, &[x, y, z]) in rows.iter().enumerate() {
                     crate::basis::store_xyz8(dst.add(g * 3 * L), x, y, z);
                     if run != SCATTERED {
@@ -408,12 +486,78 @@ impl MovingDeform {
             if !full {
                 out.copy_from_slice(&spare[..out.len()]);
             }
-            if self.runs[b] == SCATTERED {
+            if run == SCATTERED {
                 for (&i, p) in self.rows[b * BLOCK..].iter().zip(out.chunks_exact(3)) {
                     positions[i as usize] = Vec3::new(p[0], p[1], p[2]);
                 }
             }
         }
+    }
+}
+
+/// [`block_rows`] with AVX-512F: rows 0-15 of the block in a 512-bit register a coordinate,
+/// rows 16-23 in a 256-bit one (one broadcast of each coordinate serves both), the rest added in
+/// registers; returned as [`block_rows`] returns them (three groups of 8 rows, x, y, z). Each
+/// lane runs the same chain of fused multiply-adds as [`block_rows`]'s, so the sums are the same
+/// bit for bit.
+///
+/// # Safety
+/// As [`block_rows`], and the CPU must support AVX-512F.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx2,fma,f16c")]
+#[inline]
+unsafe fn block_rows_avx512<const HALF: bool>(
+    weights: *const u8,
+    cols: &[u32],
+    dp: *const f32,
+    rest: &[f32],
+) -> [[std::arch::x86_64::__m256; 3]; 3] {
+    use std::arch::x86_64::*;
+    const L: usize = 8;
+    let size = if HALF { 2 } else { 4 };
+    // SAFETY (of the callers below): p points at 16 (wide) or 8 readable weights.
+    let wide = |p: *const u8| unsafe {
+        if HALF {
+            _mm512_cvtph_ps(_mm256_loadu_si256(p.cast()))
+        } else {
+            _mm512_loadu_ps(p.cast())
+        }
+    };
+    let narrow = |p: *const u8| unsafe {
+        if HALF {
+            _mm256_cvtph_ps(_mm_loadu_si128(p.cast()))
+        } else {
+            _mm256_loadu_ps(p.cast())
+        }
+    };
+    // The high 8 lanes of a 512-bit register (AVX-512F only: through the 64-bit view).
+    let high = |v: __m512| _mm256_castpd_ps(_mm512_extractf64x4_pd::<1>(_mm512_castps_pd(v)));
+    // SAFETY: as in `block_rows` (the same reads: BLOCK weights a column, 3 f32 of `dp` a
+    // column, 3 * BLOCK of `rest`).
+    unsafe {
+        let mut col = weights;
+        let mut acc16 = [_mm512_setzero_ps(); 3];
+        let mut acc8 = [_mm256_setzero_ps(); 3];
+        for &j in cols {
+            let c16 = wide(col);
+            let c8 = narrow(col.add(2 * L * size));
+            let dj = dp.add(3 * j as usize);
+            for a in 0..3 {
+                let v = _mm512_set1_ps(*dj.add(a));
+                acc16[a] = _mm512_fmadd_ps(c16, v, acc16[a]);
+                acc8[a] = _mm256_fmadd_ps(c8, _mm512_castps512_ps256(v), acc8[a]);
+            }
+            col = col.add(BLOCK * size);
+        }
+        let rp = rest.as_ptr();
+        let mut rows = [[_mm256_setzero_ps(); 3]; 3];
+        for a in 0..3 {
+            let r16 = _mm512_add_ps(_mm512_loadu_ps(rp.add(a * BLOCK)), acc16[a]);
+            rows[0][a] = _mm512_castps512_ps256(r16);
+            rows[1][a] = high(r16);
+            rows[2][a] = _mm256_add_ps(_mm256_loadu_ps(rp.add(a * BLOCK + 2 * L)), acc8[a]);
+        }
+        rows
     }
 }
 

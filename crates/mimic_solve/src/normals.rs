@@ -1,6 +1,7 @@
 //! Area-weighted vertex normals: the reference face-by-face pass ([`vertex_normals`]) and a
 //! vertex-by-vertex gather over precomputed triangle fans ([`VertexFans`]) for the per-frame path.
 
+use crate::kernel::VectorKernel;
 use glam::{Vec3, Vec3A, Vec3Swizzles};
 
 /// Area-weighted vertex normals: each vertex gets the normalised sum of the un-normalised normals
@@ -46,84 +47,6 @@ const GROUP: usize = 16;
 /// Lanes of one AVX register of f32: the AVX2 path runs a group as two halves of this many.
 #[cfg(target_arch = "x86_64")]
 const HALF: usize = 8;
-
-/// Which fan kernel [`VertexFans::normals_packed_by`] runs (benchmarks and tests; the other
-/// entry points pick [`FanKernel::best`]).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FanKernel {
-    /// One fan at a time, any CPU.
-    Portable,
-    /// 8 fans in the lanes of an AVX register (AVX2 + FMA).
-    Avx2,
-    /// 16 fans in the lanes of an AVX-512 register (AVX-512F).
-    Avx512,
-}
-
-impl FanKernel {
-    /// The fastest kernel this CPU runs (runtime-detected, once): AVX-512 where the CPU has it
-    /// at full width, AVX2 on CPUs that run 512-bit operations as two 256-bit halves (AMD Zen 4,
-    /// where the 16-lane kernel measured 5-10 % slower than the 8-lane one: docs/performance.md),
-    /// else portable.
-    pub fn best() -> Self {
-        static BEST: std::sync::OnceLock<FanKernel> = std::sync::OnceLock::new();
-        *BEST.get_or_init(|| {
-            #[cfg(target_arch = "x86_64")]
-            if Self::Avx512.supported() && !splits_512_bit_ops() {
-                return Self::Avx512;
-            }
-            if Self::Avx2.supported() {
-                Self::Avx2
-            } else {
-                Self::Portable
-            }
-        })
-    }
-
-    /// Whether this CPU runs `self`.
-    pub fn supported(self) -> bool {
-        match self {
-            Self::Portable => true,
-            #[cfg(target_arch = "x86_64")]
-            Self::Avx2 => crate::basis::avx2_fma(),
-            #[cfg(target_arch = "x86_64")]
-            Self::Avx512 => {
-                crate::basis::avx2_fma() && std::arch::is_x86_feature_detected!("avx512f")
-            }
-            #[cfg(not(target_arch = "x86_64"))]
-            Self::Avx2 | Self::Avx512 => false,
-        }
-    }
-
-    /// `self` where this CPU runs it, else the best kernel it runs ([`FanKernel::best`]).
-    pub fn available(self) -> Self {
-        if self.supported() { self } else { Self::best() }
-    }
-}
-
-/// True on AMD family 19h (Zen 3 and Zen 4; only Zen 4 has AVX-512), whose 512-bit operations
-/// issue as two 256-bit halves, so a 16-lane kernel does the 8-lane one's work in the same ops.
-#[cfg(target_arch = "x86_64")]
-fn splits_512_bit_ops() -> bool {
-    // SAFETY: CPUID exists on every x86_64 CPU, with leaves 0 and 1 (a safe function in newer
-    // Rust, an unsafe one at the MSRV).
-    #[allow(
-        unused_unsafe,
-        reason = "__cpuid is safe in newer Rust, unsafe at the MSRV"
-    )]
-    let (vendor, signature) = unsafe {
-        use std::arch::x86_64::__cpuid;
-        (__cpuid(0), __cpuid(1).eax)
-    };
-    let amd = (vendor.ebx, vendor.edx, vendor.ecx) == (0x6874_7541, 0x6974_6e65, 0x444d_4163);
-    // Family: the base field (bits 8-11) plus the extended one (bits 20-27) when the base is 0xF.
-    let base = (signature >> 8) & 0xF;
-    let family = if base == 0xF {
-        base + ((signature >> 20) & 0xFF)
-    } else {
-        base
-    };
-    amd && family == 0x19
-}
 
 /// Triangle fans around the first `count` vertices of a mesh, for gathering their area-weighted
 /// normals vertex by vertex (the same normals as [`vertex_normals`], up to f32 rounding).
@@ -235,10 +158,12 @@ impl VertexFans {
             // SAFETY: the kernel's CPU features are checked by `best`; every centre and entry is
             // below position_count <= positions.len() (asserted), each a 16-byte Vec3A at 4
             // floats a vertex, and each group's entries lie in `entries` by construction.
-            match FanKernel::best() {
-                FanKernel::Avx512 => return unsafe { self.normals_avx512::<4>(p, &mut write) },
-                FanKernel::Avx2 => return unsafe { self.normals_avx2::<false, 4>(p, &mut write) },
-                FanKernel::Portable => {}
+            match VectorKernel::best() {
+                VectorKernel::Avx512 => return unsafe { self.normals_avx512::<4>(p, &mut write) },
+                VectorKernel::Avx2 => {
+                    return unsafe { self.normals_avx2::<false, 4>(p, &mut write) };
+                }
+                VectorKernel::Portable => {}
             }
         }
         self.normals_portable(positions, &mut write);
@@ -253,17 +178,17 @@ impl VertexFans {
     /// # Panics
     /// If `positions.len() < 3 * position_count() + 1`.
     pub fn normals_packed(&self, positions: &[f32], write: impl FnMut(usize, Vec3)) {
-        self.normals_packed_by(FanKernel::best(), positions, write);
+        self.normals_packed_by(VectorKernel::best(), positions, write);
     }
 
-    /// [`VertexFans::normals_packed`] by a given kernel ([`FanKernel::available`]: the best one
+    /// [`VertexFans::normals_packed`] by a given kernel ([`VectorKernel::available`]: the best one
     /// the CPU runs where it lacks `kernel`), for A/B comparisons and tests.
     ///
     /// # Panics
     /// As [`VertexFans::normals_packed`].
     pub fn normals_packed_by(
         &self,
-        kernel: FanKernel,
+        kernel: VectorKernel,
         positions: &[f32],
         mut write: impl FnMut(usize, Vec3),
     ) {
@@ -281,9 +206,11 @@ impl VertexFans {
             // (asserted: 3 position_count + 1 floats); each group's entries lie in `entries` by
             // construction.
             match kernel.available() {
-                FanKernel::Avx512 => return unsafe { self.normals_avx512::<3>(p, &mut write) },
-                FanKernel::Avx2 => return unsafe { self.normals_avx2::<false, 3>(p, &mut write) },
-                FanKernel::Portable => {}
+                VectorKernel::Avx512 => return unsafe { self.normals_avx512::<3>(p, &mut write) },
+                VectorKernel::Avx2 => {
+                    return unsafe { self.normals_avx2::<false, 3>(p, &mut write) };
+                }
+                VectorKernel::Portable => {}
             }
         }
         self.normals_packed_portable(positions, &mut write);

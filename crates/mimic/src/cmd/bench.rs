@@ -8,11 +8,13 @@ use mimic_fit::capture::{CaptureFrame, FitSummary};
 use mimic_retarget::{
     FrameStatus, Retargeter, Stage, StageSamples, elapsed_ns, median_p99_us, throughput,
 };
-use mimic_solve::normals::FanKernel;
+use mimic_solve::VectorKernel;
 use serde_json::json;
 use std::path::PathBuf;
 use std::sync::Arc;
 use std::time::Instant;
+
+mod gpu;
 
 /// Arguments of `mimic bench`.
 #[derive(clap::Args, Debug)]
@@ -64,7 +66,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         args.rigs.clone()
     };
     if args.gpu {
-        return bench_gpu(&args, &rigs);
+        return gpu::bench_gpu(&args, &rigs);
     }
     let mut reports = Vec::new();
     for name in &rigs {
@@ -88,125 +90,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!(
             "fit CANDIDE-3 to the recording: {:.0} frames/s ({} frames, median residual {:.2} px)",
             f.frames_per_s, f.frames, f.median_residual_px
-        );
-    }
-    Ok(())
-}
-
-/// `mimic bench --gpu`: per rig, the many-sessions GPU morph of `mimic_render::compute`, timed for
-/// one session and for `--sessions` (default 100) in one dispatch, each session driven by its own
-/// frame of the recording's displacements.
-fn bench_gpu(args: &Args, rigs: &[String]) -> anyhow::Result<()> {
-    use mimic_render::{RenderError, compute::BatchError, compute::BatchMorph};
-    let sessions = args.sessions.unwrap_or(100);
-    let recording = mimic_capture::read_recording(&args.recording, None)?;
-    let frames: Vec<_> = recording.frames.iter().map(|f| f.frame.clone()).collect();
-    let mut reports = Vec::new();
-    for name in rigs {
-        let mut rig_args = args.rig.clone();
-        rig_args.rig = name.clone();
-        let mut p = prepare(&rig_args, &args.pipeline, &recording.header.layout)?;
-        // Up to 200 tracked frames' displacements; session s replays frame s (mod their count).
-        let mut out = p.retargeter.new_output();
-        let mut ds: Vec<Vec<Vec3>> = Vec::new();
-        for f in frames.iter().take(2000) {
-            if p.retargeter.step(f, &mut out) == FrameStatus::Tracked {
-                ds.push(out.displacements.clone());
-                if ds.len() == 200 {
-                    break;
-                }
-            }
-        }
-        anyhow::ensure!(
-            !ds.is_empty(),
-            "{}: no tracked frames",
-            args.recording.display()
-        );
-        let weights = |count: usize| -> Vec<Vec3> {
-            (0..count).flat_map(|s| ds[s % ds.len()].clone()).collect()
-        };
-        let basis = p.retargeter.basis();
-        let mut runs = Vec::new();
-        let mut adapter = String::new();
-        for count in [1, sessions] {
-            let mut batch =
-                match BatchMorph::new(basis, &p.rig.mesh.positions, &p.rig.mesh.triangles, count) {
-                    Ok(b) => b,
-                    Err(BatchError::Render(
-                        e @ (RenderError::NoAdapter(_) | RenderError::NoDevice(_)),
-                    )) => {
-                        println!("mimic bench --gpu: {e}; no GPU to time, nothing measured");
-                        return Ok(());
-                    }
-                    Err(e) => return Err(e.into()),
-                };
-            adapter = batch.adapter().to_string();
-            let t = batch.time(&weights(count), args.gpu_dispatches)?;
-            runs.push((
-                batch.moving_count(),
-                batch.normal_count(),
-                batch.has_timestamps(),
-                t,
-            ));
-        }
-        let load = load_average();
-        let report = json!({
-            "rig": p.rig.name,
-            "vertices": p.rig.mesh.vertex_count(),
-            "controls": basis.control_count(),
-            "adapter": adapter,
-            "runs": runs.iter().map(|(moving, normal, stamps, t)| json!({
-                "sessions": t.sessions,
-                "dispatches": t.iterations,
-                "moving_rows": moving,
-                "normal_vertices": normal,
-                "timed_by": if *stamps { "gpu timestamps" } else { "wall clock around upload, submit and wait" },
-                "per_dispatch_us": t.per_dispatch_us(),
-                "wall_us": t.wall_us,
-                "gpu_morph_us": t.gpu.map(|g| g.morph_us),
-                "gpu_normals_us": t.gpu.map(|g| g.normals_us),
-                "sessions_per_frame_at_60fps": t.sessions_at_60fps(),
-            })).collect::<Vec<_>>(),
-            "load_average": load,
-        });
-        if !args.json {
-            println!(
-                "rig {} ({} vertices, {} controls) on {adapter}",
-                p.rig.name,
-                p.rig.mesh.vertex_count(),
-                basis.control_count()
-            );
-            for (moving, normal, stamps, t) in &runs {
-                let parts = t.gpu.map_or(String::new(), |g| {
-                    format!(
-                        " (morph {:.1} us, normals {:.1} us)",
-                        g.morph_us, g.normals_us
-                    )
-                });
-                println!(
-                    "  {} session(s), {moving} moving rows, {normal} normals: {:.1} us a dispatch{parts}, by {}; wall {:.1} us; {:.1} sessions per frame at 60 fps",
-                    t.sessions,
-                    t.per_dispatch_us(),
-                    if *stamps {
-                        "GPU timestamps"
-                    } else {
-                        "wall clock"
-                    },
-                    t.wall_us,
-                    t.sessions_at_60fps()
-                );
-            }
-            println!(
-                "  load average {}",
-                load.map_or("?".into(), |l| format!("{l:.2}"))
-            );
-        }
-        reports.push(report);
-    }
-    if args.json {
-        println!(
-            "{}",
-            serde_json::to_string_pretty(&json!({ "gpu": reports })).context("report")?
         );
     }
     Ok(())
@@ -319,7 +202,7 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
     let deform = mimic_solve::deform::MovingDeform::new(basis, &p.rig.mesh.positions);
     let floor_buf = vec![1f32; deform.bytes_read() / 4];
     let baseline_steps = (args.steps / 4).max(50);
-    let mut base: [Vec<u32>; 12] = Default::default();
+    let mut base: [Vec<u32>; 14] = Default::default();
     let mut u_packed = vec![0f32; 3 * n + 1];
     let mut local_packed = vec![0f32; 3 * moving.rows.len()];
     let ns = elapsed_ns;
@@ -349,10 +232,10 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         base[8].push(ns(t));
         // Each fan kernel the CPU has (one it lacks runs the best it has: same figure twice).
         let t = Instant::now();
-        fans.normals_packed_by(FanKernel::Avx2, &u_packed, |v, nv| normals[v] = nv);
+        fans.normals_packed_by(VectorKernel::Avx2, &u_packed, |v, nv| normals[v] = nv);
         base[10].push(ns(t));
         let t = Instant::now();
-        fans.normals_packed_by(FanKernel::Avx512, &u_packed, |v, nv| normals[v] = nv);
+        fans.normals_packed_by(VectorKernel::Avx512, &u_packed, |v, nv| normals[v] = nv);
         base[11].push(ns(t));
         let t = Instant::now();
         moving.basis.apply(&d, &mut u_rows);
@@ -369,6 +252,13 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         let t = Instant::now();
         deform.deform_packed(&d, &mut local_packed, &mut positions);
         base[9].push(ns(t));
+        // Each deform kernel the CPU has (as the fan kernels above).
+        let t = Instant::now();
+        deform.deform_packed_by(VectorKernel::Avx2, &d, &mut local_packed, &mut positions);
+        base[12].push(ns(t));
+        let t = Instant::now();
+        deform.deform_packed_by(VectorKernel::Avx512, &d, &mut local_packed, &mut positions);
+        base[13].push(ns(t));
         let t = Instant::now();
         std::hint::black_box(read_all(std::hint::black_box(&floor_buf)));
         base[6].push(ns(t));
@@ -387,13 +277,15 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         deform_packed,
         bn_avx2,
         bn_avx512,
+        deform_avx2,
+        deform_avx512,
     ] = base.map(|mut v| median_p99_us(&mut v).0);
     let numpy = if args.numpy {
         Some(numpy_reference(basis, &moving.rows)?)
     } else {
         None
     };
-    let fan_kernels = bench_fan_kernels(args, &p, &frames, span_us)?;
+    let vector_kernels = bench_vector_kernels(args, &p, &frames, span_us)?;
     let sessions = match args.sessions {
         Some(k) if k > 0 => {
             let basis = Arc::new(basis.clone());
@@ -435,10 +327,12 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
             "normals_speedup": if normals_m > 0.0 { bn / normals_m } else { 0.0 },
             "normals_fans_gather_median_us": bn_gather,
             "normals_fans_packed_median_us": bn_packed,
-            "fan_kernel": format!("{:?}", FanKernel::best()),
+            "vector_kernel": format!("{:?}", VectorKernel::best()),
             "normals_fans_avx2_median_us": bn_avx2,
             "normals_fans_avx512_median_us": bn_avx512,
-            "fan_kernel_avx512_supported": FanKernel::Avx512.supported(),
+            "vector_kernel_avx512_supported": VectorKernel::Avx512.supported(),
+            "deform_packed_avx2_median_us": deform_avx2,
+            "deform_packed_avx512_median_us": deform_avx512,
             "deform_packed_kernel_median_us": deform_packed,
             "previous_deform_median_us": prev_deform,
             "deform_kernel_median_us": deform_alone,
@@ -450,7 +344,7 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
             "read_median_us": floor,
         },
         "numpy": numpy,
-        "fan_kernels_in_step": fan_kernels,
+        "vector_kernels_in_step": vector_kernels,
         "sessions": sessions,
         "load_average": {"start": load_start, "end": load_average()},
     });
@@ -478,17 +372,22 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
         );
         println!(
             "  fan kernels on packed positions: AVX2 {bn_avx2:.1} us, AVX-512 {bn_avx512:.1} us{}; the step uses {:?}",
-            if FanKernel::Avx512.supported() {
+            if VectorKernel::Avx512.supported() {
                 ""
             } else {
                 " (no AVX-512 here: the best kernel the CPU has)"
             },
-            FanKernel::best()
+            VectorKernel::best()
         );
-        if let Some(fk) = report["fan_kernels_in_step"].as_object() {
+        println!(
+            "  deform kernels on packed rows: AVX2 {deform_avx2:.1} us, AVX-512 {deform_avx512:.1} us"
+        );
+        if let Some(fk) = report["vector_kernels_in_step"].as_object() {
             let at = |k: &str, f: &str| fk[k][f].as_f64().unwrap_or(0.0);
             println!(
-                "  in the step, alternating: normals AVX2 {:.1} us, AVX-512 {:.1} us; whole step {:.1} / {:.1} us",
+                "  in the step, alternating: deform AVX2 {:.1} us, AVX-512 {:.1} us; normals AVX2 {:.1} us, AVX-512 {:.1} us; whole step {:.1} / {:.1} us",
+                at("Avx2", "deform_median_us"),
+                at("Avx512", "deform_median_us"),
                 at("Avx2", "normals_median_us"),
                 at("Avx512", "normals_median_us"),
                 at("Avx2", "step_median_us"),
@@ -525,29 +424,30 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
     Ok(report)
 }
 
-/// The step with each fan kernel (normals) the CPU has: one retargeter per kernel, stepped
-/// alternately on the same frames ([`throughput::step_alternately`]); `None` where the CPU has
-/// no AVX-512 (nothing to compare). Reports the median normals stage and whole step of each.
-fn bench_fan_kernels(
+/// The step with each vector kernel (deform and normals) the CPU has: one retargeter per kernel,
+/// stepped alternately on the same frames ([`throughput::step_alternately`]); `None` where the
+/// CPU has no AVX-512 (nothing to compare). Reports the median deform and normals stages and the
+/// whole step of each.
+fn bench_vector_kernels(
     args: &Args,
     p: &crate::cmd::setup::Prepared,
     frames: &[mimic_types::LandmarkFrame],
     span_us: i64,
 ) -> anyhow::Result<Option<serde_json::Value>> {
-    if !FanKernel::Avx512.supported() {
+    if !VectorKernel::Avx512.supported() {
         return Ok(None);
     }
     let basis = Arc::new(p.retargeter.basis().clone());
-    let kernels = [FanKernel::Avx2, FanKernel::Avx512];
+    let kernels = [VectorKernel::Avx2, VectorKernel::Avx512];
     let mut retargeters = kernels
         .iter()
         .map(|&k| {
             let mut settings = args.pipeline.settings();
-            settings.fan_kernel = Some(k);
+            settings.vector_kernel = Some(k);
             Retargeter::new(&p.rig, &p.layout, basis.clone(), settings)
         })
         .collect::<Result<Vec<_>, _>>()
-        .context("fan kernel retargeter")?;
+        .context("vector kernel retargeter")?;
     let samples =
         throughput::step_alternately(&mut retargeters, frames, span_us, args.steps.max(100))?;
     let mut report = serde_json::Map::new();
@@ -556,6 +456,7 @@ fn bench_fan_kernels(
         report.insert(
             format!("{kernel:?}"),
             json!({
+                "deform_median_us": stages.get(Stage::Deform).median_us,
                 "normals_median_us": stages.get(Stage::Normals).median_us,
                 "step_median_us": step.median_us,
             }),

@@ -269,3 +269,51 @@ fn f16_portable_path_matches_the_vectorised_one() {
         assert!((pa[i] - pb[i]).abs().max_element() <= tol, "row {i}");
     }
 }
+
+#[test]
+fn packed_kernels_agree_bit_for_bit() {
+    use crate::kernel::VectorKernel;
+    let mut seed = 41u64;
+    // Banded (scattered blocks), dense (runs of consecutive vertices) and a last partial block.
+    for (n, m, dense) in [(203usize, 38usize, false), (24, 38, true), (101, 38, true)] {
+        let data: Vec<f32> = if dense {
+            (0..n * m).map(|_| lcg(&mut seed)).collect()
+        } else {
+            banded(n, m, &mut seed)
+        };
+        let basis = Basis::from_row_major(n, m, data).unwrap();
+        let rest: Vec<Vec3> = (0..n)
+            .map(|_| Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)) * 10.0)
+            .collect();
+        let d: Vec<Vec3> = (0..m)
+            .map(|_| Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)))
+            .collect();
+        for half in [false, true] {
+            let mut deform = MovingDeform::new(&basis, &rest);
+            if half {
+                deform = deform.with_f16_weights().unwrap();
+            }
+            let k = deform.rows().len();
+            let run = |kernel: VectorKernel| {
+                let mut packed = vec![f32::NAN; 3 * k];
+                let mut positions = vec![Vec3::NAN; n];
+                deform.deform_packed_by(kernel, &d, &mut packed, &mut positions);
+                (packed, positions)
+            };
+            let (pa, qa) = run(VectorKernel::Avx2);
+            // The AVX-512 kernel (where the CPU has it; else the same kernel twice) sums the
+            // same fused chains lane for lane.
+            let (pb, qb) = run(VectorKernel::Avx512);
+            assert_eq!(pa, pb, "n={n} half={half}: compact rows");
+            for (a, b) in qa.iter().zip(&qb) {
+                assert!(a == b || (a.is_nan() && b.is_nan()), "n={n} half={half}");
+            }
+            // The portable kernel: the same fused chains one row at a time.
+            let (pc, qc) = run(VectorKernel::Portable);
+            assert_eq!(pa, pc, "n={n} half={half}: portable compact rows");
+            for (a, c) in qa.iter().zip(&qc) {
+                assert!(a == c || (a.is_nan() && c.is_nan()), "n={n} half={half}");
+            }
+        }
+    }
+}

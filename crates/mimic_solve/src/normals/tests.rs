@@ -87,7 +87,12 @@ fn check_fans(positions: &[Vec3], triangles: &[[u32; 3]], count: usize) {
     // sum the same terms in the same order, so they differ only by their normalisations,
     // each within 4 eps relative plus the final product's eps / 2 per component: at most
     // 9 eps per component of a unit normal.
-    let by_kernel = [FanKernel::Portable, FanKernel::Avx2, FanKernel::Avx512].map(|k| {
+    let by_kernel = [
+        VectorKernel::Portable,
+        VectorKernel::Avx2,
+        VectorKernel::Avx512,
+    ]
+    .map(|k| {
         let mut out = vec![Vec3::NAN; count];
         let mut seen = vec![0; count];
         fans.normals_packed_by(k, &packed, |v, n| {
@@ -237,7 +242,11 @@ fn fans_give_zero_for_degenerate_isolated_and_bad() {
     assert!(out.iter().all(|n| *n == Vec3::ZERO), "{out:?}");
     let mut packed: Vec<f32> = p.iter().flat_map(|q| q.to_array()).collect();
     packed.push(0.0);
-    for k in [FanKernel::Portable, FanKernel::Avx2, FanKernel::Avx512] {
+    for k in [
+        VectorKernel::Portable,
+        VectorKernel::Avx2,
+        VectorKernel::Avx512,
+    ] {
         let mut out = [Vec3::ONE; 4];
         fans.normals_packed_by(k, &packed, |v, n| out[v] = n);
         assert!(out.iter().all(|n| *n == Vec3::ZERO), "{k:?}: {out:?}");
@@ -248,15 +257,19 @@ fn fans_give_zero_for_degenerate_isolated_and_bad() {
 
 #[test]
 fn kernel_choice_runs_only_what_the_cpu_has() {
-    let best = FanKernel::best();
+    let best = VectorKernel::best();
     assert!(best.supported(), "{best:?}");
-    assert!(FanKernel::Portable.supported());
-    for k in [FanKernel::Portable, FanKernel::Avx2, FanKernel::Avx512] {
+    assert!(VectorKernel::Portable.supported());
+    for k in [
+        VectorKernel::Portable,
+        VectorKernel::Avx2,
+        VectorKernel::Avx512,
+    ] {
         let expected = if k.supported() { k } else { best };
         assert_eq!(k.available(), expected, "{k:?}");
     }
     // The AVX2 kernel needs AVX2 and FMA, the AVX-512 one AVX-512F on top.
-    assert!(!FanKernel::Avx512.supported() || FanKernel::Avx2.supported());
+    assert!(!VectorKernel::Avx512.supported() || VectorKernel::Avx2.supported());
 }
 
 #[test]
