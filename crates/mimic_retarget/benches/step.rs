@@ -90,8 +90,9 @@ fn step(c: &mut Criterion) {
 
 /// `MIMIC_BENCH_AB=STEPS`: in one loop, interleaved (so each variant sees the same machine
 /// state): the whole step with f32 and with f16 weights (two retargeters on the same frames, the
-/// step's deform and normals stages of each), the deform kernel with both weights, the fan pass
-/// over every vertex by its AVX2 and AVX-512 kernels, the dense baseline (`Basis::apply` over
+/// step's deform and normals stages of each), the deform kernel with both weights and by its AVX2
+/// and AVX-512 kernels, the fan pass over every vertex by its AVX2 and AVX-512 kernels, the dense
+/// baseline (`Basis::apply` over
 /// every vertex), and one read of each deform's bytes (the floor); medians in us.
 fn ab(
     name: &str,
@@ -149,8 +150,10 @@ fn ab(
         "dense: apply every vertex",
         "floor: read f32 deform bytes",
         "floor: read f16 deform bytes",
+        "deform, f32 weights, AVX2",
+        "deform, f32 weights, AVX-512",
     ];
-    let mut t: [Vec<u32>; 9] = Default::default();
+    let mut t: [Vec<u32>; 11] = Default::default();
     let mut f16_max = 0f32;
     for k in 0..steps {
         for (w, (rt, out)) in steppers.iter_mut().enumerate() {
@@ -194,12 +197,20 @@ fn ab(
         time(8, &mut || {
             black_box(read_all(black_box(&floors[1])));
         });
+        time(9, &mut || {
+            let d = black_box(&d);
+            full.deform_packed_by(VectorKernel::Avx2, d, &mut packed_rows, &mut positions)
+        });
+        time(10, &mut || {
+            let d = black_box(&d);
+            full.deform_packed_by(VectorKernel::Avx512, d, &mut packed_rows, &mut positions)
+        });
     }
     black_box((&normals, &positions, &packed_rows, &u));
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     eprintln!(
-        "A/B on {name} ({} moving rows, {n} fans; f32 deform {} kB, f16 {} kB; fan kernel in \
-         the step {:?}), {steps} interleaved steps, load {}, medians:",
+        "A/B on {name} ({} moving rows, {n} fans; f32 deform {} kB, f16 {} kB; vector kernel \
+         in the step {:?}), {steps} interleaved steps, load {}, medians:",
         full.rows().len(),
         full.bytes_read() / 1000,
         half.bytes_read() / 1000,

@@ -104,35 +104,41 @@ pub fn compare_sessions(
     })
 }
 
-/// Steps every retargeter once per frame, in turn, `steps` frames over `frames` (looped, each
-/// loop shifted by `span_us` so time runs forward), on this thread; returns each one's timings
-/// of its tracked frames (whole step and stages), in the order given. Interleaving puts every
-/// retargeter in the same machine speed states: an A/B of settings in one run.
+/// Steps every retargeter over the same `steps` frames of `frames` (looped, each loop shifted by
+/// `span_us` so time runs forward), in turns of `block` frames each (at least 1), on this thread;
+/// returns each one's timings of its tracked frames (whole step and stages), in the order given.
+/// Taking turns puts every retargeter in the same machine speed states: an A/B of settings in
+/// one run. With `block` 1 each step finds the caches holding the other retargeters' data; with
+/// a block of many frames (a few ms) each runs warm, as one session does.
 pub fn step_alternately(
     retargeters: &mut [Retargeter],
     frames: &[LandmarkFrame],
     span_us: i64,
     steps: usize,
+    block: usize,
 ) -> Result<Vec<StageSamples>, SessionsError> {
     if frames.is_empty() {
         return Err(SessionsError::NoFrames);
     }
+    let block = block.max(1);
     let mut outs: Vec<_> = retargeters.iter().map(Retargeter::new_output).collect();
     let mut samples: Vec<_> = retargeters
         .iter()
         .map(|_| StageSamples::with_capacity(steps))
         .collect();
     let mut frame = frames[0].clone();
-    for s in 0..steps {
-        let src = &frames[s % frames.len()];
-        frame.clone_from(src);
-        frame.timestamp_us = src.timestamp_us + (s / frames.len()) as i64 * span_us;
+    for start in (0..steps).step_by(block) {
         for ((r, out), samples) in retargeters.iter_mut().zip(&mut outs).zip(&mut samples) {
-            let t = Instant::now();
-            let status = r.step(&frame, out);
-            let ns = elapsed_ns(t);
-            if status == FrameStatus::Tracked {
-                samples.push(ns, &out.times);
+            for s in start..steps.min(start + block) {
+                let src = &frames[s % frames.len()];
+                frame.clone_from(src);
+                frame.timestamp_us = src.timestamp_us + (s / frames.len()) as i64 * span_us;
+                let t = Instant::now();
+                let status = r.step(&frame, out);
+                let ns = elapsed_ns(t);
+                if status == FrameStatus::Tracked {
+                    samples.push(ns, &out.times);
+                }
             }
         }
     }
@@ -349,14 +355,18 @@ mod tests {
             tracked > 0 && tracked < 50,
             "{tracked}: calibration, then tracked"
         );
-        let mut both = [make(), make()];
-        let samples = step_alternately(&mut both, &frames, 20 * 33_333, 50).unwrap();
-        assert_eq!(samples.len(), 2);
-        for s in &samples {
-            assert_eq!(s.steps(), tracked);
+        // Turns of one frame, of 7 (50 is no multiple of 7) and of more than every frame.
+        for block in [1, 7, 64] {
+            let mut both = [make(), make()];
+            let samples = step_alternately(&mut both, &frames, 20 * 33_333, 50, block).unwrap();
+            assert_eq!(samples.len(), 2);
+            for s in &samples {
+                assert_eq!(s.steps(), tracked, "block {block}");
+            }
         }
+        let mut both = [make(), make()];
         assert!(matches!(
-            step_alternately(&mut both, &[], 0, 1),
+            step_alternately(&mut both, &[], 0, 1, 1),
             Err(SessionsError::NoFrames)
         ));
     }

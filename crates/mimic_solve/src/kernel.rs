@@ -15,17 +15,14 @@ pub enum VectorKernel {
 }
 
 impl VectorKernel {
-    /// The fastest kernel this CPU runs (runtime-detected, once): AVX-512 where the CPU has it
-    /// at full width, AVX2 on CPUs that run 512-bit operations as two 256-bit halves (AMD Zen 4,
-    /// where the 16-lane kernel measured 5-10 % slower than the 8-lane one: docs/performance.md),
-    /// else portable.
+    /// The kernel the per-frame passes run unless told otherwise (runtime-detected, once): AVX2
+    /// where the CPU has it, else portable. The 16-lane AVX-512 kernels are opt-in: on every CPU
+    /// measured they were slower than the 8-lane ones once both were tuned (an Intel Xeon with
+    /// AVX-512: deform 10-13 % and normals 2-7 % slower, the whole step 5-8 %; AMD Zen 4, which
+    /// splits 512-bit operations in two: normals 5-10 %; docs/performance.md).
     pub fn best() -> Self {
         static BEST: std::sync::OnceLock<VectorKernel> = std::sync::OnceLock::new();
         *BEST.get_or_init(|| {
-            #[cfg(target_arch = "x86_64")]
-            if Self::Avx512.supported() && !splits_512_bit_ops() {
-                return Self::Avx512;
-            }
             if Self::Avx2.supported() {
                 Self::Avx2
             } else {
@@ -55,27 +52,31 @@ impl VectorKernel {
     }
 }
 
-/// True on AMD family 19h (Zen 3 and Zen 4; only Zen 4 has AVX-512), whose 512-bit operations
-/// issue as two 256-bit halves, so a 16-lane kernel does the 8-lane one's work in the same ops.
-#[cfg(target_arch = "x86_64")]
-fn splits_512_bit_ops() -> bool {
-    // SAFETY: CPUID exists on every x86_64 CPU, with leaves 0 and 1 (a safe function in newer
-    // Rust, an unsafe one at the MSRV).
-    #[allow(
-        unused_unsafe,
-        reason = "__cpuid is safe in newer Rust, unsafe at the MSRV"
-    )]
-    let (vendor, signature) = unsafe {
-        use std::arch::x86_64::__cpuid;
-        (__cpuid(0), __cpuid(1).eax)
-    };
-    let amd = (vendor.ebx, vendor.edx, vendor.ecx) == (0x6874_7541, 0x6974_6e65, 0x444d_4163);
-    // Family: the base field (bits 8-11) plus the extended one (bits 20-27) when the base is 0xF.
-    let base = (signature >> 8) & 0xF;
-    let family = if base == 0xF {
-        base + ((signature >> 20) & 0xFF)
-    } else {
-        base
-    };
-    amd && family == 0x19
+#[cfg(test)]
+mod tests {
+    use super::VectorKernel;
+
+    #[test]
+    fn kernel_choice_runs_only_what_the_cpu_has() {
+        let best = VectorKernel::best();
+        assert!(best.supported(), "{best:?}");
+        // AVX2 by default wherever the CPU has it; AVX-512 only when asked for.
+        let want = if VectorKernel::Avx2.supported() {
+            VectorKernel::Avx2
+        } else {
+            VectorKernel::Portable
+        };
+        assert_eq!(best, want);
+        assert!(VectorKernel::Portable.supported());
+        for k in [
+            VectorKernel::Portable,
+            VectorKernel::Avx2,
+            VectorKernel::Avx512,
+        ] {
+            let expected = if k.supported() { k } else { best };
+            assert_eq!(k.available(), expected, "{k:?}");
+        }
+        // The AVX2 kernel needs AVX2 and FMA, the AVX-512 one AVX-512F on top.
+        assert!(!VectorKernel::Avx512.supported() || VectorKernel::Avx2.supported());
+    }
 }

@@ -139,8 +139,9 @@ impl VertexFans {
     /// Calls `write(v, normal)` once for every vertex `v < count()` (in no particular order) with
     /// its normalised area-weighted normal, zero where the sum has no finite, non-zero length
     /// (as `normalize_or_zero`; the vectorised path also gives zero for sums whose squared length
-    /// is subnormal, below 1.2e-38); allocates nothing. 16 fans at a time with AVX-512F, 8 with
-    /// AVX2 + FMA where the CPU has them (the same sums bit for bit; each normalised by a
+    /// is subnormal, below 1.2e-38); allocates nothing. By [`VectorKernel::best`]'s kernel: 8
+    /// fans at a time with AVX2 + FMA where the CPU has them (16 with AVX-512F when asked for
+    /// through [`VertexFans::normals_packed_by`]: the same sums bit for bit; each normalised by a
     /// Newton-refined reciprocal square root, within 4 eps), else one by one.
     ///
     /// # Panics

@@ -383,16 +383,21 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
             "  deform kernels on packed rows: AVX2 {deform_avx2:.1} us, AVX-512 {deform_avx512:.1} us"
         );
         if let Some(fk) = report["vector_kernels_in_step"].as_object() {
-            let at = |k: &str, f: &str| fk[k][f].as_f64().unwrap_or(0.0);
-            println!(
-                "  in the step, alternating: deform AVX2 {:.1} us, AVX-512 {:.1} us; normals AVX2 {:.1} us, AVX-512 {:.1} us; whole step {:.1} / {:.1} us",
-                at("Avx2", "deform_median_us"),
-                at("Avx512", "deform_median_us"),
-                at("Avx2", "normals_median_us"),
-                at("Avx512", "normals_median_us"),
-                at("Avx2", "step_median_us"),
-                at("Avx512", "step_median_us"),
-            );
+            for (mode, what) in [
+                ("warm", "turns of 200 frames"),
+                ("cold", "turns of 1 frame"),
+            ] {
+                let at = |k: &str, f: &str| fk[mode][k][f].as_f64().unwrap_or(0.0);
+                println!(
+                    "  in the step, {what}: deform AVX2 {:.1} us, AVX-512 {:.1} us; normals AVX2 {:.1} us, AVX-512 {:.1} us; whole step {:.1} / {:.1} us",
+                    at("Avx2", "deform_median_us"),
+                    at("Avx512", "deform_median_us"),
+                    at("Avx2", "normals_median_us"),
+                    at("Avx512", "normals_median_us"),
+                    at("Avx2", "step_median_us"),
+                    at("Avx512", "step_median_us"),
+                );
+            }
         }
         println!(
             "  deform: previous (blocked product in index order, then add and scatter) {prev_deform:.1} us, current kernel alone {deform_alone:.1} us; floor (one read of its {} kB) {floor:.1} us",
@@ -425,9 +430,11 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
 }
 
 /// The step with each vector kernel (deform and normals) the CPU has: one retargeter per kernel,
-/// stepped alternately on the same frames ([`throughput::step_alternately`]); `None` where the
-/// CPU has no AVX-512 (nothing to compare). Reports the median deform and normals stages and the
-/// whole step of each.
+/// taking turns on the same frames ([`throughput::step_alternately`]) of 200 frames each
+/// (`warm`: each runs as one session does, its data in cache) and of 1 frame (`cold`: each step
+/// finds the other's data in cache, as with many sessions on a core); `None` where the CPU has no
+/// AVX-512 (nothing to compare). Reports the median deform and normals stages and the whole step
+/// of each.
 fn bench_vector_kernels(
     args: &Args,
     p: &crate::cmd::setup::Prepared,
@@ -439,28 +446,33 @@ fn bench_vector_kernels(
     }
     let basis = Arc::new(p.retargeter.basis().clone());
     let kernels = [VectorKernel::Avx2, VectorKernel::Avx512];
-    let mut retargeters = kernels
-        .iter()
-        .map(|&k| {
-            let mut settings = args.pipeline.settings();
-            settings.vector_kernel = Some(k);
-            Retargeter::new(&p.rig, &p.layout, basis.clone(), settings)
-        })
-        .collect::<Result<Vec<_>, _>>()
-        .context("vector kernel retargeter")?;
-    let samples =
-        throughput::step_alternately(&mut retargeters, frames, span_us, args.steps.max(100))?;
     let mut report = serde_json::Map::new();
-    for (kernel, mut samples) in kernels.iter().zip(samples) {
-        let (stages, step) = samples.summary();
-        report.insert(
-            format!("{kernel:?}"),
-            json!({
-                "deform_median_us": stages.get(Stage::Deform).median_us,
-                "normals_median_us": stages.get(Stage::Normals).median_us,
-                "step_median_us": step.median_us,
-            }),
-        );
+    for (mode, turn) in [("warm", 200), ("cold", 1)] {
+        let mut retargeters = kernels
+            .iter()
+            .map(|&k| {
+                let mut settings = args.pipeline.settings();
+                settings.vector_kernel = Some(k);
+                Retargeter::new(&p.rig, &p.layout, basis.clone(), settings)
+            })
+            .collect::<Result<Vec<_>, _>>()
+            .context("vector kernel retargeter")?;
+        let steps = args.steps.max(100);
+        let samples = throughput::step_alternately(&mut retargeters, frames, span_us, steps, turn)?;
+        let mut by_kernel = serde_json::Map::new();
+        for (kernel, mut samples) in kernels.iter().zip(samples) {
+            let (stages, step) = samples.summary();
+            by_kernel.insert(
+                format!("{kernel:?}"),
+                json!({
+                    "deform_median_us": stages.get(Stage::Deform).median_us,
+                    "normals_median_us": stages.get(Stage::Normals).median_us,
+                    "step_median_us": step.median_us,
+                }),
+            );
+        }
+        by_kernel.insert("turn_frames".into(), json!(turn));
+        report.insert(mode.into(), serde_json::Value::Object(by_kernel));
     }
     Ok(Some(serde_json::Value::Object(report)))
 }

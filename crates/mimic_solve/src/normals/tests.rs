@@ -256,23 +256,6 @@ fn fans_give_zero_for_degenerate_isolated_and_bad() {
 }
 
 #[test]
-fn kernel_choice_runs_only_what_the_cpu_has() {
-    let best = VectorKernel::best();
-    assert!(best.supported(), "{best:?}");
-    assert!(VectorKernel::Portable.supported());
-    for k in [
-        VectorKernel::Portable,
-        VectorKernel::Avx2,
-        VectorKernel::Avx512,
-    ] {
-        let expected = if k.supported() { k } else { best };
-        assert_eq!(k.available(), expected, "{k:?}");
-    }
-    // The AVX2 kernel needs AVX2 and FMA, the AVX-512 one AVX-512F on top.
-    assert!(!VectorKernel::Avx512.supported() || VectorKernel::Avx2.supported());
-}
-
-#[test]
 fn flat_quad_points_up_and_weights_by_area() {
     // Two triangles of a unit square in the xy plane, CCW seen from +z.
     let p = [
