@@ -54,13 +54,15 @@ const HALF: usize = 8;
 /// Vertex `v`'s fan is a list of neighbours `w_0, w_1, ..., w_r` such that each consecutive pair
 /// `(w_l, w_{l+1})` closes a triangle `(v, w_l, w_{l+1})` in the mesh's orientation. Where the
 /// triangles around `v` do not form one chain (boundary, non-manifold), the chains are joined by
-/// `v` itself, and a list that does not end at `w_0` ends with `v`: every list is a closed
-/// polygon, each pair through `v` a degenerate triangle. The area vector of a closed polygon,
-/// `sum_l (p[w_l] - o) x (p[w_{l+1}] - o)`, is the same for every origin `o`: with `o = p[v]` it is
-/// the sum of the fan's triangles' cross products at `v`'s corner (the area-weighted normal); the
-/// kernels take `o = p[w_0]`, whose difference vector is zero, so they read no centre and skip a
-/// step. Padding past a list's end repeats `w_0` (zero difference vector, adds exactly nothing).
-/// A closed fan of `k` triangles reads `k + 1` neighbours, and no sum is scattered to memory.
+/// `v` itself, and a list that does not end at `w_0` ends with `v`: every list, closed by a last
+/// edge back to `w_0`, is a closed polygon, each pair through `v` a degenerate triangle. The area
+/// vector of a closed polygon, `sum_l (p[w_l] - o) x (p[w_{l+1}] - o)`, is the same for every
+/// origin `o`: with `o = p[v]` it is the sum of the fan's triangles' cross products at `v`'s
+/// corner (the area-weighted normal); the kernels take `o = p[w_0]`, whose difference vector is
+/// zero, so they read no centre, skip the first edge's term and need no closing edge: a list
+/// that ends at `w_0` (a closed fan) is stored without that last entry. Padding past a list's
+/// end repeats `w_0` (zero difference vector, adds exactly nothing). A closed fan of `k`
+/// triangles reads `k` neighbours for `k - 2` cross products, and no sum is scattered to memory.
 ///
 /// Fans are stored in groups of 16 vertices of (nearly) equal fan length, step-major (entry `l`
 /// of the 16 fans side by side), so that [`VertexFans::normals`] can run the 16 fans in the lanes
@@ -332,8 +334,12 @@ fn chain_fans(count: usize, vertex_count: usize, triangles: &[[u32; 3]]) -> Vec<
             }
             // A list that does not end where it starts (an open chain, or several) ends with `v`
             // itself, so that it is a closed polygon whose sum does not depend on the origin.
+            // One that does (a closed fan) drops its last entry, `w_0` again: with `p[w_0]` as
+            // origin, the edge back to `w_0` adds exactly zero, so the kernels leave it implicit.
             if fan.first() != fan.last() {
                 fan.push(v as u32);
+            } else if fan.len() > 1 {
+                fan.pop();
             }
             fan
         })

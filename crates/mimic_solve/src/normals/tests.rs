@@ -220,6 +220,13 @@ fn fans_match_reference_on_a_closed_mesh() {
         }
     }
     check_fans(&p, &t, p.len());
+    // Every fan is closed, so it lists its k neighbours once for k triangles (no closing entry
+    // back to the first): groups of 16 by length, each padded to its longest.
+    let mut valence = vec![0usize; p.len()];
+    t.iter().flatten().for_each(|&v| valence[v as usize] += 1);
+    valence.sort_unstable();
+    let padded: usize = valence.chunks(16).map(|c| 16 * c[c.len() - 1]).sum();
+    assert_eq!(VertexFans::new(p.len(), p.len(), &t).entry_count(), padded);
     // Outward: the normal at a vertex of a unit sphere is close to its position.
     let pa: Vec<Vec3A> = p.iter().map(|q| Vec3A::from(*q)).collect();
     VertexFans::new(p.len(), p.len(), &t).normals(&pa, |v, n| {
