@@ -8,7 +8,7 @@
 //! positions `P0 + sum w_k dP_k`, normals `N0 + sum w_k dN_k` (renormalised). Nothing is allocated
 //! per frame.
 
-use crate::{FrameOutput, FrameStatus, OneEuro, OneEuroSettings};
+use crate::{FrameOutput, FrameStatus, OneEuro, OneEuroSettings, OneEuroStep};
 use glam::Vec3;
 use mimic_solve::morph_fit::{MorphFit, MorphScratch};
 use mimic_solve::{SolveError, vertex_normals};
@@ -231,13 +231,14 @@ impl BlendshapeFitter {
         self.last_time_us = Some(timestamp_us);
         match &self.smoothing {
             Some(s) => {
+                let step = OneEuroStep::new(s, dt);
                 for ((w, f), x) in self
                     .weights
                     .iter_mut()
                     .zip(&mut self.filters)
                     .zip(&self.raw)
                 {
-                    *w = f.filter(s, *x, dt).clamp(0.0, 1.0);
+                    *w = f.filter_step(s, &step, *x).clamp(0.0, 1.0);
                 }
             }
             None => self.weights.copy_from_slice(&self.raw),

@@ -30,7 +30,7 @@ mod weight_stats;
 
 pub use blendshape::{BlendshapeError, BlendshapeFitter, BlendshapeSettings, WeightMap};
 pub use checkpoint::{Checkpoint, CheckpointError};
-pub use filter::{OneEuro, OneEuroSettings};
+pub use filter::{OneEuro, OneEuroSettings, OneEuroStep};
 pub use gate::{GateReading, GateReason, GateSettings, face_size};
 pub use pipeline::{FrameOutput, FrameStatus, RetargetError, Retargeter, Stage, StageTimes, Stats};
 pub use scale::SourceToTarget;

@@ -6,7 +6,7 @@ use crate::patch::MovingPatch;
 mod hold;
 mod neutral;
 mod pose;
-use crate::{Neutral, OneEuro, RetargetSettings, SourceToTarget};
+use crate::{Neutral, OneEuro, OneEuroStep, RetargetSettings, SourceToTarget};
 use glam::{Quat, Vec3};
 use mimic_solve::VectorKernel;
 use mimic_solve::{Basis, vertex_normals};
@@ -513,17 +513,22 @@ impl Retargeter {
         self.gated_since_us = None;
         self.accepted_rotation = pose.rotation;
         self.accepted_time_us = Some(frame.timestamp_us);
+        let filter = self
+            .settings
+            .filter
+            .as_ref()
+            .map(|fs| (fs, OneEuroStep::new(fs, dt)));
         for j in 0..self.controls_now.len() {
             let e = self.raw_e[j];
             self.frame_delta[j] = e - self.last_e[j];
             self.last_e[j] = e;
             let mut d = self.raw_d[j];
-            if let Some(fs) = &self.settings.filter {
+            if let Some((fs, step)) = &filter {
                 let f = &mut self.filters[j];
                 d = Vec3::new(
-                    f[0].filter(fs, d.x, dt),
-                    f[1].filter(fs, d.y, dt),
-                    f[2].filter(fs, d.z, dt),
+                    f[0].filter_step(fs, step, d.x),
+                    f[1].filter_step(fs, step, d.y),
+                    f[2].filter_step(fs, step, d.z),
                 );
             }
             out.displacements[j] = d;
