@@ -2,7 +2,7 @@
 //! without the points it does not explain.
 
 use super::Retargeter;
-use glam::Vec3;
+use glam::{Affine3A, Vec3};
 use mimic_solve::kabsch::fit_similarity;
 use mimic_types::{HeadPose, LandmarkFrame};
 
@@ -12,14 +12,24 @@ impl Retargeter {
     pub(super) fn robust_pose(&mut self) -> Option<HeadPose> {
         let pose = fit_similarity(&self.stable_src, &self.stable_dst, false)?;
         self.stable_residual.clear();
+        // The pose as one affine map: a matrix product per point, not a quaternion product.
+        let forward = Affine3A::from_scale_rotation_translation(
+            Vec3::splat(pose.scale),
+            pose.rotation,
+            pose.translation,
+        );
         for (s, d) in self.stable_src.iter().zip(&self.stable_dst) {
-            self.stable_residual.push(pose.apply(*s).distance(*d));
+            self.stable_residual
+                .push(forward.transform_point3(*s).distance(*d));
         }
         let k = self.stable_residual.len();
         self.stable_sorted.clear();
         self.stable_sorted.extend_from_slice(&self.stable_residual);
-        self.stable_sorted.sort_unstable_by(f32::total_cmp);
-        let mut limit = self.settings.stable_trim * self.stable_sorted[k / 2];
+        // The median (the upper one for even k) by selection, not a full sort.
+        let (_, median, _) = self
+            .stable_sorted
+            .select_nth_unstable_by(k / 2, f32::total_cmp);
+        let mut limit = self.settings.stable_trim * *median;
         let floor = self.pose_trim_floor();
         if floor > 0.0 {
             limit = limit.max(floor);
