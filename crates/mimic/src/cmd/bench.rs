@@ -387,14 +387,16 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
                 ("warm", "turns of 200 frames"),
                 ("cold", "turns of 1 frame"),
             ] {
-                let at = |k: &str, f: &str| fk[mode][k][f].as_f64().unwrap_or(0.0);
+                let at = |k: &str, f: &str| fk[mode][k][f].as_f64().unwrap_or(f64::NAN);
                 println!(
-                    "  in the step, {what}: deform AVX2 {:.1} us, AVX-512 {:.1} us; normals AVX2 {:.1} us, AVX-512 {:.1} us; whole step {:.1} / {:.1} us",
+                    "  in the step, {what}: deform AVX2 {:.1} us (f16 weights {:.1}), AVX-512 {:.1} us; normals AVX2 {:.1} us, AVX-512 {:.1} us; whole step {:.1} (f16 {:.1}) / {:.1} us",
                     at("Avx2", "deform_median_us"),
+                    at("Avx2F16", "deform_median_us"),
                     at("Avx512", "deform_median_us"),
                     at("Avx2", "normals_median_us"),
                     at("Avx512", "normals_median_us"),
                     at("Avx2", "step_median_us"),
+                    at("Avx2F16", "step_median_us"),
                     at("Avx512", "step_median_us"),
                 );
             }
@@ -429,41 +431,49 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
     Ok(report)
 }
 
-/// The step with each vector kernel (deform and normals) the CPU has: one retargeter per kernel,
-/// taking turns on the same frames ([`throughput::step_alternately`]) of 200 frames each
-/// (`warm`: each runs as one session does, its data in cache) and of 1 frame (`cold`: each step
-/// finds the other's data in cache, as with many sessions on a core); `None` where the CPU has no
-/// AVX-512 (nothing to compare). Reports the median deform and normals stages and the whole step
-/// of each.
+/// The step with each vector kernel (deform and normals) the CPU has, and with the deform's
+/// weights as binary16: one retargeter per variant, taking turns on the same frames
+/// ([`throughput::step_alternately`]) of 200 frames each (`warm`: each runs as one session does,
+/// its data in cache) and of 1 frame (`cold`: each step finds the others' data in cache, as with
+/// many sessions on a core); `None` where the CPU has no AVX2 (nothing to compare). Reports the
+/// median deform and normals stages and the whole step of each (keys `Avx2`, `Avx2F16`, and
+/// `Avx512` where the CPU has it).
 fn bench_vector_kernels(
     args: &Args,
     p: &crate::cmd::setup::Prepared,
     frames: &[mimic_types::LandmarkFrame],
     span_us: i64,
 ) -> anyhow::Result<Option<serde_json::Value>> {
-    if !VectorKernel::Avx512.supported() {
+    if !VectorKernel::Avx2.supported() {
         return Ok(None);
     }
+    let mut variants = vec![
+        ("Avx2", VectorKernel::Avx2, false),
+        ("Avx2F16", VectorKernel::Avx2, true),
+    ];
+    if VectorKernel::Avx512.supported() {
+        variants.push(("Avx512", VectorKernel::Avx512, false));
+    }
     let basis = Arc::new(p.retargeter.basis().clone());
-    let kernels = [VectorKernel::Avx2, VectorKernel::Avx512];
     let mut report = serde_json::Map::new();
     for (mode, turn) in [("warm", 200), ("cold", 1)] {
-        let mut retargeters = kernels
+        let mut retargeters = variants
             .iter()
-            .map(|&k| {
+            .map(|&(_, k, f16)| {
                 let mut settings = args.pipeline.settings();
                 settings.vector_kernel = Some(k);
+                settings.f16_weights = f16;
                 Retargeter::new(&p.rig, &p.layout, basis.clone(), settings)
             })
             .collect::<Result<Vec<_>, _>>()
             .context("vector kernel retargeter")?;
         let steps = args.steps.max(100);
         let samples = throughput::step_alternately(&mut retargeters, frames, span_us, steps, turn)?;
-        let mut by_kernel = serde_json::Map::new();
-        for (kernel, mut samples) in kernels.iter().zip(samples) {
+        let mut by_variant = serde_json::Map::new();
+        for (&(name, _, _), mut samples) in variants.iter().zip(samples) {
             let (stages, step) = samples.summary();
-            by_kernel.insert(
-                format!("{kernel:?}"),
+            by_variant.insert(
+                name.into(),
                 json!({
                     "deform_median_us": stages.get(Stage::Deform).median_us,
                     "normals_median_us": stages.get(Stage::Normals).median_us,
@@ -471,8 +481,8 @@ fn bench_vector_kernels(
                 }),
             );
         }
-        by_kernel.insert("turn_frames".into(), json!(turn));
-        report.insert(mode.into(), serde_json::Value::Object(by_kernel));
+        by_variant.insert("turn_frames".into(), json!(turn));
+        report.insert(mode.into(), serde_json::Value::Object(by_variant));
     }
     Ok(Some(serde_json::Value::Object(report)))
 }

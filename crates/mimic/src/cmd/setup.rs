@@ -186,6 +186,11 @@ pub struct PipelineArgs {
     /// Seconds over which a lost face eases to neutral.
     #[arg(long, default_value_t = 0.5, value_parser = parse_seconds_f32)]
     pub lost_ease: f32,
+    /// Read the deform's weights as binary16: half the bytes per frame, faster where they do not
+    /// fit in the core's cache (the ICT head: about 12 % a step); each coordinate moves by at most
+    /// 2^-11 of its displacement terms (docs/performance.md).
+    #[arg(long)]
+    pub f16_weights: bool,
 }
 
 impl PipelineArgs {
@@ -204,6 +209,7 @@ impl PipelineArgs {
             per_axis_scale: self.per_axis_scale,
             lost_hold_secs: self.lost_hold,
             lost_ease_secs: self.lost_ease,
+            f16_weights: self.f16_weights,
             ..RetargetSettings::default()
         }
     }
