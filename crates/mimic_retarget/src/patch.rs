@@ -14,12 +14,10 @@ use mimic_solve::{VectorKernel, normals::VertexFans};
 pub(crate) struct MovingPatch {
     /// `rest + B d` over the moving rows, in one pass (rows in its own order).
     deform: MovingDeform,
-    /// Vertices the normal pass reads, by local index: first the moving rows (in the order of
-    /// `deform.rows()`),
-    /// then the other vertices whose normal can change (corners of triangles with a moving
-    /// vertex), then the other corners of their triangles.
-    local_vertices: Vec<u32>,
-    /// Fans around the local vertices whose normal can change (`0..fans.count()`).
+    /// Fans around the vertices whose normal can change, over a local numbering of the vertices
+    /// the normal pass reads (first the moving rows, in the order of `deform.rows()`, then the
+    /// other vertices whose normal can change, corners of triangles with a moving vertex, then
+    /// the other corners of their triangles); each fan's normal is named by its mesh vertex.
     fans: VertexFans,
     /// Positions by local index, packed 3 floats a vertex (and 1 of padding after the last, for
     /// the fan pass's 16-byte loads): the moving rows are rewritten by every
@@ -73,7 +71,9 @@ impl MovingPatch {
             .iter()
             .map(|t| t.map(|v| local_of[v as usize]))
             .collect();
-        let fans = VertexFans::new(normal_count, local_vertices.len(), &local_triangles);
+        // Each fan's normal is reported under its mesh vertex.
+        let fans = VertexFans::new(normal_count, local_vertices.len(), &local_triangles)
+            .with_names(&local_vertices);
         Self {
             deform,
             local_positions: local_vertices
@@ -81,7 +81,6 @@ impl MovingPatch {
                 .flat_map(|&v| rest[v as usize].to_array())
                 .chain([0.0])
                 .collect(),
-            local_vertices,
             fans,
             kernel: VectorKernel::best(),
         }
@@ -124,12 +123,8 @@ impl MovingPatch {
     /// the deform stores it from the registers it stores the mesh positions from): each normal is
     /// summed in registers, normalised and written once.
     pub(crate) fn normals(&mut self, normals: &mut [Vec3]) {
-        let targets = &self.local_vertices;
-        let kernel = self.kernel;
         self.fans
-            .normals_packed_by(kernel, &self.local_positions, |k, n| {
-                normals[targets[k] as usize] = n;
-            });
+            .normals_packed_by(self.kernel, &self.local_positions, |v, n| normals[v] = n);
     }
 }
 

@@ -123,6 +123,25 @@ impl VertexFans {
         }
     }
 
+    /// The same fans with each vertex `v`'s normal reported as `names[v]` instead of `v` (e.g.
+    /// its index in the whole mesh, when the fans were built over a part of it): the normal
+    /// passes then call `write(names[v], normal)`, saving the caller a lookup per vertex.
+    ///
+    /// # Panics
+    /// If `names.len() < count()`.
+    pub fn with_names(mut self, names: &[u32]) -> Self {
+        assert!(
+            names.len() >= self.count,
+            "VertexFans::with_names: {} names for {} fans",
+            names.len(),
+            self.count
+        );
+        for c in &mut self.centres {
+            *c = names[*c as usize];
+        }
+        self
+    }
+
     /// Number of vertices with a fan (`0..count`).
     pub fn count(&self) -> usize {
         self.count

@@ -82,6 +82,25 @@ fn check_fans(positions: &[Vec3], triangles: &[[u32; 3]], count: usize) {
     fans.normals_packed(&packed, |v, n| from_packed[v] = n);
     let mut packed_portable = vec![Vec3::NAN; count];
     fans.normals_packed_portable(&packed, &mut |v, n| packed_portable[v] = n);
+    // Renamed (here v -> 2 v + 1): the same normals, each under its new name, each once.
+    let names: Vec<u32> = (0..count as u32).map(|v| 2 * v + 1).collect();
+    let mut renamed = vec![Vec3::NAN; 2 * count + 1];
+    let mut named_seen = vec![0; 2 * count + 1];
+    fans.clone()
+        .with_names(&names)
+        .normals_packed(&packed, |v, n| {
+            renamed[v] = n;
+            named_seen[v] += 1;
+        });
+    for v in 0..count {
+        assert_eq!(named_seen[2 * v + 1], 1, "renamed vertex {v} written once");
+        let (a, b) = (renamed[2 * v + 1], from_packed[v]);
+        assert!(
+            a == b || (a.is_nan() && b.is_nan()),
+            "renamed vertex {v}: {a} vs {b}"
+        );
+    }
+    assert_eq!(named_seen.iter().sum::<i32>(), count as i32);
     // Each kernel by name (the best one the CPU has where it lacks one): every vertex
     // written once, each within the reference's bound below; the AVX-512 and AVX2 kernels
     // sum the same terms in the same order, so they differ only by their normalisations,
