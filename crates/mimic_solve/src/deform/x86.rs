@@ -152,26 +152,79 @@ impl MovingDeform {
             let rest = &self.rest[b * 3 * BLOCK..][..3 * BLOCK];
             let rows = rows_of(weights, cols, dp, rest);
             let run = self.runs[b];
+            // This block's mesh vertices (fewer than BLOCK in a last, partial block).
+            let vertices = &self.rows[b * BLOCK..][..out.len() / 3];
+            let p = positions.as_mut_ptr().cast::<f32>();
             // SAFETY: `dst` points at 3 * BLOCK floats (the block's packed compact rows when
-            // full, else `spare`); a run's 24 positions lie below vertex_count <=
-            // positions.len(); AVX2 (caller).
+            // full, else `spare`); every row's vertex, and so a run's 24 positions, lies below
+            // vertex_count <= positions.len() (3 floats each); AVX2 (caller).
             unsafe {
                 for (g, &[x, y, z]) in rows.iter().enumerate() {
                     crate::basis::store_xyz8(dst.add(g * 3 * L), x, y, z);
                     if run != SCATTERED {
-                        let p = positions.as_mut_ptr().cast::<f32>();
                         crate::basis::store_xyz8(p.add(3 * (run as usize + g * L)), x, y, z);
+                    } else if let Some(group) = vertices.get(g * L..) {
+                        scatter_xyz8(p, &group[..group.len().min(L)], x, y, z);
                     }
                 }
             }
             if !full {
                 out.copy_from_slice(&spare[..out.len()]);
             }
-            if run == SCATTERED {
-                for (&i, p) in self.rows[b * BLOCK..].iter().zip(out.chunks_exact(3)) {
-                    positions[i as usize] = Vec3::new(p[0], p[1], p[2]);
-                }
-            }
+        }
+    }
+}
+
+/// Writes up to 8 rows given as x, y, z registers (lane k = row k) to the mesh positions of
+/// their vertices, `p[3 v..3 v + 3]` for the k-th of `vertices`, straight from registers: each
+/// row transposed into the low three lanes of a 128-bit vector, stored as 8 bytes and 4.
+/// (Copying them back from the packed compact rows instead stalled: one row in 8 straddles two
+/// of the 32-byte stores that wrote them, which a load cannot be forwarded from.)
+///
+/// # Safety
+/// The CPU must support AVX2; `vertices.len() <= 8` and `p` valid for writing 3 floats at
+/// `3 v` for every `v` in `vertices`.
+#[target_feature(enable = "avx2,fma,f16c")]
+#[inline]
+unsafe fn scatter_xyz8(
+    p: *mut f32,
+    vertices: &[u32],
+    x: std::arch::x86_64::__m256,
+    y: std::arch::x86_64::__m256,
+    z: std::arch::x86_64::__m256,
+) {
+    use std::arch::x86_64::*;
+    let t0 = _mm256_unpacklo_ps(x, y); // x0 y0 x1 y1 | x4 y4 x5 y5
+    let t1 = _mm256_unpackhi_ps(x, y); // x2 y2 x3 y3 | x6 y6 x7 y7
+    let t2 = _mm256_unpacklo_ps(z, z); // z0 z0 z1 z1 | z4 z4 z5 z5
+    let t3 = _mm256_unpackhi_ps(z, z); // z2 z2 z3 z3 | z6 z6 z7 z7
+    let r = [
+        _mm256_shuffle_ps::<0x44>(t0, t2), // row 0 | row 4
+        _mm256_shuffle_ps::<0xEE>(t0, t2), // row 1 | row 5
+        _mm256_shuffle_ps::<0x44>(t1, t3), // row 2 | row 6
+        _mm256_shuffle_ps::<0xEE>(t1, t3), // row 3 | row 7
+    ];
+    // SAFETY: 3 floats at 3 v are writable for every v in `vertices` (caller).
+    let put = |v: u32, row: __m128| unsafe {
+        let dst = p.add(3 * v as usize);
+        _mm_store_sd(dst.cast(), _mm_castps_pd(row));
+        _mm_store_ss(dst.add(2), _mm_movehl_ps(row, row));
+    };
+    let low = |k: usize| _mm256_castps256_ps128(r[k]);
+    let high = |k: usize| _mm256_extractf128_ps::<1>(r[k]);
+    if let &[v0, v1, v2, v3, v4, v5, v6, v7] = vertices {
+        // Every row (all but a last, partial block's): unrolled, the rows in registers.
+        put(v0, low(0));
+        put(v1, low(1));
+        put(v2, low(2));
+        put(v3, low(3));
+        put(v4, high(0));
+        put(v5, high(1));
+        put(v6, high(2));
+        put(v7, high(3));
+    } else {
+        for (k, &v) in vertices.iter().enumerate().take(8) {
+            put(v, if k < 4 { low(k) } else { high(k - 4) });
         }
     }
 }
