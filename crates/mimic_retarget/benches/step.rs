@@ -209,12 +209,13 @@ fn ab(
     black_box((&normals, &positions, &packed_rows, &u));
     let load = std::fs::read_to_string("/proc/loadavg").unwrap_or_default();
     eprintln!(
-        "A/B on {name} ({} moving rows, {n} fans; f32 deform {} kB, f16 {} kB; vector kernel \
-         in the step {:?}), {steps} interleaved steps, load {}, medians:",
+        "A/B on {name} ({} moving rows, {n} fans; f32 deform {} kB, f16 {} kB; kernels in \
+         the step: deform {:?}, normals {:?}), {steps} interleaved steps, load {}, medians:",
         full.rows().len(),
         full.bytes_read() / 1000,
         half.bytes_read() / 1000,
-        VectorKernel::best(),
+        VectorKernel::best_for_deform(),
+        VectorKernel::best_for_normals(),
         load.split_whitespace()
             .take(3)
             .collect::<Vec<_>>()

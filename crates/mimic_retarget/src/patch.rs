@@ -23,8 +23,10 @@ pub(crate) struct MovingPatch {
     /// the fan pass's 16-byte loads): the moving rows are rewritten by every
     /// [`MovingPatch::deform`], the others never move and keep their rest position.
     local_positions: Vec<f32>,
-    /// The fan pass's kernel ([`VectorKernel::best`] unless set).
-    kernel: VectorKernel,
+    /// The deform's kernel ([`VectorKernel::best_for_deform`] unless set).
+    deform_kernel: VectorKernel,
+    /// The fan pass's kernel ([`VectorKernel::best_for_normals`] unless set).
+    normals_kernel: VectorKernel,
 }
 
 impl MovingPatch {
@@ -82,14 +84,16 @@ impl MovingPatch {
                 .chain([0.0])
                 .collect(),
             fans,
-            kernel: VectorKernel::best(),
+            deform_kernel: VectorKernel::best_for_deform(),
+            normals_kernel: VectorKernel::best_for_normals(),
         }
     }
 
-    /// The same patch with its deform and normals computed by `kernel` (the best the CPU has
-    /// where it lacks it).
-    pub(crate) fn with_kernel(mut self, kernel: VectorKernel) -> Self {
-        self.kernel = kernel.available();
+    /// The same patch with its deform and its normals computed by the given kernels (the widest
+    /// narrower one the CPU has where it lacks one).
+    pub(crate) fn with_kernels(mut self, deform: VectorKernel, normals: VectorKernel) -> Self {
+        self.deform_kernel = deform.available();
+        self.normals_kernel = normals.available();
         self
     }
 
@@ -112,7 +116,7 @@ impl MovingPatch {
     /// [`MovingPatch::normals`].
     pub(crate) fn deform(&mut self, d: &[Vec3], positions: &mut [Vec3]) {
         self.deform
-            .deform_packed_by(self.kernel, d, &mut self.local_positions, positions);
+            .deform_packed_by(self.deform_kernel, d, &mut self.local_positions, positions);
     }
 
     /// Recomputes the area-weighted normals of the vertices the moving rows can affect, from the
@@ -124,7 +128,9 @@ impl MovingPatch {
     /// summed in registers, normalised and written once.
     pub(crate) fn normals(&mut self, normals: &mut [Vec3]) {
         self.fans
-            .normals_packed_by(self.kernel, &self.local_positions, |v, n| normals[v] = n);
+            .normals_packed_by(self.normals_kernel, &self.local_positions, |v, n| {
+                normals[v] = n
+            });
     }
 }
 

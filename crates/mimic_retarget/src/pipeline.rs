@@ -265,7 +265,14 @@ impl Retargeter {
                 MovingPatch::new(&basis, &rig.mesh.triangles, &rig.mesh.positions)
                     .with_f16_weights(settings.f16_weights)
                     .map_err(RetargetError::F16Weights)?
-                    .with_kernel(settings.vector_kernel.unwrap_or_else(VectorKernel::best))
+                    .with_kernels(
+                        settings
+                            .deform_kernel
+                            .unwrap_or_else(VectorKernel::best_for_deform),
+                        settings
+                            .normals_kernel
+                            .unwrap_or_else(VectorKernel::best_for_normals),
+                    )
             } else {
                 // No positions: an empty patch, so no per-retargeter copy of the moving rows.
                 let empty = Basis::from_row_major(0, m, Vec::new())

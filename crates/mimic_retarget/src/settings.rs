@@ -38,11 +38,13 @@ pub struct RetargetSettings {
     /// in registers): each coordinate then moves by at most `sum_j (2^-11 |B_ij| + 2^-25) |d_j|`
     /// from the f32 weights' (`docs/performance.md`, issue #21). Off by default.
     pub f16_weights: bool,
-    /// The deform's and the normal pass's kernel; `None`: the fastest this CPU runs
-    /// ([`VectorKernel::best`]). One the CPU lacks runs the best it has. For A/B benchmarks: the
-    /// vector kernels' positions are the same bit for bit, their normals differ by at most 9 eps
+    /// The deform's kernel; `None`: [`VectorKernel::best_for_deform`]. One the CPU lacks runs
+    /// the widest narrower one it has. Every kernel's positions are the same bit for bit.
+    pub deform_kernel: Option<VectorKernel>,
+    /// The normal pass's kernel; `None`: [`VectorKernel::best_for_normals`]. One the CPU lacks
+    /// runs the widest narrower one it has. The vector kernels' normals differ by at most 9 eps
     /// per component.
-    pub vector_kernel: Option<VectorKernel>,
+    pub normals_kernel: Option<VectorKernel>,
     /// A control whose displacement, scaled to the target, exceeds this fraction of the RMS radius
     /// of the rig's controls is an outlier (e.g. a depth sample that hit the background): it is
     /// held like a missing control.
@@ -67,7 +69,8 @@ impl Default for RetargetSettings {
             normals: true,
             positions: true,
             f16_weights: false,
-            vector_kernel: None,
+            deform_kernel: None,
+            normals_kernel: None,
             outlier_fraction: 0.8,
             stable_trim: 3.0,
             gate: GateSettings::default(),

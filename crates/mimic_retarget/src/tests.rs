@@ -397,7 +397,8 @@ fn each_vector_kernel_gives_the_same_positions_and_normals_within_the_kernels_bo
     ];
     let mut runs = kernels.map(|k| {
         let (r, neutral) = setup(RetargetSettings {
-            vector_kernel: Some(k),
+            deform_kernel: Some(k),
+            normals_kernel: Some(k),
             ..plain()
         });
         let out = r.new_output();

@@ -231,11 +231,11 @@ impl MovingDeform {
     /// # Panics
     /// As [`MovingDeform::deform`], with `compact.len() < 3 * rows().len()`.
     pub fn deform_packed(&self, d: &[Vec3], compact: &mut [f32], positions: &mut [Vec3]) {
-        self.deform_packed_by(VectorKernel::best(), d, compact, positions);
+        self.deform_packed_by(VectorKernel::best_for_deform(), d, compact, positions);
     }
 
     /// [`MovingDeform::deform_packed`] by a given kernel (benchmarks and tests; one the CPU
-    /// lacks runs the best it has): 8 rows a register (AVX2), 16 and 8 (AVX-512: a block's 24
+    /// lacks runs the widest narrower one it has): 8 rows a register (AVX2), 16 and 8 (AVX-512: a block's 24
     /// rows in one 512-bit and one 256-bit register a coordinate), or one row at a time
     /// (portable). Every kernel sums the same fused chains, so the positions are the same bit
     /// for bit.

@@ -160,10 +160,9 @@ impl VertexFans {
     /// Calls `write(v, normal)` once for every vertex `v < count()` (in no particular order) with
     /// its normalised area-weighted normal, zero where the sum has no finite, non-zero length
     /// (as `normalize_or_zero`; the vectorised path also gives zero for sums whose squared length
-    /// is subnormal, below 1.2e-38); allocates nothing. By [`VectorKernel::best`]'s kernel: 8
-    /// fans at a time with AVX2 + FMA where the CPU has them (16 with AVX-512F when asked for
-    /// through [`VertexFans::normals_packed_by`]: the same sums bit for bit; each normalised by a
-    /// Newton-refined reciprocal square root, within 4 eps), else one by one.
+    /// is subnormal, below 1.2e-38); allocates nothing. By [`VectorKernel::best_for_normals`]'s
+    /// kernel: 16 fans at a time with AVX-512F, 8 with AVX2 + FMA (the same sums bit for bit; each
+    /// normalised by a Newton-refined reciprocal square root, within 4 eps), else one by one.
     ///
     /// # Panics
     /// If `positions.len() < position_count()`.
@@ -177,10 +176,10 @@ impl VertexFans {
         #[cfg(target_arch = "x86_64")]
         {
             let p = positions.as_ptr().cast::<f32>();
-            // SAFETY: the kernel's CPU features are checked by `best`; every centre and entry is
+            // SAFETY: the kernel's CPU features are checked by `best_for_normals`; every centre and entry is
             // below position_count <= positions.len() (asserted), each a 16-byte Vec3A at 4
             // floats a vertex, and each group's entries lie in `entries` by construction.
-            match VectorKernel::best() {
+            match VectorKernel::best_for_normals() {
                 VectorKernel::Avx512 => return unsafe { self.normals_avx512::<4>(p, &mut write) },
                 VectorKernel::Avx2 => {
                     return unsafe { self.normals_avx2::<false, 4>(p, &mut write) };
@@ -200,11 +199,11 @@ impl VertexFans {
     /// # Panics
     /// If `positions.len() < 3 * position_count() + 1`.
     pub fn normals_packed(&self, positions: &[f32], write: impl FnMut(usize, Vec3)) {
-        self.normals_packed_by(VectorKernel::best(), positions, write);
+        self.normals_packed_by(VectorKernel::best_for_normals(), positions, write);
     }
 
-    /// [`VertexFans::normals_packed`] by a given kernel ([`VectorKernel::available`]: the best one
-    /// the CPU runs where it lacks `kernel`), for A/B comparisons and tests.
+    /// [`VertexFans::normals_packed`] by a given kernel ([`VectorKernel::available`]: the widest
+    /// narrower one the CPU runs where it lacks `kernel`), for A/B comparisons and tests.
     ///
     /// # Panics
     /// As [`VertexFans::normals_packed`].

@@ -327,7 +327,8 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
             "normals_speedup": if normals_m > 0.0 { bn / normals_m } else { 0.0 },
             "normals_fans_gather_median_us": bn_gather,
             "normals_fans_packed_median_us": bn_packed,
-            "vector_kernel": format!("{:?}", VectorKernel::best()),
+            "deform_kernel": format!("{:?}", VectorKernel::best_for_deform()),
+            "normals_kernel": format!("{:?}", VectorKernel::best_for_normals()),
             "normals_fans_avx2_median_us": bn_avx2,
             "normals_fans_avx512_median_us": bn_avx512,
             "vector_kernel_avx512_supported": VectorKernel::Avx512.supported(),
@@ -377,10 +378,11 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
             } else {
                 " (no AVX-512 here: the best kernel the CPU has)"
             },
-            VectorKernel::best()
+            VectorKernel::best_for_normals()
         );
         println!(
-            "  deform kernels on packed rows: AVX2 {deform_avx2:.1} us, AVX-512 {deform_avx512:.1} us"
+            "  deform kernels on packed rows: AVX2 {deform_avx2:.1} us, AVX-512 {deform_avx512:.1} us; the step uses {:?}",
+            VectorKernel::best_for_deform()
         );
         if let Some(fk) = report["vector_kernels_in_step"].as_object() {
             for (mode, what) in [
@@ -389,7 +391,7 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
             ] {
                 let at = |k: &str, f: &str| fk[mode][k][f].as_f64().unwrap_or(f64::NAN);
                 println!(
-                    "  in the step, {what}: deform AVX2 {:.1} us (f16 weights {:.1}), AVX-512 {:.1} us; normals AVX2 {:.1} us, AVX-512 {:.1} us; whole step {:.1} (f16 {:.1}) / {:.1} us",
+                    "  in the step, {what}: deform AVX2 {:.1} us (f16 weights {:.1}), AVX-512 {:.1} us; normals AVX2 {:.1} us, AVX-512 {:.1} us; whole step AVX2 {:.1} (f16 {:.1}), AVX-512 {:.1}, defaults {:.1} us",
                     at("Avx2", "deform_median_us"),
                     at("Avx2F16", "deform_median_us"),
                     at("Avx512", "deform_median_us"),
@@ -398,6 +400,7 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
                     at("Avx2", "step_median_us"),
                     at("Avx2F16", "step_median_us"),
                     at("Avx512", "step_median_us"),
+                    at("Default", "step_median_us"),
                 );
             }
         }
@@ -436,8 +439,9 @@ fn bench_rig(args: &Args, rig_args: &RigArgs) -> anyhow::Result<serde_json::Valu
 /// ([`throughput::step_alternately`]) of 200 frames each (`warm`: each runs as one session does,
 /// its data in cache) and of 1 frame (`cold`: each step finds the others' data in cache, as with
 /// many sessions on a core); `None` where the CPU has no AVX2 (nothing to compare). Reports the
-/// median deform and normals stages and the whole step of each (keys `Avx2`, `Avx2F16`, and
-/// `Avx512` where the CPU has it).
+/// median deform and normals stages and the whole step of each (keys `Default`, each pass's own
+/// default kernel; `Avx2` and `Avx512`, both passes by that kernel, the latter where the CPU has
+/// it; `Avx2F16`, with binary16 weights).
 fn bench_vector_kernels(
     args: &Args,
     p: &crate::cmd::setup::Prepared,
@@ -447,12 +451,14 @@ fn bench_vector_kernels(
     if !VectorKernel::Avx2.supported() {
         return Ok(None);
     }
+    // (name, both passes' kernel (`None`: each pass's default), binary16 weights)
     let mut variants = vec![
-        ("Avx2", VectorKernel::Avx2, false),
-        ("Avx2F16", VectorKernel::Avx2, true),
+        ("Default", None, false),
+        ("Avx2", Some(VectorKernel::Avx2), false),
+        ("Avx2F16", Some(VectorKernel::Avx2), true),
     ];
     if VectorKernel::Avx512.supported() {
-        variants.push(("Avx512", VectorKernel::Avx512, false));
+        variants.push(("Avx512", Some(VectorKernel::Avx512), false));
     }
     let basis = Arc::new(p.retargeter.basis().clone());
     let mut report = serde_json::Map::new();
@@ -461,7 +467,8 @@ fn bench_vector_kernels(
             .iter()
             .map(|&(_, k, f16)| {
                 let mut settings = args.pipeline.settings();
-                settings.vector_kernel = Some(k);
+                settings.deform_kernel = k;
+                settings.normals_kernel = k;
                 settings.f16_weights = f16;
                 Retargeter::new(&p.rig, &p.layout, basis.clone(), settings)
             })
