@@ -21,6 +21,21 @@ fn banded(n: usize, m: usize, seed: &mut u64) -> Vec<f32> {
         .collect()
 }
 
+/// A basis of `n` rows and `m` controls (every weight drawn when `dense`, else [`banded`]), rest
+/// positions within 10 of the origin and control displacements within 1.
+fn case(n: usize, m: usize, dense: bool, seed: &mut u64) -> (Basis, Vec<Vec3>, Vec<Vec3>) {
+    let data: Vec<f32> = if dense {
+        (0..n * m).map(|_| lcg(seed)).collect()
+    } else {
+        banded(n, m, seed)
+    };
+    let basis = Basis::from_row_major(n, m, data).unwrap();
+    let mut point = || Vec3::new(lcg(seed), lcg(seed), lcg(seed));
+    let rest: Vec<Vec3> = (0..n).map(|_| point() * 10.0).collect();
+    let d: Vec<Vec3> = (0..m).map(|_| point()).collect();
+    (basis, rest, d)
+}
+
 #[test]
 fn deform_equals_rest_plus_apply_bit_for_bit() {
     let mut seed = 11u64;
@@ -32,18 +47,7 @@ fn deform_equals_rest_plus_apply_bit_for_bit() {
         (203, 38),
         (61, 70),
     ] {
-        let data = if m >= 5 {
-            banded(n, m, &mut seed)
-        } else {
-            (0..n * m).map(|_| lcg(&mut seed)).collect()
-        };
-        let basis = Basis::from_row_major(n, m, data).unwrap();
-        let rest: Vec<Vec3> = (0..n)
-            .map(|_| Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)) * 10.0)
-            .collect();
-        let d: Vec<Vec3> = (0..m)
-            .map(|_| Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)))
-            .collect();
+        let (basis, rest, d) = case(n, m, m < 5, &mut seed);
         let deform = MovingDeform::new(&basis, &rest);
         let moving = basis.moving_rows(n);
         let mut sorted = deform.rows().to_vec();
@@ -276,18 +280,7 @@ fn packed_kernels_agree_bit_for_bit() {
     let mut seed = 41u64;
     // Banded (scattered blocks), dense (runs of consecutive vertices) and a last partial block.
     for (n, m, dense) in [(203usize, 38usize, false), (24, 38, true), (101, 38, true)] {
-        let data: Vec<f32> = if dense {
-            (0..n * m).map(|_| lcg(&mut seed)).collect()
-        } else {
-            banded(n, m, &mut seed)
-        };
-        let basis = Basis::from_row_major(n, m, data).unwrap();
-        let rest: Vec<Vec3> = (0..n)
-            .map(|_| Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)) * 10.0)
-            .collect();
-        let d: Vec<Vec3> = (0..m)
-            .map(|_| Vec3::new(lcg(&mut seed), lcg(&mut seed), lcg(&mut seed)))
-            .collect();
+        let (basis, rest, d) = case(n, m, dense, &mut seed);
         for half in [false, true] {
             let mut deform = MovingDeform::new(&basis, &rest);
             if half {

@@ -256,13 +256,6 @@ unsafe fn block_rows_avx512<const HALF: bool>(
             _mm512_loadu_ps(p.cast())
         }
     };
-    let narrow = |p: *const u8| unsafe {
-        if HALF {
-            _mm256_cvtph_ps(_mm_loadu_si128(p.cast()))
-        } else {
-            _mm256_loadu_ps(p.cast())
-        }
-    };
     // The high 8 lanes of a 512-bit register (AVX-512F only: through the 64-bit view).
     let high = |v: __m512| _mm256_castpd_ps(_mm512_extractf64x4_pd::<1>(_mm512_castps_pd(v)));
     // SAFETY: as in `block_rows` (the same reads: BLOCK weights a column, 3 f32 of `dp` a
@@ -273,7 +266,7 @@ unsafe fn block_rows_avx512<const HALF: bool>(
         let mut acc8 = [_mm256_setzero_ps(); 3];
         for &j in cols {
             let c16 = wide(col);
-            let c8 = narrow(col.add(2 * L * size));
+            let c8 = load8::<HALF>(col.add(2 * L * size));
             let dj = dp.add(3 * j as usize);
             for a in 0..3 {
                 let v = _mm512_set1_ps(*dj.add(a));
@@ -300,6 +293,24 @@ pub(super) fn avx2_fma_f16c() -> bool {
     crate::basis::avx2_fma() && std::arch::is_x86_feature_detected!("f16c")
 }
 
+/// 8 weights at `p` as f32: f32 as they are, or (with `HALF`) binary16 converted exactly.
+///
+/// # Safety
+/// The CPU must support AVX2 and F16C; `p` must point at 8 readable weights.
+#[target_feature(enable = "avx2,fma,f16c")]
+#[inline]
+unsafe fn load8<const HALF: bool>(p: *const u8) -> std::arch::x86_64::__m256 {
+    use std::arch::x86_64::*;
+    // SAFETY: 8 weights (16 or 32 bytes) are readable at p (caller).
+    unsafe {
+        if HALF {
+            _mm256_cvtph_ps(_mm_loadu_si128(p.cast()))
+        } else {
+            _mm256_loadu_ps(p.cast())
+        }
+    }
+}
+
 /// One block's 24 rows of [`MovingDeform`]: `rest + sum_j B[., j] d_j` over the block's kept
 /// columns `cols` (BLOCK weights each at `weights`: f32, or binary16 with `HALF`, converted
 /// exactly to f32 in registers), as x, y, z registers of its three groups of 8.
@@ -319,15 +330,6 @@ unsafe fn block_rows<const HALF: bool>(
     use std::arch::x86_64::*;
     const L: usize = 8;
     let size = if HALF { 2 } else { 4 };
-    // 8 weights at `p` as f32.
-    // SAFETY (of the caller): p points at 8 readable weights.
-    let load = |p: *const u8| unsafe {
-        if HALF {
-            _mm256_cvtph_ps(_mm_loadu_si128(p.cast()))
-        } else {
-            _mm256_loadu_ps(p.cast())
-        }
-    };
     // SAFETY: `weights` holds BLOCK weights per column, read 24 at a time from `col`, which
     // advances by BLOCK weights per column; `dp` reads 3 f32 per column below its bound; `rest`
     // holds 3 * BLOCK values (caller).
@@ -336,9 +338,9 @@ unsafe fn block_rows<const HALF: bool>(
         let mut acc = [_mm256_setzero_ps(); 9];
         for &j in cols {
             let c = [
-                load(col),
-                load(col.add(L * size)),
-                load(col.add(2 * L * size)),
+                load8::<HALF>(col),
+                load8::<HALF>(col.add(L * size)),
+                load8::<HALF>(col.add(2 * L * size)),
             ];
             let dj = dp.add(3 * j as usize);
             let dv = [
