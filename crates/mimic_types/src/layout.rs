@@ -435,6 +435,11 @@ static POINT_INDICES: [usize; crate::limits::MAX_LAYOUT_POINTS] = {
 
 /// The mean of the valid ones of `points` in `frame`, `None` if none is valid.
 pub fn mean_of_valid(points: &[usize], frame: &LandmarkFrame) -> Option<Vec3> {
+    // One point (every control of most layouts): itself, as the mean below gives it (x / 1 is
+    // x), without its three divisions.
+    if let &[p] = points {
+        return frame.is_valid(p).then(|| frame.points[p]);
+    }
     let (sum, count) = points
         .iter()
         .filter(|&&p| frame.is_valid(p))
@@ -476,6 +481,21 @@ mod tests {
         assert_eq!(l.control_position(0, &f), Some(Vec3::X));
         f.points[1] = Vec3::NAN;
         assert_eq!(l.control_position(0, &f), None);
+    }
+
+    #[test]
+    fn one_point_is_its_own_mean() {
+        let mut f = LandmarkFrame::new(0, vec![Vec3::new(0.1, -2.3, 7.7), Vec3::Y]);
+        // The same value the general mean gives (sum / 1), the point itself.
+        assert_eq!(mean_of_valid(&[0], &f), Some(f.points[0] / 1.0));
+        assert_eq!(mean_of_valid(&[0, 0], &f), Some(f.points[0]));
+        f.valid[0] = false;
+        assert_eq!(mean_of_valid(&[0], &f), None);
+        f.valid[0] = true;
+        f.points[0].y = f32::INFINITY;
+        assert_eq!(mean_of_valid(&[0], &f), None);
+        // A point outside the frame is not valid.
+        assert_eq!(mean_of_valid(&[5], &f), None);
     }
 
     #[test]
