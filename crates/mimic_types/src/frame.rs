@@ -39,6 +39,7 @@ impl LandmarkFrame {
     }
 
     /// Whether point `i` exists, is marked valid and is finite.
+    #[inline]
     pub fn is_valid(&self, i: usize) -> bool {
         match (self.points.get(i), self.valid.get(i)) {
             (Some(p), Some(true)) => p.is_finite(),

@@ -434,6 +434,7 @@ static POINT_INDICES: [usize; crate::limits::MAX_LAYOUT_POINTS] = {
 };
 
 /// The mean of the valid ones of `points` in `frame`, `None` if none is valid.
+#[inline]
 pub fn mean_of_valid(points: &[usize], frame: &LandmarkFrame) -> Option<Vec3> {
     // One point (every control of most layouts): itself, as the mean below gives it (x / 1 is
     // x), without its three divisions.
