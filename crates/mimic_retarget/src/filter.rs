@@ -115,7 +115,8 @@ mod tests {
         assert!(last.abs() < 0.6, "{last}");
     }
 
-    /// The filter as the paper writes it, in f64: `tau = 1 / (2 pi fc)`, `alpha = 1 / (1 + tau / dt)`.
+    /// The filter as the paper writes it, in f64: `tau = 1 / (2 pi fc)`,
+    /// `alpha = 1 / (1 + tau / dt)`.
     fn textbook(s: &OneEuroSettings, xs: &[f64], dt: f64) -> Vec<f64> {
         let alpha = |fc: f64| 1.0 / (1.0 + 1.0 / (2.0 * std::f64::consts::PI * fc) / dt);
         let (mut v, mut dv) = (xs[0], 0.0);
@@ -151,7 +152,8 @@ mod tests {
         let scale = xs.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         // Each step rounds its few operations (within 8 eps of `scale`, the input's own f32
         // rounding and alpha's included) and the filter shrinks earlier errors by
-        // 1 - alpha <= 1 - alpha(min_cutoff): the error stays below 8 eps scale / alpha(min_cutoff).
+        // 1 - alpha <= 1 - alpha(min_cutoff): the error stays below
+        // 8 eps scale / alpha(min_cutoff).
         let a_min =
             1.0 / (1.0 + 1.0 / (2.0 * std::f64::consts::PI * s.min_cutoff as f64) / dt as f64);
         let tol = 8.0 * f32::EPSILON as f64 * scale / a_min;

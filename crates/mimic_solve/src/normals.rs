@@ -176,9 +176,10 @@ impl VertexFans {
         #[cfg(target_arch = "x86_64")]
         {
             let p = positions.as_ptr().cast::<f32>();
-            // SAFETY: the kernel's CPU features are checked by `best_for_normals`; every centre and entry is
-            // below position_count <= positions.len() (asserted), each a 16-byte Vec3A at 4
-            // floats a vertex, and each group's entries lie in `entries` by construction.
+            // SAFETY: the kernel's CPU features are checked by `best_for_normals`; every centre
+            // and entry is below position_count <= positions.len() (asserted), each a 16-byte
+            // Vec3A at 4 floats a vertex, and each group's entries lie in `entries` by
+            // construction.
             match VectorKernel::best_for_normals() {
                 VectorKernel::Avx512 => return unsafe { self.normals_avx512::<4>(p, &mut write) },
                 VectorKernel::Avx2 => {
