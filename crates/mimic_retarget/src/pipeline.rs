@@ -179,8 +179,9 @@ pub struct Retargeter {
     pub(crate) outlier_limit: f32,
     /// Inter-ocular distance of the target's controls (target units): the gate's length unit.
     pub(crate) face_size: f32,
-    /// Gate bound of each control's displacement, target units.
-    pub(crate) gate_bounds: Vec<f32>,
+    /// `1 / bound^2` of each control's gate bound on its displacement (bound in target units;
+    /// infinite for a zero bound), so the gate compares squared lengths with a multiply.
+    pub(crate) gate_inverse_bounds2: Vec<f32>,
     pub(crate) to_target: Option<SourceToTarget>,
     pub(crate) accumulator: Option<Accumulator>,
     // Per-frame state.
@@ -254,10 +255,13 @@ impl Retargeter {
         let target_controls = rig.control_positions();
         // A rig too degenerate to measure has no face size: the gate then never holds a frame.
         let face = face_size(&fdps, &target_controls).unwrap_or(f32::INFINITY);
-        let gate_bounds = fdps
+        let gate_inverse_bounds2 = fdps
             .iter()
             .zip(&rig.controls)
-            .map(|(f, c)| settings.gate.bound_of(*f, c.region) * face)
+            .map(|(f, c)| {
+                let bound = settings.gate.bound_of(*f, c.region) * face;
+                1.0 / (bound * bound)
+            })
             .collect();
         let mut r = Retargeter {
             layout: layout.clone(),
@@ -289,7 +293,7 @@ impl Retargeter {
             neutral_controls: vec![Vec3::ZERO; m],
             outlier_limit: f32::INFINITY,
             face_size: face,
-            gate_bounds,
+            gate_inverse_bounds2,
             to_target: None,
             accumulator: None,
             filters: vec![[OneEuro::default(); 3]; m],
@@ -421,12 +425,14 @@ impl Retargeter {
     pub fn step(&mut self, frame: &LandmarkFrame, out: &mut FrameOutput) -> FrameStatus {
         let status = self.step_frame(frame, out);
         if status != FrameStatus::Rejected {
+            // Compared squared: no square root per control.
             let limit = self.settings.gate.jump_report * self.face_size;
+            let limit2 = limit * limit;
             let jump = out
                 .displacements
                 .iter()
                 .zip(&self.previous_out)
-                .any(|(d, p)| d.distance(*p) > limit);
+                .any(|(d, p)| d.distance_squared(*p) > limit2);
             if status == FrameStatus::Tracked && jump {
                 self.stats.jumps += 1;
             }
@@ -498,6 +504,8 @@ impl Retargeter {
             .unwrap_or(0.0);
         let mut filled = 0u32;
         let back = pose.inverse_affine();
+        // Lengths compared squared: no square root per control.
+        let outlier2 = self.outlier_limit * self.outlier_limit;
         for j in 0..self.controls_now.len() {
             let e = match self.controls_now[j] {
                 Some(p) => Some(back.transform_point3(p) - self.neutral_controls[j]),
@@ -505,7 +513,7 @@ impl Retargeter {
             };
             // The target-space displacement is computed once: for the outlier check, and kept.
             let (e, d) = match e.map(|e| (e, to_target.apply(e))) {
-                Some((e, d)) if d.length() <= self.outlier_limit => (e, d),
+                Some((e, d)) if d.length_squared() <= outlier2 => (e, d),
                 _ => {
                     filled += 1;
                     (self.last_e[j], to_target.apply(self.last_e[j]))

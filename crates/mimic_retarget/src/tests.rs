@@ -465,6 +465,13 @@ fn gate_holds_a_control_beyond_its_bound() {
     far[2] += Vec3::new(0.0, 1.1 * bound * r.face_size() * SRC_SCALE, 0.0);
     r.step(&frame(66_000, far), &mut out);
     assert_eq!(r.gate_reading().reason, Some(GateReason::Displacement));
+    // The reading is the largest displacement over its bound: this control's 1.1, within the
+    // roundings of the map to the target, the squared ratio and its square root (8 eps).
+    let reading = r.gate_reading().displacement;
+    assert!(
+        (reading - 1.1).abs() <= 8.0 * f32::EPSILON * 1.1,
+        "{reading}"
+    );
     assert!(out.displacements.iter().all(|d| d.length() < 1e-6));
     assert_eq!(r.stats().gated, 1);
 }

@@ -47,9 +47,12 @@ impl Retargeter {
             turn_deg: angle_deg(pose.rotation * self.accepted_rotation.inverse()),
             ..GateReading::default()
         };
-        for (d, bound) in self.raw_d.iter().zip(&self.gate_bounds) {
-            r.displacement = r.displacement.max(ratio(d.length(), *bound));
+        // The largest ratio squared (a multiply per control by `1 / bound^2`), one square root.
+        let mut ratio2 = 0.0f32;
+        for (d, inv2) in self.raw_d.iter().zip(&self.gate_inverse_bounds2) {
+            ratio2 = ratio2.max(ratio_squared(d.length_squared(), *inv2));
         }
+        r.displacement = ratio2.sqrt();
         r.reason = if g.enabled { r.judge(&g) } else { None };
         self.gate_reading = r;
         r.reason
@@ -70,12 +73,14 @@ impl Retargeter {
                 .unwrap_or(0.0)
         };
         let limit = (g.step_floor + g.max_control_speed * dt) * self.face_size;
+        let limit2 = limit * limit;
         let mut clamped = false;
         for (d, p) in out.displacements.iter_mut().zip(&self.previous_out) {
             let step = *d - *p;
-            let len = step.length();
-            if len > limit {
-                *d = *p + step * (limit / len);
+            // Compared squared: a square root only for a control that is clamped.
+            let len2 = step.length_squared();
+            if len2 > limit2 {
+                *d = *p + step * (limit / len2.sqrt());
                 clamped = true;
             }
         }
@@ -116,7 +121,8 @@ impl Retargeter {
     }
 }
 
-/// `x / limit`, 0 when `x` is 0, infinite past a zero limit; NaN stays NaN (and fails the gate).
-fn ratio(x: f32, limit: f32) -> f32 {
-    if x == 0.0 { 0.0 } else { x / limit }
+/// `x2 / limit^2` from `inverse2 = 1 / limit^2`: 0 when `x2` is 0, infinite past a zero limit
+/// (infinite `inverse2`); NaN stays NaN.
+fn ratio_squared(x2: f32, inverse2: f32) -> f32 {
+    if x2 == 0.0 { 0.0 } else { x2 * inverse2 }
 }
