@@ -75,6 +75,9 @@ pub struct VertexFans {
     centres: Vec<u32>,
     /// Per group, `steps * 16` neighbours, step-major.
     entries: Vec<u32>,
+    /// `entries` times 3: each neighbour's offset (in floats) in positions packed 3 floats a
+    /// vertex, read by the packed kernels with no multiply per load.
+    offsets: Vec<u32>,
     /// Vertices with a fan.
     count: usize,
     /// Positions needed: one past the largest vertex any fan names.
@@ -114,10 +117,16 @@ impl VertexFans {
             .max()
             .unwrap_or(0)
             .max(count);
+        assert!(
+            3 * position_count <= u32::MAX as usize,
+            "VertexFans::new: {position_count} positions: packed offsets past u32"
+        );
+        let offsets = entries.iter().map(|&w| 3 * w).collect();
         Self {
             groups,
             centres,
             entries,
+            offsets,
             count,
             position_count,
         }

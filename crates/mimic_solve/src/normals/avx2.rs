@@ -23,16 +23,14 @@ impl VertexFans {
         write: &mut impl FnMut(usize, Vec3),
     ) {
         use std::arch::x86_64::*;
-        // 8 positions named by `idx` as x, y, z registers (lane k = idx[k]).
-        // SAFETY (of the caller): every index read below is < position_count, and 4 floats at
-        // STRIDE * index are readable.
-        // 8 positions named by `idx[0..8]` as x, y, z registers (lane k = idx[k]). Called
+        // 8 positions named by `idx[0..8]` as x, y, z registers (lane k = vertex idx[k]). Called
         // directly in this function's body (not through an iterator adaptor) so that it is
         // inlined with the AVX2 features: an adaptor's closure is compiled without them and
         // called once per step, with every live register spilled around the call.
         let load8 = |idx: *const u32| -> (__m256, __m256, __m256) {
-            // SAFETY: idx points at 8 indices below position_count (the caller's range);
-            // 4 floats at STRIDE * v are readable for each.
+            // SAFETY: idx points at 8 stored entries (offsets of packed positions, or vertex
+            // indices) of vertices below position_count (the caller's range); 4 floats are
+            // readable at each vertex's offset.
             unsafe {
                 if GATHER && STRIDE == 4 {
                     // The gathers read f32 4 * idx[k] + axis of `positions`.
@@ -43,7 +41,10 @@ impl VertexFans {
                         _mm256_i32gather_ps::<4>(base.add(2), i),
                     );
                 }
-                let at = |k: usize| base.add(*idx.add(k) as usize * STRIDE);
+                let at = |k: usize| {
+                    let e = *idx.add(k) as usize;
+                    base.add(if STRIDE == 3 { e } else { e * STRIDE })
+                };
                 let r0 = _mm256_loadu2_m128(at(4), at(0));
                 let r1 = _mm256_loadu2_m128(at(5), at(1));
                 let r2 = _mm256_loadu2_m128(at(6), at(2));
@@ -59,9 +60,16 @@ impl VertexFans {
                 )
             }
         };
+        // Packed positions are read at offsets stored premultiplied (`offsets`: no multiply per
+        // load), others at `STRIDE` times the vertex index (as the gathers need).
+        let stored = if STRIDE == 3 {
+            &self.offsets
+        } else {
+            &self.entries
+        };
         // Each group of 16 as two halves of 8 lanes (the second only where it has lanes in use).
         for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
-            let entries = &self.entries[first as usize..][..steps as usize * GROUP];
+            let entries = &stored[first as usize..][..steps as usize * GROUP];
             for h in 0..(lanes as usize).div_ceil(HALF) {
                 let centre = &self.centres[g * GROUP + h * HALF..][..HALF];
                 let lanes = (lanes as usize - h * HALF).min(HALF);

@@ -22,13 +22,24 @@ impl VertexFans {
         base: *const f32,
         write: &mut impl FnMut(usize, Vec3),
     ) {
-        // 16 positions named by `idx` as x, y, z registers (lane k = idx[k]).
-        let load16 = |idx: &[u32]| -> (__m512, __m512, __m512) {
+        // Packed positions are read at offsets stored premultiplied (`offsets`: no multiply per
+        // load), others at `STRIDE` times the vertex index.
+        let stored = if STRIDE == 3 {
+            &self.offsets
+        } else {
+            &self.entries
+        };
+        // 16 positions named by `idx[0..16]` as x, y, z registers (lane k = vertex idx[k]).
+        let load16 = |idx: *const u32| -> (__m512, __m512, __m512) {
             // Written out row by row, not through `array::map`: a closure passed to a core
             // function is compiled without AVX-512 and called per row, spilling every register.
-            // SAFETY: idx holds 16 indices below position_count, and 4 floats at STRIDE * v are
-            // readable for each (caller).
-            let at = |k: usize| unsafe { _mm_loadu_ps(base.add(idx[k] as usize * STRIDE)) };
+            // SAFETY: idx points at 16 stored entries (offsets of packed positions, or vertex
+            // indices) of vertices below position_count, and 4 floats are readable at each
+            // vertex's offset (caller).
+            let at = |k: usize| unsafe {
+                let e = *idx.add(k) as usize;
+                _mm_loadu_ps(base.add(if STRIDE == 3 { e } else { e * STRIDE }))
+            };
             let row = |j: usize| {
                 let r = _mm512_castps128_ps512(at(j));
                 let r = _mm512_insertf32x4::<1>(r, at(j + 4));
@@ -51,7 +62,8 @@ impl VertexFans {
         let mut rows = [[0f32; GROUP]; 4];
         for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
             let centre = &self.centres[g * GROUP..][..GROUP];
-            let entries = &self.entries[first as usize..][..steps as usize * GROUP];
+            // Step l of the group: its 16 entries at `group.add(l * GROUP)`.
+            let group = stored[first as usize..][..steps as usize * GROUP].as_ptr();
             let (mut sx, mut sy, mut sz) = (
                 _mm512_setzero_ps(),
                 _mm512_setzero_ps(),
@@ -59,15 +71,17 @@ impl VertexFans {
             );
             if steps > 1 {
                 // Each fan's first entry is its origin (as the AVX2 kernel).
-                let (px, py, pz) = load16(&entries[..GROUP]);
-                let (qx, qy, qz) = load16(&entries[GROUP..][..GROUP]);
+                let (px, py, pz) = load16(group);
+                // SAFETY: 1 < steps: the 16 entries at GROUP lie in the group's steps * GROUP.
+                let (qx, qy, qz) = load16(unsafe { group.add(GROUP) });
                 let (mut ax, mut ay, mut az) = (
                     _mm512_sub_ps(qx, px),
                     _mm512_sub_ps(qy, py),
                     _mm512_sub_ps(qz, pz),
                 );
                 for l in 2..steps as usize {
-                    let (qx, qy, qz) = load16(&entries[l * GROUP..][..GROUP]);
+                    // SAFETY: l < steps: the 16 entries at l * GROUP lie in the group's entries.
+                    let (qx, qy, qz) = load16(unsafe { group.add(l * GROUP) });
                     let (bx, by, bz) = (
                         _mm512_sub_ps(qx, px),
                         _mm512_sub_ps(qy, py),
