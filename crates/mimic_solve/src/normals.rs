@@ -303,13 +303,15 @@ fn fan_sum<'a>(mut fan: impl Iterator<Item = &'a u32>, at: impl Fn(usize) -> Vec
     // The first entry is the origin (its difference vector is zero), as in the vector kernels.
     if let (Some(&w0), Some(&w1)) = (fan.next(), fan.next()) {
         let c = at(w0 as usize);
-        // a x b = (a * b.yzx - a.yzx * b).yzx: sum the inner vectors, rotate at the end.
+        // a x b = (a * b.yzx - a.yzx * b).yzx: sum the inner vectors, rotate at the end. Each
+        // term is added as the vector kernels add it, two fused multiply-adds into the sum
+        // (`acc + a b_r`, rounded, then `- a_r b`, rounded).
         let mut a = at(w1 as usize) - c;
         let mut a_r = a.yzx();
         for &w in fan {
             let b = at(w as usize) - c;
             let b_r = b.yzx();
-            acc += a * b_r - a_r * b;
+            acc = (-a_r).mul_add(b, a.mul_add(b_r, acc));
             a = b;
             a_r = b_r;
         }

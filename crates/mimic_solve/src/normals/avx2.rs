@@ -100,13 +100,11 @@ impl VertexFans {
                             _mm256_sub_ps(qy, py),
                             _mm256_sub_ps(qz, pz),
                         );
-                        // a x b, each component one multiply and one fused multiply-subtract.
-                        let cx = _mm256_fmsub_ps(ay, bz, _mm256_mul_ps(az, by));
-                        let cy = _mm256_fmsub_ps(az, bx, _mm256_mul_ps(ax, bz));
-                        let cz = _mm256_fmsub_ps(ax, by, _mm256_mul_ps(ay, bx));
-                        sx = _mm256_add_ps(sx, cx);
-                        sy = _mm256_add_ps(sy, cy);
-                        sz = _mm256_add_ps(sz, cz);
+                        // s += a x b, each component two fused multiply-adds into the sum
+                        // (`s + a.y b.z - a.z b.y`, rounded after each): no separate product.
+                        sx = _mm256_fnmadd_ps(az, by, _mm256_fmadd_ps(ay, bz, sx));
+                        sy = _mm256_fnmadd_ps(ax, bz, _mm256_fmadd_ps(az, bx, sy));
+                        sz = _mm256_fnmadd_ps(ay, bx, _mm256_fmadd_ps(ax, by, sz));
                         (ax, ay, az) = (bx, by, bz);
                     }
                 }

@@ -87,14 +87,11 @@ impl VertexFans {
                         _mm512_sub_ps(qy, py),
                         _mm512_sub_ps(qz, pz),
                     );
-                    // a x b, each component one multiply and one fused multiply-subtract, as
-                    // the AVX2 kernel's.
-                    let cx = _mm512_fmsub_ps(ay, bz, _mm512_mul_ps(az, by));
-                    let cy = _mm512_fmsub_ps(az, bx, _mm512_mul_ps(ax, bz));
-                    let cz = _mm512_fmsub_ps(ax, by, _mm512_mul_ps(ay, bx));
-                    sx = _mm512_add_ps(sx, cx);
-                    sy = _mm512_add_ps(sy, cy);
-                    sz = _mm512_add_ps(sz, cz);
+                    // s += a x b, each component two fused multiply-adds into the sum, as the
+                    // AVX2 kernel's.
+                    sx = _mm512_fnmadd_ps(az, by, _mm512_fmadd_ps(ay, bz, sx));
+                    sy = _mm512_fnmadd_ps(ax, bz, _mm512_fmadd_ps(az, bx, sy));
+                    sz = _mm512_fnmadd_ps(ay, bx, _mm512_fmadd_ps(ax, by, sz));
                     (ax, ay, az) = (bx, by, bz);
                 }
             }
