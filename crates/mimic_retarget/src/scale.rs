@@ -164,16 +164,18 @@ impl SourceToTarget {
         self.linear * e
     }
 
-    /// Expresses a source-space head rotation in target axes.
+    /// Expresses a source-space head rotation in target axes: `A R(r) A^-1` for the source's
+    /// axes `A = R(rotation) M` (`M` the x mirror when mirrored), as a quaternion product. A
+    /// mirror turns a rotation about `(x, y, z)` into one about `(-x, y, z)` by the opposite
+    /// angle, quaternion `(x, -y, -z, w)`; so `q r' q^-1`, two products and no matrix.
     pub fn rotation_in_target(&self, r: Quat) -> Quat {
-        let basis = Mat3::from_quat(self.rotation)
-            * if self.mirrored {
-                MIRROR_X
-            } else {
-                Mat3::IDENTITY
-            };
-        let m = basis * Mat3::from_quat(r) * basis.inverse();
-        Quat::from_mat3(&m).normalize()
+        let r = if self.mirrored {
+            Quat::from_xyzw(r.x, -r.y, -r.z, r.w)
+        } else {
+            r
+        };
+        let q = self.rotation.normalize();
+        (q * r * q.conjugate()).normalize()
     }
 }
 
@@ -209,6 +211,45 @@ mod tests {
         let e = Vec3::new(0.01, -0.02, 0.03);
         assert!((s.apply(e) - r * (e * 10.0)).length() < 1e-4);
         assert!(s.rms_residual < 1e-4);
+    }
+
+    #[test]
+    fn rotation_in_target_is_the_rotation_seen_in_target_axes() {
+        // Independent truth: the matrix `A R A^-1` in f64, `A = R(rotation) M`.
+        let mut seed = 11u64;
+        let mut unit = || {
+            seed = seed
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (seed >> 40) as f32 / (1u64 << 24) as f32 * 2.0 - 1.0
+        };
+        for k in 0..200 {
+            let mut random_quat =
+                || Quat::from_xyzw(unit(), unit(), unit(), unit() + 1e-3).normalize();
+            let map = SourceToTarget {
+                rotation: random_quat(),
+                mirrored: k % 2 == 1,
+                linear: Mat3::IDENTITY,
+                scale: 1.0,
+                axis: Vec3::ONE,
+                rms_residual: 0.0,
+                outliers: 0,
+            };
+            let r = random_quat();
+            let a = glam::DMat3::from_quat(map.rotation.as_dquat())
+                * if map.mirrored {
+                    MIRROR_X.as_dmat3()
+                } else {
+                    glam::DMat3::IDENTITY
+                };
+            let want = a * glam::DMat3::from_quat(r.as_dquat()) * a.inverse();
+            let got = glam::DMat3::from_quat(map.rotation_in_target(r).as_dquat());
+            // Two quaternion products and two normalisations in f32, then the matrix: a few
+            // eps per entry of a rotation matrix (entries at most 1).
+            let err = (got - want).to_cols_array().map(f64::abs);
+            let err = err.iter().cloned().fold(0.0, f64::max);
+            assert!(err <= 16.0 * f32::EPSILON as f64, "case {k}: error {err:e}");
+        }
     }
 
     #[test]
