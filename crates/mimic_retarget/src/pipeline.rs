@@ -258,10 +258,7 @@ impl Retargeter {
         let gate_inverse_bounds2 = fdps
             .iter()
             .zip(&rig.controls)
-            .map(|(f, c)| {
-                let bound = settings.gate.bound_of(*f, c.region) * face;
-                1.0 / (bound * bound)
-            })
+            .map(|(f, c)| (settings.gate.bound_of(*f, c.region) * face).powi(-2))
             .collect();
         let mut r = Retargeter {
             layout: layout.clone(),
@@ -426,8 +423,7 @@ impl Retargeter {
         let status = self.step_frame(frame, out);
         if status != FrameStatus::Rejected {
             // Compared squared: no square root per control.
-            let limit = self.settings.gate.jump_report * self.face_size;
-            let limit2 = limit * limit;
+            let limit2 = (self.settings.gate.jump_report * self.face_size).powi(2);
             let jump = out
                 .displacements
                 .iter()
