@@ -87,6 +87,9 @@ pub struct VertexFans {
 impl VertexFans {
     /// Fans of vertices `0..count` from `triangles` over `vertex_count` positions; triangles naming
     /// a vertex `>= vertex_count` are skipped, as in [`vertex_normals`].
+    ///
+    /// # Panics
+    /// If the fans name a vertex past `u32::MAX / 3` (its packed offset would not fit a `u32`).
     pub fn new(count: usize, vertex_count: usize, triangles: &[[u32; 3]]) -> Self {
         let count = count.min(vertex_count);
         let fans = chain_fans(count, vertex_count, triangles);
