@@ -154,6 +154,16 @@ impl VertexFans {
         self
     }
 
+    /// The stored entries a kernel reading positions `STRIDE` floats a vertex reads: offsets
+    /// premultiplied by 3 for packed positions (no multiply per load), else vertex indices.
+    fn entries_for<const STRIDE: usize>(&self) -> &[u32] {
+        if STRIDE == 3 {
+            &self.offsets
+        } else {
+            &self.entries
+        }
+    }
+
     /// Number of vertices with a fan (`0..count`).
     pub fn count(&self) -> usize {
         self.count
@@ -296,6 +306,17 @@ impl VertexFans {
                 write(v, Vec3::from(acc.normalize_or_zero()));
             }
         }
+    }
+}
+
+/// The float offset of a stored entry `e` of [`VertexFans::entries_for`]`::<STRIDE>`: `e` itself
+/// for packed positions, else `STRIDE` floats per vertex index.
+#[inline(always)]
+fn float_offset<const STRIDE: usize>(e: u32) -> usize {
+    if STRIDE == 3 {
+        e as usize
+    } else {
+        e as usize * STRIDE
     }
 }
 

@@ -1,7 +1,7 @@
 //! [`VertexFans`]' 8-lane kernel (AVX2 + FMA): each group of 16 fans as two halves of 8, in the
 //! lanes of AVX registers; the AVX-512 kernel (`avx512.rs`) sums the same terms lane for lane.
 
-use super::{GROUP, HALF, VertexFans};
+use super::{GROUP, HALF, VertexFans, float_offset};
 use glam::{Vec3, Vec3A};
 
 impl VertexFans {
@@ -41,10 +41,7 @@ impl VertexFans {
                         _mm256_i32gather_ps::<4>(base.add(2), i),
                     );
                 }
-                let at = |k: usize| {
-                    let e = *idx.add(k) as usize;
-                    base.add(if STRIDE == 3 { e } else { e * STRIDE })
-                };
+                let at = |k: usize| base.add(float_offset::<STRIDE>(*idx.add(k)));
                 let r0 = _mm256_loadu2_m128(at(4), at(0));
                 let r1 = _mm256_loadu2_m128(at(5), at(1));
                 let r2 = _mm256_loadu2_m128(at(6), at(2));
@@ -60,13 +57,8 @@ impl VertexFans {
                 )
             }
         };
-        // Packed positions are read at offsets stored premultiplied (`offsets`: no multiply per
-        // load), others at `STRIDE` times the vertex index (as the gathers need).
-        let stored = if STRIDE == 3 {
-            &self.offsets
-        } else {
-            &self.entries
-        };
+        // Vertex indices for `STRIDE` 4 (the gathers scale them themselves), offsets for 3.
+        let stored = self.entries_for::<STRIDE>();
         // Each group of 16 as two halves of 8 lanes (the second only where it has lanes in use).
         for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
             let entries = &stored[first as usize..][..steps as usize * GROUP];

@@ -2,7 +2,7 @@
 //! register, with the AVX2 kernel's arithmetic lane for lane (the same sums bit for bit) and a
 //! 14-bit reciprocal square root refined by the same Newton step.
 
-use super::{GROUP, VertexFans};
+use super::{GROUP, VertexFans, float_offset};
 use glam::Vec3;
 use std::arch::x86_64::*;
 
@@ -22,13 +22,7 @@ impl VertexFans {
         base: *const f32,
         write: &mut impl FnMut(usize, Vec3),
     ) {
-        // Packed positions are read at offsets stored premultiplied (`offsets`: no multiply per
-        // load), others at `STRIDE` times the vertex index.
-        let stored = if STRIDE == 3 {
-            &self.offsets
-        } else {
-            &self.entries
-        };
+        let stored = self.entries_for::<STRIDE>();
         // 16 positions named by `idx[0..16]` as x, y, z registers (lane k = vertex idx[k]).
         let load16 = |idx: *const u32| -> (__m512, __m512, __m512) {
             // Written out row by row, not through `array::map`: a closure passed to a core
@@ -36,10 +30,8 @@ impl VertexFans {
             // SAFETY: idx points at 16 stored entries (offsets of packed positions, or vertex
             // indices) of vertices below position_count, and 4 floats are readable at each
             // vertex's offset (caller).
-            let at = |k: usize| unsafe {
-                let e = *idx.add(k) as usize;
-                _mm_loadu_ps(base.add(if STRIDE == 3 { e } else { e * STRIDE }))
-            };
+            let at =
+                |k: usize| unsafe { _mm_loadu_ps(base.add(float_offset::<STRIDE>(*idx.add(k)))) };
             let row = |j: usize| {
                 let r = _mm512_castps128_ps512(at(j));
                 let r = _mm512_insertf32x4::<1>(r, at(j + 4));
