@@ -237,8 +237,8 @@ impl MovingDeform {
     /// [`MovingDeform::deform_packed`] by a given kernel (benchmarks and tests; one the CPU
     /// lacks runs the widest narrower one it has): 8 rows a register (AVX2), 16 and 8
     /// (AVX-512: a block's 24 rows in one 512-bit and one 256-bit register a coordinate), or one
-    /// row at a time (portable). Every kernel sums the same fused chains, so the positions are the same bit
-    /// for bit.
+    /// row at a time (portable). Every kernel sums the same fused chains, so the positions are
+    /// the same bit for bit.
     ///
     /// # Panics
     /// As [`MovingDeform::deform_packed`].

@@ -36,7 +36,8 @@ impl MovingDeform {
             // SAFETY: `values` holds BLOCK weights per kept column; each kept column is <
             // control_count == d.len(), so `dp` reads 3 f32 of one Vec3 (repr(C) x, y, z);
             // `rest` holds 3 * BLOCK values (`block_rows`' contract); `dst` points at BLOCK Vec3A
-            // (the block's compact rows when full, else `spare`); a run's 24 positions lie below vertex_count <= positions.len().
+            // (the block's compact rows when full, else `spare`); a run's 24 positions lie below
+            // vertex_count <= positions.len().
             unsafe {
                 let rows = block_rows::<HALF>(weights, cols, dp, rest);
                 let run = self.runs[b];
