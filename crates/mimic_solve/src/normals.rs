@@ -76,8 +76,13 @@ pub struct VertexFans {
     /// Per group, `steps * 16` neighbours, step-major.
     entries: Vec<u32>,
     /// `entries` times 3: each neighbour's offset (in floats) in positions packed 3 floats a
-    /// vertex, read by the packed kernels with no multiply per load.
+    /// vertex, read by the packed kernels with no multiply per load; empty when
+    /// `short_offsets` holds them.
     offsets: Vec<u32>,
+    /// The same offsets as 16-bit integers, when every one fits (at most 21 846 positions: 3 x 21 845 = 65 535):
+    /// half the bytes of the largest array the packed kernels read per frame, so the frame's
+    /// working set (this, the deform's weights, the positions) stays in a smaller cache.
+    short_offsets: Vec<u16>,
     /// Vertices with a fan.
     count: usize,
     /// Positions needed: one past the largest vertex any fan names.
@@ -124,12 +129,19 @@ impl VertexFans {
             3 * position_count <= u32::MAX as usize,
             "VertexFans::new: {position_count} positions: packed offsets past u32"
         );
-        let offsets = entries.iter().map(|&w| 3 * w).collect();
+        let (offsets, short_offsets) = if 3 * position_count.saturating_sub(1) <= u16::MAX as usize
+        {
+            let short = entries.iter().map(|&w| (3 * w) as u16).collect();
+            (Vec::new(), short)
+        } else {
+            (entries.iter().map(|&w| 3 * w).collect(), Vec::new())
+        };
         Self {
             groups,
             centres,
             entries,
             offsets,
+            short_offsets,
             count,
             position_count,
         }
@@ -152,16 +164,6 @@ impl VertexFans {
             *c = names[*c as usize];
         }
         self
-    }
-
-    /// The stored entries a kernel reading positions `STRIDE` floats a vertex reads: offsets
-    /// premultiplied by 3 for packed positions (no multiply per load), else vertex indices.
-    fn entries_for<const STRIDE: usize>(&self) -> &[u32] {
-        if STRIDE == 3 {
-            &self.offsets
-        } else {
-            &self.entries
-        }
     }
 
     /// Number of vertices with a fan (`0..count`).
@@ -203,9 +205,13 @@ impl VertexFans {
             // Vec3A at 4 floats a vertex, and each group's entries lie in `entries` by
             // construction.
             match VectorKernel::best_for_normals() {
-                VectorKernel::Avx512 => return unsafe { self.normals_avx512::<4>(p, &mut write) },
+                VectorKernel::Avx512 => {
+                    return unsafe { self.normals_avx512::<4, _>(&self.entries, p, &mut write) };
+                }
                 VectorKernel::Avx2 => {
-                    return unsafe { self.normals_avx2::<false, 4>(p, &mut write) };
+                    return unsafe {
+                        self.normals_avx2::<false, 4, _>(&self.entries, p, &mut write)
+                    };
                 }
                 VectorKernel::Portable => {}
             }
@@ -249,12 +255,22 @@ impl VertexFans {
             // entry v is below position_count, and the 4 floats at 3 v lie within positions
             // (asserted: 3 position_count + 1 floats); each group's entries lie in `entries` by
             // construction.
-            match kernel.available() {
-                VectorKernel::Avx512 => return unsafe { self.normals_avx512::<3>(p, &mut write) },
-                VectorKernel::Avx2 => {
-                    return unsafe { self.normals_avx2::<false, 3>(p, &mut write) };
+            let short = !self.short_offsets.is_empty();
+            let (long, s) = (&self.offsets, &self.short_offsets);
+            match (kernel.available(), short) {
+                (VectorKernel::Avx512, true) => {
+                    return unsafe { self.normals_avx512::<3, _>(s, p, &mut write) };
                 }
-                VectorKernel::Portable => {}
+                (VectorKernel::Avx512, false) => {
+                    return unsafe { self.normals_avx512::<3, _>(long, p, &mut write) };
+                }
+                (VectorKernel::Avx2, true) => {
+                    return unsafe { self.normals_avx2::<false, 3, _>(s, p, &mut write) };
+                }
+                (VectorKernel::Avx2, false) => {
+                    return unsafe { self.normals_avx2::<false, 3, _>(long, p, &mut write) };
+                }
+                (VectorKernel::Portable, _) => {}
             }
         }
         self.normals_packed_portable(positions, &mut write);
@@ -289,7 +305,13 @@ impl VertexFans {
         #[cfg(target_arch = "x86_64")]
         if crate::basis::avx2_fma() {
             // SAFETY: as in `normals`.
-            unsafe { self.normals_avx2::<true, 4>(positions.as_ptr().cast(), &mut write) };
+            unsafe {
+                self.normals_avx2::<true, 4, _>(
+                    &self.entries,
+                    positions.as_ptr().cast(),
+                    &mut write,
+                )
+            };
             return;
         }
         self.normals_portable(positions, &mut write);
@@ -309,14 +331,35 @@ impl VertexFans {
     }
 }
 
-/// The float offset of a stored entry `e` of [`VertexFans::entries_for`]`::<STRIDE>`: `e` itself
-/// for packed positions, else `STRIDE` floats per vertex index.
+/// A stored fan entry as the vector kernels read it: a vertex index (`u32`) or a packed
+/// position's float offset (`u32`, or `u16` where every offset fits).
+trait Entry: Copy {
+    /// The entry as an index.
+    fn index(self) -> usize;
+}
+
+impl Entry for u32 {
+    #[inline(always)]
+    fn index(self) -> usize {
+        self as usize
+    }
+}
+
+impl Entry for u16 {
+    #[inline(always)]
+    fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// The float offset of a stored entry `e`: `e` itself for packed positions (the kernels read
+/// offsets there), else `STRIDE` floats per vertex index.
 #[inline(always)]
-fn float_offset<const STRIDE: usize>(e: u32) -> usize {
+fn float_offset<const STRIDE: usize>(e: impl Entry) -> usize {
     if STRIDE == 3 {
-        e as usize
+        e.index()
     } else {
-        e as usize * STRIDE
+        e.index() * STRIDE
     }
 }
 

@@ -1,7 +1,7 @@
 //! [`VertexFans`]' 8-lane kernel (AVX2 + FMA): each group of 16 fans as two halves of 8, in the
 //! lanes of AVX registers; the AVX-512 kernel (`avx512.rs`) sums the same terms lane for lane.
 
-use super::{GROUP, HALF, VertexFans, float_offset};
+use super::{Entry, GROUP, HALF, VertexFans, float_offset};
 use glam::{Vec3, Vec3A};
 
 impl VertexFans {
@@ -15,10 +15,12 @@ impl VertexFans {
     ///
     /// # Safety
     /// The CPU must support AVX2 and FMA, and `base` must be valid for reading 4 floats at
-    /// `STRIDE * v` for every `v < self.position_count`.
+    /// `STRIDE * v` for every `v < self.position_count`; `stored` must be `self.entries` (vertex
+    /// indices) for `STRIDE` 4, the packed offsets (`offsets` or `short_offsets`) for 3.
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn normals_avx2<const GATHER: bool, const STRIDE: usize>(
+    pub(super) unsafe fn normals_avx2<const GATHER: bool, const STRIDE: usize, E: Entry>(
         &self,
+        stored: &[E],
         base: *const f32,
         write: &mut impl FnMut(usize, Vec3),
     ) {
@@ -27,12 +29,12 @@ impl VertexFans {
         // directly in this function's body (not through an iterator adaptor) so that it is
         // inlined with the AVX2 features: an adaptor's closure is compiled without them and
         // called once per step, with every live register spilled around the call.
-        let load8 = |idx: *const u32| -> (__m256, __m256, __m256) {
+        let load8 = |idx: *const E| -> (__m256, __m256, __m256) {
             // SAFETY: idx points at 8 stored entries (offsets of packed positions, or vertex
             // indices) of vertices below position_count (the caller's range); 4 floats are
             // readable at each vertex's offset.
             unsafe {
-                if GATHER && STRIDE == 4 {
+                if GATHER && STRIDE == 4 && size_of::<E>() == 4 {
                     // The gathers read f32 4 * idx[k] + axis of `positions`.
                     let i = _mm256_slli_epi32::<2>(_mm256_loadu_si256(idx.cast()));
                     return (
@@ -57,8 +59,8 @@ impl VertexFans {
                 )
             }
         };
-        // Vertex indices for `STRIDE` 4 (the gathers scale them themselves), offsets for 3.
-        let stored = self.entries_for::<STRIDE>();
+        // `stored`: vertex indices for `STRIDE` 4 (the gathers scale them themselves), offsets
+        // for 3.
         // Each group of 16 as two halves of 8 lanes (the second only where it has lanes in use).
         for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
             let entries = &stored[first as usize..][..steps as usize * GROUP];

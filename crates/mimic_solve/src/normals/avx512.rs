@@ -2,7 +2,7 @@
 //! register, with the AVX2 kernel's arithmetic lane for lane (the same sums bit for bit) and a
 //! 14-bit reciprocal square root refined by the same Newton step.
 
-use super::{GROUP, VertexFans, float_offset};
+use super::{Entry, GROUP, VertexFans, float_offset};
 use glam::Vec3;
 use std::arch::x86_64::*;
 
@@ -15,16 +15,17 @@ impl VertexFans {
     ///
     /// # Safety
     /// The CPU must support AVX-512F, and `base` must be valid for reading 4 floats at
-    /// `STRIDE * v` for every `v < self.position_count`.
+    /// `STRIDE * v` for every `v < self.position_count`; `stored` must be `self.entries` (vertex
+    /// indices) for `STRIDE` 4, the packed offsets (`offsets` or `short_offsets`) for 3.
     #[target_feature(enable = "avx512f")]
-    pub(super) unsafe fn normals_avx512<const STRIDE: usize>(
+    pub(super) unsafe fn normals_avx512<const STRIDE: usize, E: Entry>(
         &self,
+        stored: &[E],
         base: *const f32,
         write: &mut impl FnMut(usize, Vec3),
     ) {
-        let stored = self.entries_for::<STRIDE>();
         // 16 positions named by `idx[0..16]` as x, y, z registers (lane k = vertex idx[k]).
-        let load16 = |idx: *const u32| -> (__m512, __m512, __m512) {
+        let load16 = |idx: *const E| -> (__m512, __m512, __m512) {
             // Written out row by row, not through `array::map`: a closure passed to a core
             // function is compiled without AVX-512 and called per row, spilling every register.
             // SAFETY: idx points at 16 stored entries (offsets of packed positions, or vertex
@@ -112,12 +113,40 @@ impl VertexFans {
             let t1 = _mm512_unpackhi_ps(nx, ny); // x2 y2 x3 y3
             let t2 = _mm512_unpacklo_ps(nz, zero); // z0 0 z1 0
             let t3 = _mm512_unpackhi_ps(nz, zero); // z2 0 z3 0
+            let r = [
+                _mm512_shuffle_ps::<0x44>(t0, t2),
+                _mm512_shuffle_ps::<0xEE>(t0, t2),
+                _mm512_shuffle_ps::<0x44>(t1, t3),
+                _mm512_shuffle_ps::<0xEE>(t1, t3),
+            ];
+            if lanes as usize == GROUP {
+                // Every lane in use (all but the last group's): unrolled, each normal taken
+                // straight from its register (lane k in 128-bit lane k / 4 of r[k % 4]).
+                let at = |v: __m128| Vec3::from(glam::Vec3A::from(v));
+                write(centre[0] as usize, at(_mm512_castps512_ps128(r[0])));
+                write(centre[1] as usize, at(_mm512_castps512_ps128(r[1])));
+                write(centre[2] as usize, at(_mm512_castps512_ps128(r[2])));
+                write(centre[3] as usize, at(_mm512_castps512_ps128(r[3])));
+                write(centre[4] as usize, at(_mm512_extractf32x4_ps::<1>(r[0])));
+                write(centre[5] as usize, at(_mm512_extractf32x4_ps::<1>(r[1])));
+                write(centre[6] as usize, at(_mm512_extractf32x4_ps::<1>(r[2])));
+                write(centre[7] as usize, at(_mm512_extractf32x4_ps::<1>(r[3])));
+                write(centre[8] as usize, at(_mm512_extractf32x4_ps::<2>(r[0])));
+                write(centre[9] as usize, at(_mm512_extractf32x4_ps::<2>(r[1])));
+                write(centre[10] as usize, at(_mm512_extractf32x4_ps::<2>(r[2])));
+                write(centre[11] as usize, at(_mm512_extractf32x4_ps::<2>(r[3])));
+                write(centre[12] as usize, at(_mm512_extractf32x4_ps::<3>(r[0])));
+                write(centre[13] as usize, at(_mm512_extractf32x4_ps::<3>(r[1])));
+                write(centre[14] as usize, at(_mm512_extractf32x4_ps::<3>(r[2])));
+                write(centre[15] as usize, at(_mm512_extractf32x4_ps::<3>(r[3])));
+                continue;
+            }
             // SAFETY: each row of `rows` holds 16 f32.
             unsafe {
-                _mm512_storeu_ps(rows[0].as_mut_ptr(), _mm512_shuffle_ps::<0x44>(t0, t2));
-                _mm512_storeu_ps(rows[1].as_mut_ptr(), _mm512_shuffle_ps::<0xEE>(t0, t2));
-                _mm512_storeu_ps(rows[2].as_mut_ptr(), _mm512_shuffle_ps::<0x44>(t1, t3));
-                _mm512_storeu_ps(rows[3].as_mut_ptr(), _mm512_shuffle_ps::<0xEE>(t1, t3));
+                _mm512_storeu_ps(rows[0].as_mut_ptr(), r[0]);
+                _mm512_storeu_ps(rows[1].as_mut_ptr(), r[1]);
+                _mm512_storeu_ps(rows[2].as_mut_ptr(), r[2]);
+                _mm512_storeu_ps(rows[3].as_mut_ptr(), r[3]);
             }
             for (k, &v) in centre.iter().enumerate().take(lanes as usize) {
                 let n = &rows[k % 4][4 * (k / 4)..][..3];

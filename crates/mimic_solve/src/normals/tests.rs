@@ -213,6 +213,27 @@ fn fans_match_reference_on_generated_meshes() {
 }
 
 #[test]
+fn packed_offsets_are_16_bit_up_to_21_846_positions_and_32_bit_past() {
+    // 3 v fits 16 bits for every v <= 21 845 (3 x 21 845 = 65 535): a 147 x 148 grid (21 756
+    // positions) stores them as u16, a 148 x 148 one (21 904) as u32; both kernels read either
+    // width to the same normals, against the reference within its bound (`check_fans`).
+    for (nx, short) in [(147, true), (148, false)] {
+        let g = grid(nx, 148, 0.3, 0.3, 7);
+        let fans = VertexFans::new(g.positions.len(), g.positions.len(), &g.triangles);
+        assert_eq!(fans.short_offsets.is_empty(), !short, "{nx} x 148");
+        assert_eq!(fans.offsets.is_empty(), short, "{nx} x 148");
+        let stored: Vec<usize> = if short {
+            fans.short_offsets.iter().map(|&o| o as usize).collect()
+        } else {
+            fans.offsets.iter().map(|&o| o as usize).collect()
+        };
+        let want: Vec<usize> = fans.entries.iter().map(|&w| 3 * w as usize).collect();
+        assert_eq!(stored, want, "{nx} x 148: offsets are 3 x the entries");
+        check_fans(&g.positions, &g.triangles, g.positions.len());
+    }
+}
+
+#[test]
 fn fans_match_reference_on_a_closed_mesh() {
     // A UV sphere: closed fans everywhere, poles of high valence.
     let (rings, segs) = (12u32, 20u32);
