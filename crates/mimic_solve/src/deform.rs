@@ -11,7 +11,9 @@
 //! - adds the rest positions in registers and writes the compact positions (16-byte `Vec3A`) and
 //!   the mesh positions from the same registers: no intermediate `u`, no second pass;
 //! - stores a block's mesh positions with three full-width stores when its rows are consecutive
-//!   vertices of the mesh, one `Vec3` at a time otherwise.
+//!   vertices of the mesh, one `Vec3` at a time otherwise (the packed kernels: copied from the
+//!   compact rows while the next block is summed, on the load and store ports the sums leave
+//!   idle).
 //!
 //! The sums are the same fused multiply-add chains as [`Basis::apply`]'s (ascending control
 //! index, zero weights skipped), so the positions are bit-for-bit those of `rest + B d`.

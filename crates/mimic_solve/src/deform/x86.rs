@@ -39,7 +39,7 @@ impl MovingDeform {
             // (the block's compact rows when full, else `spare`); a run's 24 positions lie below
             // vertex_count <= positions.len().
             unsafe {
-                let rows = block_rows::<HALF>(weights, cols, dp, rest);
+                let rows = block_rows::<HALF>(weights, cols, dp, rest, PendingRows::NONE);
                 let run = self.runs[b];
                 for (g, &[x, y, z]) in rows.iter().enumerate() {
                     store_vec3a8(dst.add(g * 4 * L), x, y, z);
@@ -92,8 +92,8 @@ impl MovingDeform {
         // weights a kept column, in-bound columns and 3 * BLOCK rest values); AVX2, FMA and
         // F16C as this function's (caller); shapes as this function's.
         unsafe {
-            self.packed_blocks::<HALF>(d, compact, positions, |w, c, dp, r| {
-                block_rows::<HALF>(w, c, dp, r)
+            self.packed_blocks::<HALF>(d, compact, positions, |w, c, dp, r, pending| {
+                block_rows::<HALF>(w, c, dp, r, pending)
             });
         }
     }
@@ -114,32 +114,43 @@ impl MovingDeform {
     ) {
         // SAFETY: as in `deform_packed_avx2`, with AVX-512F (caller).
         unsafe {
-            self.packed_blocks::<HALF>(d, compact, positions, |w, c, dp, r| {
-                block_rows_avx512::<HALF>(w, c, dp, r)
+            self.packed_blocks::<HALF>(d, compact, positions, |w, c, dp, r, pending| {
+                block_rows_avx512::<HALF>(w, c, dp, r, pending)
             });
         }
     }
 
     /// The packed kernels' loop over blocks: `rows_of` sums a block's 24 rows (as
     /// [`block_rows`] does), stored packed to `compact` and, for a run of consecutive vertices,
-    /// from the same registers to `positions`; scattered blocks are copied row by row. Inlined
-    /// into each kernel, so `rows_of` runs with that kernel's CPU features.
+    /// from the same registers to `positions`. A scattered block's rows are copied from
+    /// `compact` to their mesh positions while the next block is summed (`rows_of` is handed
+    /// them as [`PendingRows`]), the last block's after the loop. Inlined into each kernel, so
+    /// `rows_of` runs with that kernel's CPU features.
     ///
     /// # Safety
     /// The CPU must support AVX2 and FMA, and `rows_of` must be safe to call with a block's
-    /// weights, kept columns, `d` and rest values (`block_rows`' contract); `compact.len() ==
-    /// 3 * rows.len()`, `positions.len() >= vertex_count` and `d.len() == control_count`.
+    /// weights, kept columns, `d`, rest values and pending rows (`block_rows`' contract);
+    /// `compact.len() == 3 * rows.len()`, `positions.len() >= vertex_count` and `d.len() ==
+    /// control_count`.
     #[inline(always)]
     unsafe fn packed_blocks<const HALF: bool>(
         &self,
         d: &[Vec3],
         compact: &mut [f32],
         positions: &mut [Vec3],
-        rows_of: impl Fn(*const u8, &[u32], *const f32, &[f32]) -> [[std::arch::x86_64::__m256; 3]; 3],
+        rows_of: impl Fn(
+            *const u8,
+            &[u32],
+            *const f32,
+            &[f32],
+            PendingRows,
+        ) -> [[std::arch::x86_64::__m256; 3]; 3],
     ) {
         const L: usize = 8;
         let mut spare = [0f32; 3 * BLOCK];
         let dp = d.as_ptr().cast::<f32>();
+        let p = positions.as_mut_ptr().cast::<f32>();
+        let mut pending = PendingRows::NONE;
         for (b, out) in compact.chunks_mut(3 * BLOCK).enumerate() {
             let full = out.len() == 3 * BLOCK;
             let dst: *mut f32 = if full {
@@ -151,81 +162,83 @@ impl MovingDeform {
             let weights = self.block_weights::<HALF>(kept.clone());
             let cols = &self.cols[kept];
             let rest = &self.rest[b * 3 * BLOCK..][..3 * BLOCK];
-            let rows = rows_of(weights, cols, dp, rest);
+            let rows = rows_of(weights, cols, dp, rest, pending);
             let run = self.runs[b];
-            // This block's mesh vertices (fewer than BLOCK in a last, partial block).
-            let vertices = &self.rows[b * BLOCK..][..out.len() / 3];
-            let p = positions.as_mut_ptr().cast::<f32>();
             // SAFETY: `dst` points at 3 * BLOCK floats (the block's packed compact rows when
-            // full, else `spare`); every row's vertex, and so a run's 24 positions, lies below
-            // vertex_count <= positions.len() (3 floats each); AVX2 (caller).
+            // full, else `spare`); a run's 24 vertices lie below vertex_count <= positions.len()
+            // (3 floats each); AVX2 (caller).
             unsafe {
                 for (g, &[x, y, z]) in rows.iter().enumerate() {
                     crate::basis::store_xyz8(dst.add(g * 3 * L), x, y, z);
                     if run != SCATTERED {
                         crate::basis::store_xyz8(p.add(3 * (run as usize + g * L)), x, y, z);
-                    } else if let Some(group) = vertices.get(g * L..) {
-                        scatter_xyz8(p, &group[..group.len().min(L)], x, y, z);
                     }
                 }
             }
             if !full {
                 out.copy_from_slice(&spare[..out.len()]);
             }
+            // This block's mesh vertices (fewer than BLOCK in a last, partial block).
+            let vertices = &self.rows[b * BLOCK..][..out.len() / 3];
+            pending = if run == SCATTERED {
+                PendingRows {
+                    src: out.as_ptr(),
+                    vertices,
+                    dst: p,
+                }
+            } else {
+                PendingRows::NONE
+            };
+        }
+        // SAFETY: the last block's rows, as every other's (see `PendingRows`).
+        unsafe {
+            for r in 0..pending.vertices.len() {
+                pending.copy(r);
+            }
         }
     }
 }
 
-/// Writes up to 8 rows given as x, y, z registers (lane k = row k) to the mesh positions of
-/// their vertices, `p[3 v..3 v + 3]` for the k-th of `vertices`, straight from registers: each
-/// row transposed into the low three lanes of a 128-bit vector, stored as 8 bytes and 4.
-/// (Copying them back from the packed compact rows instead stalled: one row in 8 straddles two
-/// of the 32-byte stores that wrote them, which a load cannot be forwarded from.)
-///
-/// # Safety
-/// The CPU must support AVX2; `vertices.len() <= 8` and `p` valid for writing 3 floats at
-/// `3 v` for every `v` in `vertices`.
-#[target_feature(enable = "avx2,fma,f16c")]
-#[inline]
-unsafe fn scatter_xyz8(
-    p: *mut f32,
-    vertices: &[u32],
-    x: std::arch::x86_64::__m256,
-    y: std::arch::x86_64::__m256,
-    z: std::arch::x86_64::__m256,
-) {
-    use std::arch::x86_64::*;
-    let t0 = _mm256_unpacklo_ps(x, y); // x0 y0 x1 y1 | x4 y4 x5 y5
-    let t1 = _mm256_unpackhi_ps(x, y); // x2 y2 x3 y3 | x6 y6 x7 y7
-    let t2 = _mm256_unpacklo_ps(z, z); // z0 z0 z1 z1 | z4 z4 z5 z5
-    let t3 = _mm256_unpackhi_ps(z, z); // z2 z2 z3 z3 | z6 z6 z7 z7
-    let r = [
-        _mm256_shuffle_ps::<0x44>(t0, t2), // row 0 | row 4
-        _mm256_shuffle_ps::<0xEE>(t0, t2), // row 1 | row 5
-        _mm256_shuffle_ps::<0x44>(t1, t3), // row 2 | row 6
-        _mm256_shuffle_ps::<0xEE>(t1, t3), // row 3 | row 7
-    ];
-    // SAFETY: 3 floats at 3 v are writable for every v in `vertices` (caller).
-    let put = |v: u32, row: __m128| unsafe {
-        let dst = p.add(3 * v as usize);
-        _mm_store_sd(dst.cast(), _mm_castps_pd(row));
-        _mm_store_ss(dst.add(2), _mm_movehl_ps(row, row));
+/// The rows of a scattered block still to be copied from their packed compact rows to their
+/// mesh positions, copied while the next block is summed: one per kept column, on the load and
+/// store ports the sums leave idle (copied straight after their own block, the same stores took
+/// about a fifth of the deform). Each row is two overlapping 8-byte moves, `(x, y)` to `3 v` and
+/// `(y, z)` to `3 v + 1`: no shuffle, and the rows' compact stores are long retired by then (a
+/// load straight after them could not be forwarded from the one row in 8 that straddles two).
+#[derive(Clone, Copy)]
+pub(super) struct PendingRows<'a> {
+    /// The rows' packed compact positions, 3 floats a row.
+    src: *const f32,
+    /// Their mesh vertices, at most [`BLOCK`].
+    vertices: &'a [u32],
+    /// The mesh positions, 3 floats a vertex.
+    dst: *mut f32,
+}
+
+impl PendingRows<'_> {
+    /// No rows.
+    const NONE: Self = Self {
+        src: std::ptr::null(),
+        vertices: &[],
+        dst: std::ptr::null_mut(),
     };
-    let low = |k: usize| _mm256_castps256_ps128(r[k]);
-    let high = |k: usize| _mm256_extractf128_ps::<1>(r[k]);
-    if let &[v0, v1, v2, v3, v4, v5, v6, v7] = vertices {
-        // Every row (all but a last, partial block's): unrolled, the rows in registers.
-        put(v0, low(0));
-        put(v1, low(1));
-        put(v2, low(2));
-        put(v3, low(3));
-        put(v4, high(0));
-        put(v5, high(1));
-        put(v6, high(2));
-        put(v7, high(3));
-    } else {
-        for (k, &v) in vertices.iter().enumerate().take(8) {
-            put(v, if k < 4 { low(k) } else { high(k - 4) });
+
+    /// Copies row `r` to its mesh position.
+    ///
+    /// # Safety
+    /// `r < vertices.len()`; `src` holds `3 * vertices.len()` floats and `dst` 3 floats at
+    /// `3 v` for every `v` in `vertices`, not overlapping `src`.
+    #[inline(always)]
+    unsafe fn copy(&self, r: usize) {
+        // SAFETY: as the function's contract: floats 3 r..3 r + 3 of `src`, 3 v..3 v + 3 of
+        // `dst`.
+        unsafe {
+            let v = *self.vertices.get_unchecked(r) as usize;
+            let (s, d) = (self.src.add(3 * r), self.dst.add(3 * v));
+            let xy = s.cast::<u64>().read_unaligned();
+            let yz = s.add(1).cast::<u64>().read_unaligned();
+            d.cast::<u64>().write_unaligned(xy);
+            d.add(1).cast::<u64>().write_unaligned(yz);
         }
     }
 }
@@ -245,6 +258,7 @@ unsafe fn block_rows_avx512<const HALF: bool>(
     cols: &[u32],
     dp: *const f32,
     rest: &[f32],
+    pending: PendingRows,
 ) -> [[std::arch::x86_64::__m256; 3]; 3] {
     use std::arch::x86_64::*;
     const L: usize = 8;
@@ -265,7 +279,10 @@ unsafe fn block_rows_avx512<const HALF: bool>(
         let mut col = weights;
         let mut acc16 = [_mm512_setzero_ps(); 3];
         let mut acc8 = [_mm256_setzero_ps(); 3];
-        for &j in cols {
+        for (c, &j) in cols.iter().enumerate() {
+            if c < pending.vertices.len() {
+                pending.copy(c);
+            }
             let c16 = wide(col);
             let c8 = load8::<HALF>(col.add(2 * L * size));
             let dj = dp.add(3 * j as usize);
@@ -275,6 +292,9 @@ unsafe fn block_rows_avx512<const HALF: bool>(
                 acc8[a] = _mm256_fmadd_ps(c8, _mm512_castps512_ps256(v), acc8[a]);
             }
             col = col.add(BLOCK * size);
+        }
+        for r in cols.len()..pending.vertices.len() {
+            pending.copy(r);
         }
         let rp = rest.as_ptr();
         let mut rows = [[_mm256_setzero_ps(); 3]; 3];
@@ -327,6 +347,7 @@ unsafe fn block_rows<const HALF: bool>(
     cols: &[u32],
     dp: *const f32,
     rest: &[f32],
+    pending: PendingRows,
 ) -> [[std::arch::x86_64::__m256; 3]; 3] {
     use std::arch::x86_64::*;
     const L: usize = 8;
@@ -337,7 +358,11 @@ unsafe fn block_rows<const HALF: bool>(
     unsafe {
         let mut col = weights;
         let mut acc = [_mm256_setzero_ps(); 9];
-        for &j in cols {
+        for (c, &j) in cols.iter().enumerate() {
+            // One pending row a column, while the sums wait on their multiply-adds.
+            if c < pending.vertices.len() {
+                pending.copy(c);
+            }
             let c = [
                 load8::<HALF>(col),
                 load8::<HALF>(col.add(L * size)),
@@ -355,6 +380,9 @@ unsafe fn block_rows<const HALF: bool>(
                 }
             }
             col = col.add(BLOCK * size);
+        }
+        for r in cols.len()..pending.vertices.len() {
+            pending.copy(r);
         }
         // Written out, not through `array::map`: a closure passed to a core function is
         // compiled without AVX2 and called per element, spilling every register.
