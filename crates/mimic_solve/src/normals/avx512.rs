@@ -113,40 +113,12 @@ impl VertexFans {
             let t1 = _mm512_unpackhi_ps(nx, ny); // x2 y2 x3 y3
             let t2 = _mm512_unpacklo_ps(nz, zero); // z0 0 z1 0
             let t3 = _mm512_unpackhi_ps(nz, zero); // z2 0 z3 0
-            let r = [
-                _mm512_shuffle_ps::<0x44>(t0, t2),
-                _mm512_shuffle_ps::<0xEE>(t0, t2),
-                _mm512_shuffle_ps::<0x44>(t1, t3),
-                _mm512_shuffle_ps::<0xEE>(t1, t3),
-            ];
-            if lanes as usize == GROUP {
-                // Every lane in use (all but the last group's): unrolled, each normal taken
-                // straight from its register (lane k in 128-bit lane k / 4 of r[k % 4]).
-                let at = |v: __m128| Vec3::from(glam::Vec3A::from(v));
-                write(centre[0] as usize, at(_mm512_castps512_ps128(r[0])));
-                write(centre[1] as usize, at(_mm512_castps512_ps128(r[1])));
-                write(centre[2] as usize, at(_mm512_castps512_ps128(r[2])));
-                write(centre[3] as usize, at(_mm512_castps512_ps128(r[3])));
-                write(centre[4] as usize, at(_mm512_extractf32x4_ps::<1>(r[0])));
-                write(centre[5] as usize, at(_mm512_extractf32x4_ps::<1>(r[1])));
-                write(centre[6] as usize, at(_mm512_extractf32x4_ps::<1>(r[2])));
-                write(centre[7] as usize, at(_mm512_extractf32x4_ps::<1>(r[3])));
-                write(centre[8] as usize, at(_mm512_extractf32x4_ps::<2>(r[0])));
-                write(centre[9] as usize, at(_mm512_extractf32x4_ps::<2>(r[1])));
-                write(centre[10] as usize, at(_mm512_extractf32x4_ps::<2>(r[2])));
-                write(centre[11] as usize, at(_mm512_extractf32x4_ps::<2>(r[3])));
-                write(centre[12] as usize, at(_mm512_extractf32x4_ps::<3>(r[0])));
-                write(centre[13] as usize, at(_mm512_extractf32x4_ps::<3>(r[1])));
-                write(centre[14] as usize, at(_mm512_extractf32x4_ps::<3>(r[2])));
-                write(centre[15] as usize, at(_mm512_extractf32x4_ps::<3>(r[3])));
-                continue;
-            }
             // SAFETY: each row of `rows` holds 16 f32.
             unsafe {
-                _mm512_storeu_ps(rows[0].as_mut_ptr(), r[0]);
-                _mm512_storeu_ps(rows[1].as_mut_ptr(), r[1]);
-                _mm512_storeu_ps(rows[2].as_mut_ptr(), r[2]);
-                _mm512_storeu_ps(rows[3].as_mut_ptr(), r[3]);
+                _mm512_storeu_ps(rows[0].as_mut_ptr(), _mm512_shuffle_ps::<0x44>(t0, t2));
+                _mm512_storeu_ps(rows[1].as_mut_ptr(), _mm512_shuffle_ps::<0xEE>(t0, t2));
+                _mm512_storeu_ps(rows[2].as_mut_ptr(), _mm512_shuffle_ps::<0x44>(t1, t3));
+                _mm512_storeu_ps(rows[3].as_mut_ptr(), _mm512_shuffle_ps::<0xEE>(t1, t3));
             }
             for (k, &v) in centre.iter().enumerate().take(lanes as usize) {
                 let n = &rows[k % 4][4 * (k / 4)..][..3];
