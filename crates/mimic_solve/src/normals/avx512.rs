@@ -120,9 +120,18 @@ impl VertexFans {
                 _mm512_storeu_ps(rows[2].as_mut_ptr(), _mm512_shuffle_ps::<0x44>(t1, t3));
                 _mm512_storeu_ps(rows[3].as_mut_ptr(), _mm512_shuffle_ps::<0xEE>(t1, t3));
             }
-            for (k, &v) in centre.iter().enumerate().take(lanes as usize) {
-                let n = &rows[k % 4][4 * (k / 4)..][..3];
-                write(v as usize, Vec3::new(n[0], n[1], n[2]));
+            if lanes as usize == GROUP {
+                // Every lane in use (all but the last group's): a loop of constant length, which
+                // the compiler unrolls, every offset into `rows` a constant.
+                for (k, &v) in centre.iter().enumerate() {
+                    let n = &rows[k % 4][4 * (k / 4)..][..3];
+                    write(v as usize, Vec3::new(n[0], n[1], n[2]));
+                }
+            } else {
+                for (k, &v) in centre.iter().enumerate().take(lanes as usize) {
+                    let n = &rows[k % 4][4 * (k / 4)..][..3];
+                    write(v as usize, Vec3::new(n[0], n[1], n[2]));
+                }
             }
         }
     }
