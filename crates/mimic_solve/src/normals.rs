@@ -76,13 +76,8 @@ pub struct VertexFans {
     /// Per group, `steps * 16` neighbours, step-major.
     entries: Vec<u32>,
     /// `entries` times 3: each neighbour's offset (in floats) in positions packed 3 floats a
-    /// vertex, read by the packed kernels with no multiply per load; empty when
-    /// `short_offsets` holds them.
-    offsets: Vec<u32>,
-    /// The same offsets as 16-bit integers, when every one fits (at most 21 846 positions: 3 x 21 845 = 65 535):
-    /// half the bytes of the largest array the packed kernels read per frame, so the frame's
-    /// working set (this, the deform's weights, the positions) stays in a smaller cache.
-    short_offsets: Vec<u16>,
+    /// vertex, read by the packed kernels with no multiply per load.
+    offsets: PackedOffsets,
     /// Vertices with a fan.
     count: usize,
     /// Positions needed: one past the largest vertex any fan names.
@@ -129,19 +124,16 @@ impl VertexFans {
             3 * position_count <= u32::MAX as usize,
             "VertexFans::new: {position_count} positions: packed offsets past u32"
         );
-        let (offsets, short_offsets) = if 3 * position_count.saturating_sub(1) <= u16::MAX as usize
-        {
-            let short = entries.iter().map(|&w| (3 * w) as u16).collect();
-            (Vec::new(), short)
+        let offsets = if 3 * position_count.saturating_sub(1) <= u16::MAX as usize {
+            PackedOffsets::Short(entries.iter().map(|&w| (3 * w) as u16).collect())
         } else {
-            (entries.iter().map(|&w| 3 * w).collect(), Vec::new())
+            PackedOffsets::Long(entries.iter().map(|&w| 3 * w).collect())
         };
         Self {
             groups,
             centres,
             entries,
             offsets,
-            short_offsets,
             count,
             position_count,
         }
@@ -251,29 +243,47 @@ impl VertexFans {
         #[cfg(target_arch = "x86_64")]
         {
             let p = positions.as_ptr();
+            let kernel = kernel.available();
             // SAFETY: the kernel's CPU features are checked by `available`; every centre and
             // entry v is below position_count, and the 4 floats at 3 v lie within positions
-            // (asserted: 3 position_count + 1 floats); each group's entries lie in `entries` by
-            // construction.
-            let short = !self.short_offsets.is_empty();
-            let (long, s) = (&self.offsets, &self.short_offsets);
-            match (kernel.available(), short) {
-                (VectorKernel::Avx512, true) => {
-                    return unsafe { self.normals_avx512::<3, _>(s, p, &mut write) };
+            // (asserted: 3 position_count + 1 floats); each group's entries lie in the offsets
+            // by construction.
+            let ran = unsafe {
+                match &self.offsets {
+                    PackedOffsets::Short(o) => self.normals_packed_vector(kernel, o, p, &mut write),
+                    PackedOffsets::Long(o) => self.normals_packed_vector(kernel, o, p, &mut write),
                 }
-                (VectorKernel::Avx512, false) => {
-                    return unsafe { self.normals_avx512::<3, _>(long, p, &mut write) };
-                }
-                (VectorKernel::Avx2, true) => {
-                    return unsafe { self.normals_avx2::<false, 3, _>(s, p, &mut write) };
-                }
-                (VectorKernel::Avx2, false) => {
-                    return unsafe { self.normals_avx2::<false, 3, _>(long, p, &mut write) };
-                }
-                (VectorKernel::Portable, _) => {}
+            };
+            if ran {
+                return;
             }
         }
         self.normals_packed_portable(positions, &mut write);
+    }
+
+    /// [`VertexFans::normals_packed_by`]'s vector kernels on packed offsets of either width;
+    /// false (nothing done) for [`VectorKernel::Portable`].
+    ///
+    /// # Safety
+    /// `kernel` must be one the CPU runs ([`VectorKernel::available`]); `offsets` are this
+    /// fan set's packed offsets and `p` is valid for reading 4 floats at each of them.
+    #[cfg(target_arch = "x86_64")]
+    unsafe fn normals_packed_vector<E: Entry>(
+        &self,
+        kernel: VectorKernel,
+        offsets: &[E],
+        p: *const f32,
+        write: &mut impl FnMut(usize, Vec3),
+    ) -> bool {
+        // SAFETY: as this function's contract.
+        unsafe {
+            match kernel {
+                VectorKernel::Avx512 => self.normals_avx512::<3, _>(offsets, p, write),
+                VectorKernel::Avx2 => self.normals_avx2::<false, 3, _>(offsets, p, write),
+                VectorKernel::Portable => return false,
+            }
+        }
+        true
     }
 
     /// [`VertexFans::normals_packed`] one fan at a time, on any CPU.
@@ -328,6 +338,24 @@ impl VertexFans {
                 write(v, Vec3::from(acc.normalize_or_zero()));
             }
         }
+    }
+}
+
+/// [`VertexFans`]' packed offsets (`3 v` for each entry `v`), as 16-bit integers when every one
+/// fits (at most 21 846 positions: 3 x 21 845 = 65 535): half the bytes of the largest array the
+/// packed kernels read per frame, so the frame's working set (this, the deform's weights, the
+/// positions) stays in a smaller cache.
+#[derive(Clone, Debug, PartialEq)]
+enum PackedOffsets {
+    /// Every offset fits 16 bits.
+    Short(Vec<u16>),
+    /// Some offset does not.
+    Long(Vec<u32>),
+}
+
+impl Default for PackedOffsets {
+    fn default() -> Self {
+        Self::Short(Vec::new())
     }
 }
 

@@ -191,11 +191,7 @@ impl MovingDeform {
             };
         }
         // SAFETY: the last block's rows, as every other's (see `PendingRows`).
-        unsafe {
-            for r in 0..pending.vertices.len() {
-                pending.copy(r);
-            }
-        }
+        unsafe { pending.copy_from(0) };
     }
 }
 
@@ -241,6 +237,30 @@ impl PendingRows<'_> {
             d.add(1).cast::<u64>().write_unaligned(yz);
         }
     }
+
+    /// Copies row `r` if there is one (one a kept column of the next block's sums).
+    ///
+    /// # Safety
+    /// As [`PendingRows::copy`], for any `r`.
+    #[inline(always)]
+    unsafe fn copy_if_any(&self, r: usize) {
+        if r < self.vertices.len() {
+            // SAFETY: r < vertices.len(); the rest as this function's contract.
+            unsafe { self.copy(r) };
+        }
+    }
+
+    /// Copies rows `first..` (those the next block's columns did not take).
+    ///
+    /// # Safety
+    /// As [`PendingRows::copy`], for every row from `first`.
+    #[inline(always)]
+    unsafe fn copy_from(&self, first: usize) {
+        for r in first..self.vertices.len() {
+            // SAFETY: r < vertices.len(); the rest as this function's contract.
+            unsafe { self.copy(r) };
+        }
+    }
 }
 
 /// [`block_rows`] with AVX-512F: rows 0-15 of the block in a 512-bit register a coordinate,
@@ -280,9 +300,7 @@ unsafe fn block_rows_avx512<const HALF: bool>(
         let mut acc16 = [_mm512_setzero_ps(); 3];
         let mut acc8 = [_mm256_setzero_ps(); 3];
         for (c, &j) in cols.iter().enumerate() {
-            if c < pending.vertices.len() {
-                pending.copy(c);
-            }
+            pending.copy_if_any(c);
             let c16 = wide(col);
             let c8 = load8::<HALF>(col.add(2 * L * size));
             let dj = dp.add(3 * j as usize);
@@ -293,9 +311,7 @@ unsafe fn block_rows_avx512<const HALF: bool>(
             }
             col = col.add(BLOCK * size);
         }
-        for r in cols.len()..pending.vertices.len() {
-            pending.copy(r);
-        }
+        pending.copy_from(cols.len());
         let rp = rest.as_ptr();
         let mut rows = [[_mm256_setzero_ps(); 3]; 3];
         for a in 0..3 {
@@ -360,9 +376,7 @@ unsafe fn block_rows<const HALF: bool>(
         let mut acc = [_mm256_setzero_ps(); 9];
         for (c, &j) in cols.iter().enumerate() {
             // One pending row a column, while the sums wait on their multiply-adds.
-            if c < pending.vertices.len() {
-                pending.copy(c);
-            }
+            pending.copy_if_any(c);
             let c = [
                 load8::<HALF>(col),
                 load8::<HALF>(col.add(L * size)),
@@ -381,9 +395,7 @@ unsafe fn block_rows<const HALF: bool>(
             }
             col = col.add(BLOCK * size);
         }
-        for r in cols.len()..pending.vertices.len() {
-            pending.copy(r);
-        }
+        pending.copy_from(cols.len());
         // Written out, not through `array::map`: a closure passed to a core function is
         // compiled without AVX2 and called per element, spilling every register.
         let rp = rest.as_ptr();

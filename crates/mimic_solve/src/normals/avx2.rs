@@ -16,7 +16,7 @@ impl VertexFans {
     /// # Safety
     /// The CPU must support AVX2 and FMA, and `base` must be valid for reading 4 floats at
     /// `STRIDE * v` for every `v < self.position_count`; `stored` must be `self.entries` (vertex
-    /// indices) for `STRIDE` 4, the packed offsets (`offsets` or `short_offsets`) for 3.
+    /// indices) for `STRIDE` 4, the packed offsets (either width) for 3.
     #[target_feature(enable = "avx2,fma")]
     pub(super) unsafe fn normals_avx2<const GATHER: bool, const STRIDE: usize, E: Entry>(
         &self,

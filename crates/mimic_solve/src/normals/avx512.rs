@@ -16,7 +16,7 @@ impl VertexFans {
     /// # Safety
     /// The CPU must support AVX-512F, and `base` must be valid for reading 4 floats at
     /// `STRIDE * v` for every `v < self.position_count`; `stored` must be `self.entries` (vertex
-    /// indices) for `STRIDE` 4, the packed offsets (`offsets` or `short_offsets`) for 3.
+    /// indices) for `STRIDE` 4, the packed offsets (either width) for 3.
     #[target_feature(enable = "avx512f")]
     pub(super) unsafe fn normals_avx512<const STRIDE: usize, E: Entry>(
         &self,
@@ -120,17 +120,17 @@ impl VertexFans {
                 _mm512_storeu_ps(rows[2].as_mut_ptr(), _mm512_shuffle_ps::<0x44>(t1, t3));
                 _mm512_storeu_ps(rows[3].as_mut_ptr(), _mm512_shuffle_ps::<0xEE>(t1, t3));
             }
+            let mut put = |k: usize, v: u32| {
+                let n = &rows[k % 4][4 * (k / 4)..][..3];
+                write(v as usize, Vec3::new(n[0], n[1], n[2]));
+            };
             if lanes as usize == GROUP {
                 // Every lane in use (all but the last group's): a loop of constant length, which
                 // the compiler unrolls, every offset into `rows` a constant.
-                for (k, &v) in centre.iter().enumerate() {
-                    let n = &rows[k % 4][4 * (k / 4)..][..3];
-                    write(v as usize, Vec3::new(n[0], n[1], n[2]));
-                }
+                centre.iter().enumerate().for_each(|(k, &v)| put(k, v));
             } else {
                 for (k, &v) in centre.iter().enumerate().take(lanes as usize) {
-                    let n = &rows[k % 4][4 * (k / 4)..][..3];
-                    write(v as usize, Vec3::new(n[0], n[1], n[2]));
+                    put(k, v);
                 }
             }
         }
