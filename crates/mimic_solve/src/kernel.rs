@@ -16,8 +16,8 @@ pub enum VectorKernel {
 
 impl VectorKernel {
     /// The normal pass's kernel unless told otherwise (runtime-detected, once): AVX-512 where the
-    /// CPU runs 512-bit operations at full width (on an Intel Xeon, 4-8 % faster than AVX2 in the
-    /// step), AVX2 where it splits them in two halves (AMD Zen 4, where the 16-lane kernel
+    /// CPU runs 512-bit operations at full width (faster than AVX2 in the step: 4-8 % on an Intel
+    /// Xeon, 20 % on AMD Zen 5), AVX2 where it splits them in two halves (AMD Zen 4, where the 16-lane kernel
     /// measured 5-10 % slower than the 8-lane one) or has no AVX-512, else portable
     /// (docs/performance.md).
     pub fn best_for_normals() -> Self {
