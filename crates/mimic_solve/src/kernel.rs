@@ -17,9 +17,9 @@ pub enum VectorKernel {
 impl VectorKernel {
     /// The normal pass's kernel unless told otherwise (runtime-detected, once): AVX-512 where the
     /// CPU runs 512-bit operations at full width (faster than AVX2 in the step: 4-8 % on an Intel
-    /// Xeon, 20 % on AMD Zen 5), AVX2 where it splits them in two halves (AMD Zen 4, where the 16-lane kernel
-    /// measured 5-10 % slower than the 8-lane one) or has no AVX-512, else portable
-    /// (docs/performance.md).
+    /// Xeon, 20-23 % on AMD Zen 5), AVX2 where it splits them in two halves (AMD Zen 4, where the
+    /// 16-lane kernel measured 5-10 % slower than the 8-lane one) or has no AVX-512, else
+    /// portable (docs/performance.md).
     pub fn best_for_normals() -> Self {
         static BEST: std::sync::OnceLock<VectorKernel> = std::sync::OnceLock::new();
         *BEST.get_or_init(|| {
