@@ -62,10 +62,22 @@ impl VertexFans {
         // `stored`: vertex indices for `STRIDE` 4 (the gathers scale them themselves), offsets
         // for 3.
         // Each group of 16 as two halves of 8 lanes (the second only where it has lanes in use).
-        for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
-            let entries = &stored[first as usize..][..steps as usize * GROUP];
-            for h in 0..(lanes as usize).div_ceil(HALF) {
-                let centre = &self.centres[g * GROUP + h * HALF..][..HALF];
+        // A half's sums are normalised and written after the next half's steps, so that the
+        // latency of its sums' chain and of the normalisation hides behind independent loads.
+        let mut halves = self
+            .groups
+            .iter()
+            .enumerate()
+            .flat_map(|(g, &[first, steps, lanes])| {
+                (0..(lanes as usize).div_ceil(HALF)).map(move |h| (g, first, steps, lanes, h))
+            });
+        let mut pending: Option<(usize, usize, __m256, __m256, __m256)> = None;
+        loop {
+            let next = halves.next();
+            // Explicit branches, not `Option::map`: a closure passed to a core function may be
+            // compiled without AVX2 (see `load8`).
+            let summed = if let Some((g, first, steps, lanes, h)) = next {
+                let entries = &stored[first as usize..][..steps as usize * GROUP];
                 let lanes = (lanes as usize - h * HALF).min(HALF);
                 let (mut sx, mut sy, mut sz) = (
                     _mm256_setzero_ps(),
@@ -102,6 +114,16 @@ impl VertexFans {
                         (ax, ay, az) = (bx, by, bz);
                     }
                 }
+                Some((g * GROUP + h * HALF, lanes, sx, sy, sz))
+            } else {
+                None
+            };
+            let done = match summed {
+                Some(s) => pending.replace(s),
+                None => pending.take(),
+            };
+            if let Some((c0, lanes, sx, sy, sz)) = done {
+                let centre = &self.centres[c0..][..HALF];
                 // 1 / length: the 12-bit reciprocal square root refined by one Newton step
                 // (y (3 - x y^2) / 2, relative error within a few eps), and 0 where the squared length
                 // is not a finite normal number (zero, subnormal, overflowed or NaN sums).
@@ -158,6 +180,9 @@ impl VertexFans {
                         write(v as usize, n);
                     }
                 }
+            }
+            if next.is_none() {
+                break;
             }
         }
     }

@@ -53,84 +53,101 @@ impl VertexFans {
         };
         // Row r of `rows` holds vertex 4c + r of the group at floats 4c..4c + 3.
         let mut rows = [[0f32; GROUP]; 4];
-        for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
-            let centre = &self.centres[g * GROUP..][..GROUP];
-            // Step l of the group: its 16 entries at `group.add(l * GROUP)`.
-            let group = stored[first as usize..][..steps as usize * GROUP].as_ptr();
-            let (mut sx, mut sy, mut sz) = (
-                _mm512_setzero_ps(),
-                _mm512_setzero_ps(),
-                _mm512_setzero_ps(),
-            );
-            if steps > 1 {
-                // Each fan's first entry is its origin (as the AVX2 kernel).
-                let (px, py, pz) = load16(group);
-                // SAFETY: 1 < steps: the 16 entries at GROUP lie in the group's steps * GROUP.
-                let (qx, qy, qz) = load16(unsafe { group.add(GROUP) });
-                let (mut ax, mut ay, mut az) = (
-                    _mm512_sub_ps(qx, px),
-                    _mm512_sub_ps(qy, py),
-                    _mm512_sub_ps(qz, pz),
+        // Group g's sums are normalised and written after group g + 1's steps, so that the
+        // latency of its sums' chain and of the normalisation hides behind independent loads.
+        let mut pending: Option<(usize, __m512, __m512, __m512)> = None;
+        for g in 0..=self.groups.len() {
+            // Explicit branches, not `Option::map`: a closure passed to a core function may be
+            // compiled without AVX-512 (see `load16`).
+            let summed = if let Some(&[first, steps, _]) = self.groups.get(g) {
+                // Step l of the group: its 16 entries at `group.add(l * GROUP)`.
+                let group = stored[first as usize..][..steps as usize * GROUP].as_ptr();
+                let (mut sx, mut sy, mut sz) = (
+                    _mm512_setzero_ps(),
+                    _mm512_setzero_ps(),
+                    _mm512_setzero_ps(),
                 );
-                for l in 2..steps as usize {
-                    // SAFETY: l < steps: the 16 entries at l * GROUP lie in the group's entries.
-                    let (qx, qy, qz) = load16(unsafe { group.add(l * GROUP) });
-                    let (bx, by, bz) = (
+                if steps > 1 {
+                    // Each fan's first entry is its origin (as the AVX2 kernel).
+                    let (px, py, pz) = load16(group);
+                    // SAFETY: 1 < steps: the 16 entries at GROUP lie in the group's steps * GROUP.
+                    let (qx, qy, qz) = load16(unsafe { group.add(GROUP) });
+                    let (mut ax, mut ay, mut az) = (
                         _mm512_sub_ps(qx, px),
                         _mm512_sub_ps(qy, py),
                         _mm512_sub_ps(qz, pz),
                     );
-                    // s += a x b, each component two fused multiply-adds into the sum, as the
-                    // AVX2 kernel's.
-                    sx = _mm512_fnmadd_ps(az, by, _mm512_fmadd_ps(ay, bz, sx));
-                    sy = _mm512_fnmadd_ps(ax, bz, _mm512_fmadd_ps(az, bx, sy));
-                    sz = _mm512_fnmadd_ps(ay, bx, _mm512_fmadd_ps(ax, by, sz));
-                    (ax, ay, az) = (bx, by, bz);
+                    for l in 2..steps as usize {
+                        // SAFETY: l < steps: the 16 entries at l * GROUP lie in the group's entries.
+                        let (qx, qy, qz) = load16(unsafe { group.add(l * GROUP) });
+                        let (bx, by, bz) = (
+                            _mm512_sub_ps(qx, px),
+                            _mm512_sub_ps(qy, py),
+                            _mm512_sub_ps(qz, pz),
+                        );
+                        // s += a x b, each component two fused multiply-adds into the sum, as the
+                        // AVX2 kernel's.
+                        sx = _mm512_fnmadd_ps(az, by, _mm512_fmadd_ps(ay, bz, sx));
+                        sy = _mm512_fnmadd_ps(ax, bz, _mm512_fmadd_ps(az, bx, sy));
+                        sz = _mm512_fnmadd_ps(ay, bx, _mm512_fmadd_ps(ax, by, sz));
+                        (ax, ay, az) = (bx, by, bz);
+                    }
                 }
-            }
-            // 1 / length: the 14-bit reciprocal square root refined by one Newton step
-            // (y (3 - x y^2) / 2: relative error (3/2) 2^-28 plus the rounding of its 5
-            // operations, within 4 eps), and 0 where the squared length is not a finite normal
-            // number, as the AVX2 kernel.
-            let len2 = _mm512_fmadd_ps(sz, sz, _mm512_fmadd_ps(sy, sy, _mm512_mul_ps(sx, sx)));
-            let y = _mm512_rsqrt14_ps(len2);
-            let xy2 = _mm512_mul_ps(_mm512_mul_ps(len2, y), y);
-            let inv = _mm512_mul_ps(
-                _mm512_mul_ps(_mm512_set1_ps(0.5), y),
-                _mm512_sub_ps(_mm512_set1_ps(3.0), xy2),
-            );
-            let ok = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(len2, _mm512_set1_ps(f32::MIN_POSITIVE))
-                & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(len2, _mm512_set1_ps(f32::INFINITY));
-            let inv = _mm512_maskz_mov_ps(ok, inv);
-            let (nx, ny, nz) = (
-                _mm512_mul_ps(sx, inv),
-                _mm512_mul_ps(sy, inv),
-                _mm512_mul_ps(sz, inv),
-            );
-            // Back to (x, y, z, 0) per vertex: 128-bit lane c of row r is vertex 4c + r.
-            let zero = _mm512_setzero_ps();
-            let t0 = _mm512_unpacklo_ps(nx, ny); // x0 y0 x1 y1
-            let t1 = _mm512_unpackhi_ps(nx, ny); // x2 y2 x3 y3
-            let t2 = _mm512_unpacklo_ps(nz, zero); // z0 0 z1 0
-            let t3 = _mm512_unpackhi_ps(nz, zero); // z2 0 z3 0
-            // SAFETY: each row of `rows` holds 16 f32.
-            unsafe {
-                _mm512_storeu_ps(rows[0].as_mut_ptr(), _mm512_shuffle_ps::<0x44>(t0, t2));
-                _mm512_storeu_ps(rows[1].as_mut_ptr(), _mm512_shuffle_ps::<0xEE>(t0, t2));
-                _mm512_storeu_ps(rows[2].as_mut_ptr(), _mm512_shuffle_ps::<0x44>(t1, t3));
-                _mm512_storeu_ps(rows[3].as_mut_ptr(), _mm512_shuffle_ps::<0xEE>(t1, t3));
-            }
-            let mut put = |k: usize, v: u32| {
-                let n = &rows[k % 4][4 * (k / 4)..][..3];
-                write(v as usize, Vec3::new(n[0], n[1], n[2]));
-            };
-            if lanes as usize == GROUP {
-                // Every lane in use (all but the last group's): a loop of constant length, which
-                // the compiler unrolls, every offset into `rows` a constant.
-                centre.iter().enumerate().for_each(|(k, &v)| put(k, v));
+                Some((g, sx, sy, sz))
             } else {
-                for (k, &v) in centre.iter().enumerate().take(lanes as usize) {
-                    put(k, v);
+                None
+            };
+            let done = match summed {
+                Some(s) => pending.replace(s),
+                None => pending.take(),
+            };
+            if let Some((g, sx, sy, sz)) = done {
+                let [_, _, lanes] = self.groups[g];
+                let centre = &self.centres[g * GROUP..][..GROUP];
+                // 1 / length: the 14-bit reciprocal square root refined by one Newton step
+                // (y (3 - x y^2) / 2: relative error (3/2) 2^-28 plus the rounding of its 5
+                // operations, within 4 eps), and 0 where the squared length is not a finite normal
+                // number, as the AVX2 kernel.
+                let len2 = _mm512_fmadd_ps(sz, sz, _mm512_fmadd_ps(sy, sy, _mm512_mul_ps(sx, sx)));
+                let y = _mm512_rsqrt14_ps(len2);
+                let xy2 = _mm512_mul_ps(_mm512_mul_ps(len2, y), y);
+                let inv = _mm512_mul_ps(
+                    _mm512_mul_ps(_mm512_set1_ps(0.5), y),
+                    _mm512_sub_ps(_mm512_set1_ps(3.0), xy2),
+                );
+                let ok = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(len2, _mm512_set1_ps(f32::MIN_POSITIVE))
+                    & _mm512_cmp_ps_mask::<_CMP_LT_OQ>(len2, _mm512_set1_ps(f32::INFINITY));
+                let inv = _mm512_maskz_mov_ps(ok, inv);
+                let (nx, ny, nz) = (
+                    _mm512_mul_ps(sx, inv),
+                    _mm512_mul_ps(sy, inv),
+                    _mm512_mul_ps(sz, inv),
+                );
+                // Back to (x, y, z, 0) per vertex: 128-bit lane c of row r is vertex 4c + r.
+                let zero = _mm512_setzero_ps();
+                let t0 = _mm512_unpacklo_ps(nx, ny); // x0 y0 x1 y1
+                let t1 = _mm512_unpackhi_ps(nx, ny); // x2 y2 x3 y3
+                let t2 = _mm512_unpacklo_ps(nz, zero); // z0 0 z1 0
+                let t3 = _mm512_unpackhi_ps(nz, zero); // z2 0 z3 0
+                // SAFETY: each row of `rows` holds 16 f32.
+                unsafe {
+                    _mm512_storeu_ps(rows[0].as_mut_ptr(), _mm512_shuffle_ps::<0x44>(t0, t2));
+                    _mm512_storeu_ps(rows[1].as_mut_ptr(), _mm512_shuffle_ps::<0xEE>(t0, t2));
+                    _mm512_storeu_ps(rows[2].as_mut_ptr(), _mm512_shuffle_ps::<0x44>(t1, t3));
+                    _mm512_storeu_ps(rows[3].as_mut_ptr(), _mm512_shuffle_ps::<0xEE>(t1, t3));
+                }
+                let mut put = |k: usize, v: u32| {
+                    let n = &rows[k % 4][4 * (k / 4)..][..3];
+                    write(v as usize, Vec3::new(n[0], n[1], n[2]));
+                };
+                if lanes as usize == GROUP {
+                    // Every lane in use (all but the last group's): a loop of constant length, which
+                    // the compiler unrolls, every offset into `rows` a constant.
+                    centre.iter().enumerate().for_each(|(k, &v)| put(k, v));
+                } else {
+                    for (k, &v) in centre.iter().enumerate().take(lanes as usize) {
+                        put(k, v);
+                    }
                 }
             }
         }
