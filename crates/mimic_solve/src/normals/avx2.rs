@@ -6,9 +6,9 @@ use glam::{Vec3, Vec3A};
 
 impl VertexFans {
     /// [`VertexFans::normals`] with the fans of a group, 8 at a time (each half of the group), in
-    /// the lanes of AVX registers: per step,
-    /// 8 neighbour loads transposed to x, y, z registers, 8 cross products, one vector square root
-    /// and division per group for the normalisation.
+    /// the lanes of AVX registers: per step, 8 neighbour loads transposed to x, y, z registers and
+    /// 8 cross products; per half one Newton-refined reciprocal square root, run (with the
+    /// half's write-out) after the next half's steps.
     ///
     /// `STRIDE` floats a vertex (4: `Vec3A`, 3: packed), x, y, z first; `GATHER` fetches by AVX2
     /// gathers (`STRIDE` 4 only).

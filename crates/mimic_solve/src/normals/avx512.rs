@@ -9,7 +9,8 @@ use std::arch::x86_64::*;
 impl VertexFans {
     /// [`VertexFans::normals`] with the 16 fans of a group in the lanes of AVX-512 registers: per
     /// step, 16 neighbour loads (4 per register, 128 bits each) transposed to x, y, z registers,
-    /// 16 cross products, and per group one Newton-refined reciprocal square root.
+    /// 16 cross products, and per group one Newton-refined reciprocal square root, run (with the
+    /// group's write-out) after the next group's steps.
     ///
     /// `STRIDE` floats a vertex (4: `Vec3A`, 3: packed), x, y, z first.
     ///
