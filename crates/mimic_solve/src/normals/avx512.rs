@@ -98,10 +98,8 @@ impl VertexFans {
             } else {
                 None
             };
-            let done = match summed {
-                Some(s) => pending.replace(s),
-                None => pending.take(),
-            };
+            // The previous group's sums (none before the first), and this one's kept for later.
+            let done = std::mem::replace(&mut pending, summed);
             if let Some((g, sx, sy, sz)) = done {
                 let [_, _, lanes] = self.groups[g];
                 let centre = &self.centres[g * GROUP..][..GROUP];
