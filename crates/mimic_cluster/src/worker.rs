@@ -296,7 +296,7 @@ impl Held {
                             self.counters.frames.fetch_add(1, Ordering::Relaxed);
                             let gated = after.gated > before.gated;
                             let jump = after.jumps > before.jumps && status == FrameStatus::Tracked;
-                            let message = encode_frame(n, &output, None);
+                            let message = encode_frame(n, &output.view(), None);
                             let body = encode_answer(gated, jump, &message);
                             if let Err(e) = self.cluster.client.publish(out.clone(), body.into()).await {
                                 tracing::warn!(session = %self.session, "answer not sent: {e}");

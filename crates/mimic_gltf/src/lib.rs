@@ -18,6 +18,7 @@
 mod glb;
 mod morphs;
 mod rig;
+mod sink;
 mod take;
 mod units;
 mod vertices;
@@ -25,6 +26,7 @@ mod vertices;
 pub use glb::{GlbSummary, GltfMaterial, GltfMesh, Scene, write_glb};
 pub use morphs::{Morph, basis_morphs, basis_weights, target_morphs};
 pub use rig::{RigLookParts, rig_look_parts, write_rig_glb};
+pub use sink::{GlbKeys, GlbSink};
 pub use take::{Interpolation, Take, head_translation};
 pub use units::{MODEL_UNIT_METRES, metres_per_unit};
 pub use vertices::{SplitVertices, split_vertices};

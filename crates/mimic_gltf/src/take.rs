@@ -1,7 +1,6 @@
 //! The keys of a performance: per frame, its time, the morph weights and the head pose.
 
-use glam::{Mat3, Quat, Vec3};
-use mimic_types::HeadPose;
+use glam::{Quat, Vec3};
 
 /// How the animation interpolates between keys.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
@@ -155,28 +154,13 @@ impl Take {
     }
 }
 
-/// The head's translation in the rig's axes and units: how far the centroid of a frame's
-/// `points` (source space) moved from where the inverse of its head `pose` puts it on the
-/// neutral face, mapped by `to_target` (the source-to-target map of displacements). `None`
-/// without points.
-pub fn head_translation(
-    points: impl IntoIterator<Item = Vec3>,
-    pose: &HeadPose,
-    to_target: Mat3,
-) -> Option<Vec3> {
-    let (sum, n) = points
-        .into_iter()
-        .fold((Vec3::ZERO, 0usize), |(s, n), p| (s + p, n + 1));
-    if n == 0 {
-        return None;
-    }
-    let c = sum / n as f32;
-    Some(to_target * (c - pose.inverse_apply(c)))
-}
+pub use mimic_types::pose::head_translation;
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Mat3;
+    use mimic_types::HeadPose;
 
     #[test]
     fn keys_strictly_increase_and_bad_values_are_replaced() {

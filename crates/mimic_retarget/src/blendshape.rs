@@ -12,6 +12,7 @@ use crate::{FrameOutput, FrameStatus, OneEuro, OneEuroSettings, OneEuroStep};
 use glam::Vec3;
 use mimic_solve::morph_fit::{MorphFit, MorphScratch};
 use mimic_solve::{SolveError, vertex_normals};
+pub use mimic_types::WeightMap;
 use mimic_types::{MorphTarget, Rig};
 
 /// Knobs of [`BlendshapeFitter`].
@@ -320,93 +321,6 @@ impl BlendshapeFitter {
         self.evaluate(&weights, &mut out.positions, &mut out.normals);
         self.weights = weights;
         &self.weights
-    }
-}
-
-/// Longest weight name [`WeightMap::apply`] looks up.
-const MAX_NAME: usize = 64;
-
-/// Maps named weights, as face-capture apps send them (ARKit names, values in [0, 1]), onto a
-/// rig's targets.
-///
-/// Besides each target's own name it accepts the other side convention (`mouthSmile_L` <->
-/// `mouthSmileLeft`), and a name whose `_L` and `_R` halves are both targets drives both
-/// (ARKit's single `browInnerUp` -> ICT's `browInnerUp_L` and `browInnerUp_R`). Names match
-/// regardless of ASCII case.
-#[derive(Clone, Debug)]
-pub struct WeightMap {
-    targets: usize,
-    index: std::collections::HashMap<String, Vec<usize>>,
-}
-
-impl WeightMap {
-    /// The map for targets named `names`, in weight order.
-    pub fn new(names: &[String]) -> Self {
-        let mut index: std::collections::HashMap<String, Vec<usize>> = Default::default();
-        let mut add = |key: String, k: usize| {
-            let slot = index.entry(key.to_ascii_lowercase()).or_default();
-            if !slot.contains(&k) {
-                slot.push(k);
-            }
-        };
-        for (k, name) in names.iter().enumerate() {
-            add(name.clone(), k);
-            for (short, long) in [("_L", "Left"), ("_R", "Right")] {
-                if let Some(base) = name.strip_suffix(short) {
-                    add(format!("{base}{long}"), k);
-                    add(base.to_string(), k);
-                } else if let Some(base) = name.strip_suffix(long) {
-                    add(format!("{base}{short}"), k);
-                    add(base.to_string(), k);
-                }
-            }
-        }
-        // A base name stands for both halves only where no target carries it exactly.
-        for (k, name) in names.iter().enumerate() {
-            index.insert(name.to_ascii_lowercase(), vec![k]);
-        }
-        Self {
-            targets: names.len(),
-            index,
-        }
-    }
-
-    /// Writes `pairs` into `out` in target order: known names get their value clamped to [0, 1]
-    /// (non-finite values count as 0), targets not named get 0. Returns how many pairs named no
-    /// target. Allocates nothing.
-    ///
-    /// # Panics
-    /// If `out` is not one weight per target.
-    pub fn apply<'a>(
-        &self,
-        pairs: impl IntoIterator<Item = (&'a str, f32)>,
-        out: &mut [f32],
-    ) -> usize {
-        assert_eq!(out.len(), self.targets, "one weight per target");
-        out.fill(0.0);
-        let mut unknown = 0;
-        for (name, value) in pairs {
-            let v = if value.is_finite() {
-                value.clamp(0.0, 1.0)
-            } else {
-                0.0
-            };
-            // Case-insensitive (Live Link Face writes `JawOpen`), without allocating.
-            let mut buf = [0u8; MAX_NAME];
-            let key = buf
-                .get_mut(..name.len())
-                .map(|b| {
-                    b.copy_from_slice(name.as_bytes());
-                    b.make_ascii_lowercase();
-                    &*b
-                })
-                .and_then(|b| std::str::from_utf8(b).ok());
-            match key.and_then(|k| self.index.get(k)) {
-                Some(ks) => ks.iter().for_each(|&k| out[k] = v),
-                None => unknown += 1,
-            }
-        }
-        unknown
     }
 }
 

@@ -11,13 +11,16 @@
 //! [`BlendshapeFitter`] turns the same control displacements into morph-target weights and the
 //! blended mesh (blendshape mode). [`StageSamples`] turns many steps' [`StageTimes`] into
 //! median / p99 per stage. [`Checkpoint`] is a retargeter's learned state (neutral, scale,
-//! filters), serialisable, so another process can continue a session.
+//! filters), serialisable, so another process can continue a session. [`FrameLoop`] is the one
+//! frame loop every command and session runs: frames in, then every output
+//! ([`FrameSink`](mimic_types::FrameSink)) in turn.
 //! No tokio, no wgpu, no file formats: sources and sinks live in other crates.
 
 mod blendshape;
 mod checkpoint;
 mod filter;
-pub mod frame_metrics;
+mod frame_loop;
+pub use mimic_types::frame_metrics;
 mod gate;
 mod patch;
 mod pipeline;
@@ -31,6 +34,7 @@ mod weight_stats;
 pub use blendshape::{BlendshapeError, BlendshapeFitter, BlendshapeSettings, WeightMap};
 pub use checkpoint::{Checkpoint, CheckpointError};
 pub use filter::{OneEuro, OneEuroSettings, OneEuroStep};
+pub use frame_loop::{FrameLoop, LoopReport};
 pub use gate::{GateReading, GateReason, GateSettings, face_size};
 pub use pipeline::{FrameOutput, FrameStatus, RetargetError, Retargeter, Stage, StageTimes, Stats};
 pub use scale::SourceToTarget;

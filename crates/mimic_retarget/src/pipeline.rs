@@ -11,7 +11,7 @@ use glam::{Quat, Vec3};
 use mimic_solve::VectorKernel;
 use mimic_solve::{Basis, vertex_normals};
 use mimic_types::layout::mean_of_valid;
-use mimic_types::{ControlName, Fdp, HeadPose, LandmarkFrame, Layout, Rig};
+use mimic_types::{ControlName, Fdp, FrameView, HeadPose, LandmarkFrame, Layout, Rig};
 pub(crate) use neutral::Accumulator;
 use std::sync::Arc;
 use std::time::Instant;
@@ -98,18 +98,7 @@ impl StageTimes {
     }
 }
 
-/// What happened to a frame.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum FrameStatus {
-    /// Used to build the neutral; the output is the rest mesh.
-    Calibrating,
-    /// Tracked and retargeted.
-    Tracked,
-    /// Tracking lost (or too few stable points): last pose held, expression easing to neutral.
-    Lost,
-    /// Unusable (a tracked frame with the wrong point count): the output was left unchanged.
-    Rejected,
-}
+pub use mimic_types::FrameStatus;
 
 /// Counters over a retargeter's life.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -156,6 +145,19 @@ pub struct FrameOutput {
     pub filled: u32,
     /// Time spent per stage.
     pub times: StageTimes,
+}
+
+impl FrameOutput {
+    /// The frame as encoders see it (time, status, pose, `d`), borrowed.
+    pub fn view(&self) -> FrameView<'_> {
+        FrameView {
+            timestamp_us: self.timestamp_us,
+            status: self.status,
+            pose: self.pose,
+            target_rotation: self.target_rotation,
+            displacements: &self.displacements,
+        }
+    }
 }
 
 /// Ties a layout to a rig and turns landmark frames into deformed meshes.

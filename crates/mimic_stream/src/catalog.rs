@@ -6,7 +6,7 @@ use mimic_retarget::WeightMap;
 use mimic_solve::Basis;
 use mimic_solve::basis::MovingRows;
 use mimic_types::{Layout, MorphTarget, Rig};
-use mimic_wire::{encode_morph_rig, encode_rig};
+use mimic_wire::{BasisRows, encode_morph_rig, encode_rig};
 use std::collections::BTreeMap;
 use std::sync::Arc;
 
@@ -123,7 +123,7 @@ impl RigEntry {
             });
         }
         let moving = basis.moving_rows(n);
-        let message = Arc::new(encode_rig(&rig, &basis));
+        let message = Arc::new(encode_rig(&rig, rows(&basis)));
         Ok(Self {
             rig,
             basis: Arc::new(basis),
@@ -153,7 +153,7 @@ impl RigEntry {
         let basis =
             mimic_solve::morph_basis::morph_basis(&targets, n).ok_or_else(|| bad(&targets[0]))?;
         let names: Vec<String> = targets.iter().map(|t| t.name.clone()).collect();
-        let message = Arc::new(encode_morph_rig(&self.rig, &basis, &names));
+        let message = Arc::new(encode_morph_rig(&self.rig, rows(&basis), &names));
         let deltas = targets
             .iter()
             .flat_map(|t| t.position_deltas.iter().copied())
@@ -231,5 +231,13 @@ impl Catalog {
     /// Names of the rigs offered.
     pub fn rig_names(&self) -> Vec<String> {
         self.rigs.keys().cloned().collect()
+    }
+}
+
+/// A basis as the rig message carries it.
+fn rows(basis: &mimic_solve::Basis) -> BasisRows<'_> {
+    BasisRows {
+        weights: basis.as_slice(),
+        columns: basis.control_count(),
     }
 }

@@ -11,7 +11,9 @@
 //! - [`osf_frames`]: an OpenSeeFace face as an `openseeface68` landmark frame;
 //! - [`osf_pose`]: its head pose in the recording convention (the quaternion corrected, refined
 //!   on the 2D landmarks);
-//! - [`import`]: a `.osf` capture as a v1 recording (`mimic import openseeface`).
+//! - [`import`]: a `.osf` capture as a v1 recording (`mimic import openseeface`);
+//! - [`weights_csv`]: per-frame morph weights written as mimic's CSV or a Live Link take (a
+//!   frame loop output).
 //!
 //! Errors name the packet (by number or byte offset) or the file and line.
 //! Depends on mimic_types, mimic_capture (recordings, without its tokio replay), glam, serde and
@@ -25,5 +27,6 @@ pub mod openseeface;
 pub mod osf_frames;
 pub mod osf_pose;
 pub mod take;
+pub mod weights_csv;
 
 pub use error::{PacketError, TrackerError};

@@ -1,6 +1,6 @@
 //! Rigid head pose.
 
-use glam::{Affine3A, Mat3A, Mat4, Quat, Vec3, Vec3A};
+use glam::{Affine3A, Mat3, Mat3A, Mat4, Quat, Vec3, Vec3A};
 use serde::{Deserialize, Serialize};
 
 /// Rigid head motion of a frame relative to the neutral: `x_frame = scale * rotation * x_neutral + translation`.
@@ -56,6 +56,25 @@ impl HeadPose {
             self.translation,
         )
     }
+}
+
+/// The head's translation in the rig's axes and units: how far the centroid of a frame's
+/// `points` (source space) moved from where the inverse of its head `pose` puts it on the
+/// neutral face, mapped by `to_target` (the source-to-target map of displacements). `None`
+/// without points.
+pub fn head_translation(
+    points: impl IntoIterator<Item = Vec3>,
+    pose: &HeadPose,
+    to_target: Mat3,
+) -> Option<Vec3> {
+    let (sum, n) = points
+        .into_iter()
+        .fold((Vec3::ZERO, 0usize), |(s, n), p| (s + p, n + 1));
+    if n == 0 {
+        return None;
+    }
+    let c = sum / n as f32;
+    Some(to_target * (c - pose.inverse_apply(c)))
 }
 
 #[cfg(test)]

@@ -1,6 +1,5 @@
 //! Error codes and the reply lines a tracker gets.
 
-use mimic_capture::FrameProblem;
 use serde_json::json;
 
 /// Error codes the server sends (tracker reply lines and viewer error messages).
@@ -77,20 +76,6 @@ impl ErrorCode {
             ErrorCode::FutureTimestamp => "future_timestamp",
             ErrorCode::TooManyConnections => "too_many_connections",
             ErrorCode::BadToken => "bad_token",
-        }
-    }
-
-    /// The code of a rejected frame line.
-    pub fn of_problem(p: &FrameProblem) -> ErrorCode {
-        match p {
-            FrameProblem::Json { .. } => ErrorCode::BadJson,
-            FrameProblem::Truncated { .. } => ErrorCode::Truncated,
-            FrameProblem::PointCount { .. } => ErrorCode::PointCount,
-            FrameProblem::BadCoordinate { .. } => ErrorCode::BadCoordinate,
-            FrameProblem::InvalidIndexOutOfRange { .. } => ErrorCode::BadInvalidIndex,
-            FrameProblem::TooLong { .. } => ErrorCode::TooLong,
-            // Ordering is checked by the session (late frames are dropped, not answered).
-            FrameProblem::TimeNotIncreasing { .. } | FrameProblem::Io { .. } => ErrorCode::BadJson,
         }
     }
 }

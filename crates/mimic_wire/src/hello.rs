@@ -1,7 +1,7 @@
 //! The first line of a TCP connection (hellos) and the frame lines of a weights tracker.
 
 use crate::code::ErrorCode;
-use mimic_capture::RecordingHeader;
+use mimic_types::RecordingHeader;
 use serde_json::Value;
 
 /// What the first line of a TCP connection asks for.

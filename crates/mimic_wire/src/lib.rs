@@ -5,8 +5,7 @@
 //! Pure functions over bytes: encoders return `Vec<u8>` (or a reply `String`), decoders take
 //! `&[u8]` and return a value or an error naming the packet and field. No sockets and no tokio, so
 //! a viewer ([`decode_viewer_message`]) or a fuzz target decodes frames without the server.
-//! Depends on mimic_types, mimic_solve (`Basis`), mimic_retarget (`FrameOutput`) and
-//! mimic_capture's recording header (without its tokio replay).
+//! Depends on no workspace crate but mimic_types (`RecordingHeader`, `FrameStatus`, `FrameView`).
 
 mod bytes;
 mod code;
@@ -24,7 +23,7 @@ pub use hello::{
 pub use text::escape_untrusted;
 pub use udp::{UDP_HEADER_BYTES, UDP_MAGIC, UdpFrame, decode_udp_frame, encode_udp_frame};
 pub use viewer::{
-    FRAME_FIXED_BYTES, FrameMessage, KIND_END, KIND_ERROR, KIND_FRAME, KIND_RIG, KIND_SESSION,
-    RigMessage, ViewerMessage, decode_viewer_message, encode_frame, encode_json, encode_morph_rig,
-    encode_rig, status_byte,
+    BasisRows, FRAME_FIXED_BYTES, FrameMessage, KIND_END, KIND_ERROR, KIND_FRAME, KIND_RIG,
+    KIND_SESSION, RigMessage, ViewerMessage, decode_viewer_message, encode_frame, encode_json,
+    encode_morph_rig, encode_rig, status_byte,
 };

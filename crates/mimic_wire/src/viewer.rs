@@ -2,9 +2,7 @@
 
 use crate::bytes::{Cursor, DecodeError, put_vec3};
 use glam::{Quat, Vec3};
-use mimic_retarget::{FrameOutput, FrameStatus};
-use mimic_solve::Basis;
-use mimic_types::{HeadPose, Rig};
+use mimic_types::{FrameStatus, FrameView, HeadPose, Rig};
 use serde_json::{Value, json};
 
 /// Viewer message kind: session description (JSON).
@@ -36,8 +34,18 @@ pub fn encode_json(kind: u8, value: &Value) -> Vec<u8> {
     m
 }
 
+/// The rig's basis `B` as the rig message carries it: `n x m` weights, row-major (one row a
+/// vertex, one column a control or morph-target axis).
+#[derive(Clone, Copy, Debug)]
+pub struct BasisRows<'a> {
+    /// The `n * m` weights, row-major.
+    pub weights: &'a [f32],
+    /// Columns `m`.
+    pub columns: usize,
+}
+
 /// The rig message: a JSON description, then rest positions, triangles and `B` as raw arrays.
-pub fn encode_rig(rig: &Rig, basis: &Basis) -> Vec<u8> {
+pub fn encode_rig(rig: &Rig, basis: BasisRows<'_>) -> Vec<u8> {
     let meta = json!({
         "name": rig.name,
         "units": rig.units,
@@ -54,7 +62,7 @@ pub fn encode_rig(rig: &Rig, basis: &Basis) -> Vec<u8> {
 /// The rig message of a weights session: `B` is the morph basis (three columns per target,
 /// `mimic_solve::morph_basis`) and the JSON says `"mode":"weights"` and names the `targets` in
 /// weight order (its `controls` list is empty: the columns are not control points).
-pub fn encode_morph_rig(rig: &Rig, basis: &Basis, targets: &[String]) -> Vec<u8> {
+pub fn encode_morph_rig(rig: &Rig, basis: BasisRows<'_>, targets: &[String]) -> Vec<u8> {
     let meta = json!({
         "name": rig.name,
         "units": rig.units,
@@ -68,11 +76,11 @@ pub fn encode_morph_rig(rig: &Rig, basis: &Basis, targets: &[String]) -> Vec<u8>
     encode_rig_parts(&meta, rig, basis)
 }
 
-fn encode_rig_parts(meta: &Value, rig: &Rig, basis: &Basis) -> Vec<u8> {
+fn encode_rig_parts(meta: &Value, rig: &Rig, basis: BasisRows<'_>) -> Vec<u8> {
     let meta = meta.to_string();
     let n = rig.mesh.vertex_count();
     let t = rig.mesh.triangles.len();
-    let m = basis.control_count();
+    let m = basis.columns;
     let len = 4 + meta.len() + 12 + n * 12 + t * 12 + n * m * 4;
     let mut out = message(KIND_RIG, len);
     out.extend_from_slice(&(meta.len() as u32).to_le_bytes());
@@ -88,25 +96,20 @@ fn encode_rig_parts(meta: &Value, rig: &Rig, basis: &Basis) -> Vec<u8> {
             out.extend_from_slice(&i.to_le_bytes());
         }
     }
-    for w in basis.as_slice() {
+    for w in basis.weights {
         out.extend_from_slice(&w.to_le_bytes());
     }
     out
 }
 
-/// Status byte of a frame message.
+/// Status byte of a frame message ([`FrameStatus::code`]).
 pub fn status_byte(s: FrameStatus) -> u8 {
-    match s {
-        FrameStatus::Calibrating => 0,
-        FrameStatus::Tracked => 1,
-        FrameStatus::Lost => 2,
-        FrameStatus::Rejected => 3,
-    }
+    s.code()
 }
 
 /// A frame message: sequence number, time, status, pose, target rotation, `d`, and the
 /// positions when given.
-pub fn encode_frame(seq: u64, out: &FrameOutput, positions: Option<&[Vec3]>) -> Vec<u8> {
+pub fn encode_frame(seq: u64, out: &FrameView<'_>, positions: Option<&[Vec3]>) -> Vec<u8> {
     let m = out.displacements.len();
     let n = positions.map_or(0, <[Vec3]>::len);
     let len = FRAME_FIXED_BYTES + m * 12 + positions.map_or(0, |_| 4 + n * 12);
@@ -125,7 +128,7 @@ pub fn encode_frame(seq: u64, out: &FrameOutput, positions: Option<&[Vec3]>) -> 
     for c in out.target_rotation.to_array() {
         b.extend_from_slice(&c.to_le_bytes());
     }
-    for d in &out.displacements {
+    for d in out.displacements {
         put_vec3(&mut b, *d);
     }
     if let Some(p) = positions {
@@ -268,20 +271,17 @@ mod tests {
 
     #[test]
     fn frame_message_round_trips() {
-        let out = FrameOutput {
+        let d = [Vec3::new(1.0, -2.0, 3.5), Vec3::splat(0.25)];
+        let out = FrameView {
             timestamp_us: -5,
             status: FrameStatus::Lost,
-            positions: vec![],
-            normals: vec![],
-            displacements: vec![Vec3::new(1.0, -2.0, 3.5), Vec3::splat(0.25)],
+            displacements: &d,
             pose: HeadPose {
                 rotation: Quat::from_rotation_y(0.3),
                 translation: Vec3::new(0.1, 0.2, -0.7),
                 scale: 1.5,
             },
             target_rotation: Quat::from_rotation_x(-0.2),
-            filled: 0,
-            times: Default::default(),
         };
         let pos = [Vec3::X, Vec3::new(7.0, 8.0, 9.0)];
         for positions in [None, Some(&pos[..])] {
@@ -298,7 +298,7 @@ mod tests {
             assert_eq!(f.status, 2);
             assert_eq!(f.pose, out.pose);
             assert_eq!(f.target_rotation, out.target_rotation);
-            assert_eq!(f.displacements, out.displacements);
+            assert_eq!(f.displacements, out.displacements.to_vec());
             assert_eq!(f.positions.as_deref(), positions);
             // Any cut-off payload is an error, never a panic.
             for cut in 0..bytes.len() - 5 {

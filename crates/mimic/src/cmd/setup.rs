@@ -371,10 +371,7 @@ pub fn rig_look(
     })
 }
 
-/// Path of the OBJ of frame `index` in `dir` (`frame_000000.obj` ...).
-pub fn obj_frame_path(dir: &Path, index: usize) -> PathBuf {
-    dir.join(format!("frame_{index:06}.obj"))
-}
+pub use mimic_assets::obj_frame_path;
 
 /// Writes frame `index` as an OBJ in `dir` with a one-line `header` comment.
 pub fn write_obj_frame(

@@ -5,7 +5,7 @@
 //! (never a made-up position such as the origin).
 
 mod error;
-mod header;
+use mimic_types::recording as header;
 mod reader;
 mod summary;
 mod writer;

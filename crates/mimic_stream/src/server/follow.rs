@@ -62,12 +62,7 @@ pub(crate) fn read_result(r: &StepResult, out: &mut FrameOutput) -> bool {
         return false;
     }
     out.timestamp_us = f.timestamp_us;
-    out.status = match f.status {
-        0 => FrameStatus::Calibrating,
-        1 => FrameStatus::Tracked,
-        2 => FrameStatus::Lost,
-        _ => FrameStatus::Rejected,
-    };
+    out.status = FrameStatus::from_code(f.status);
     out.pose = f.pose;
     out.target_rotation = f.target_rotation;
     out.displacements.copy_from_slice(&f.displacements);

@@ -21,7 +21,7 @@ use mimic_retarget::{
     BlendshapeFitter, BlendshapeSettings, FrameOutput, FrameStatus, RetargetSettings, Retargeter,
 };
 use mimic_types::LandmarkFrame;
-use mimic_wire::SessionRequest;
+use mimic_wire::{ErrorCode, SessionRequest};
 use serde_json::{Map, Value, json};
 use std::collections::VecDeque;
 use std::hash::{BuildHasher, Hasher};
@@ -598,10 +598,7 @@ impl Protocol for Landmark {
                 self.keep(s, outcome, rf, line.arrival, false).await;
                 LineOutcome::Frame
             }
-            Err(problem) => LineOutcome::Malformed(
-                mimic_wire::ErrorCode::of_problem(&problem),
-                problem.to_string(),
-            ),
+            Err(problem) => LineOutcome::Malformed(problem_code(&problem), problem.to_string()),
         }
     }
 
@@ -643,5 +640,19 @@ impl Protocol for Landmark {
             m.insert("recorded".into(), json!(recorded));
         }
         m
+    }
+}
+
+/// The reply code of a rejected frame line.
+fn problem_code(p: &FrameProblem) -> ErrorCode {
+    match p {
+        FrameProblem::Json { .. } => ErrorCode::BadJson,
+        FrameProblem::Truncated { .. } => ErrorCode::Truncated,
+        FrameProblem::PointCount { .. } => ErrorCode::PointCount,
+        FrameProblem::BadCoordinate { .. } => ErrorCode::BadCoordinate,
+        FrameProblem::InvalidIndexOutOfRange { .. } => ErrorCode::BadInvalidIndex,
+        FrameProblem::TooLong { .. } => ErrorCode::TooLong,
+        // Ordering is checked by the session (late frames are dropped, not answered).
+        FrameProblem::TimeNotIncreasing { .. } | FrameProblem::Io { .. } => ErrorCode::BadJson,
     }
 }

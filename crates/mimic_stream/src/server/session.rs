@@ -238,7 +238,7 @@ pub(crate) fn push_frame(
             )
         })
     };
-    let d_message = want_d.then(|| Arc::new(encode_frame(seq, out, None)));
+    let d_message = want_d.then(|| Arc::new(encode_frame(seq, &out.view(), None)));
     // Browser viewers (`server/http`): their own layout, with the arrival time.
     let web_message = want_web.then(|| {
         Arc::new(super::http::encode_web_frame(
@@ -251,7 +251,7 @@ pub(crate) fn push_frame(
     });
     let p_message = want_positions.then(|| {
         fill(&out.displacements, positions);
-        Arc::new(encode_frame(seq, out, Some(positions)))
+        Arc::new(encode_frame(seq, &out.view(), Some(positions)))
     });
     let hubs = lock(&shared.hubs);
     if let Some(h) = hubs.get(name) {

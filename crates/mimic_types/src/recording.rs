@@ -1,4 +1,5 @@
-//! The header line of a v1 recording.
+//! The header line of a v1 recording (docs/recording-format.md): here, below every crate that
+//! reads one (the recording reader in mimic_capture, a tracker's hello in mimic_wire).
 
 use serde::{Deserialize, Serialize};
 

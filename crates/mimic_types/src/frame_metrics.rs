@@ -1,7 +1,7 @@
 //! Per-frame motion metrics of a retargeter's output, as `mimic replay --metrics` writes them.
 
+use crate::Region;
 use glam::Vec3;
-use mimic_types::Region;
 
 /// Mean length of the control displacements of each region (top, middle, bottom), 0 for a region
 /// without controls; `regions` gives each control's region.

@@ -1,0 +1,119 @@
+//! The outputs `mimic replay`'s flags ask for, added to the frame loop: the frames (`--out`,
+//! `--format`: OBJ, `frames.bin` or one GLB), `--metrics`, `--controls` and `--weights`. Each
+//! output lives beside its format (mimic_assets, mimic_gltf, mimic_trackers); this table only
+//! picks them.
+
+use super::{Args, OutFormat, WeightsFormat};
+use anyhow::Context;
+use mimic_assets::{BinSink, ControlsCsv, MetricsCsv, ObjSink};
+use mimic_gltf::{GlbKeys, GlbSink, Interpolation, basis_morphs, target_morphs};
+use mimic_retarget::FrameLoop;
+use mimic_trackers::weights_csv::{WeightsCsv, WeightsLayout};
+use mimic_types::{MorphTarget, Rig};
+use std::path::PathBuf;
+
+/// Adds the outputs `args` asks for to `frames`, a loop onto `rig` whose GLB targets are the
+/// rig's morph `targets` (blend-shape mode, a take) or, when there are none, the basis columns;
+/// each OBJ's comment starts with `header`.
+pub(super) fn add(
+    args: &Args,
+    rig: &Rig,
+    targets: &[MorphTarget],
+    header: &str,
+    frames: &mut FrameLoop,
+) -> anyhow::Result<()> {
+    let rig_path = args.rig.rig_path();
+    let every = args.every.max(1);
+    match (&args.out, args.format) {
+        (None, _) => {}
+        (Some(out), OutFormat::Glb) => {
+            let scale = mimic_gltf::metres_per_unit(&rig.units).with_context(|| {
+                format!(
+                    "rig `{}`: units `{}` have no length in metres for glTF",
+                    rig.name, rig.units
+                )
+            })?;
+            let morphs = if targets.is_empty() {
+                let names: Vec<String> = rig.controls.iter().map(|c| c.fdp.to_string()).collect();
+                let r = frames
+                    .retargeter()
+                    .context("free-form GLB without a retargeter")?;
+                basis_morphs(r.basis(), &names)
+            } else {
+                target_morphs(targets, scale)
+            };
+            let keys = GlbKeys {
+                interpolation: if args.step_keys {
+                    Interpolation::Step
+                } else {
+                    Interpolation::Linear
+                },
+                pose: !args.no_pose,
+            };
+            let glb = GlbSink::create(
+                &glb_path(out),
+                &rig_path,
+                rig,
+                morphs,
+                mimic_render::SKIN_ALBEDO,
+                keys,
+            )?;
+            frames.add_output(Box::new(glb), every);
+        }
+        (Some(dir), OutFormat::Obj) => {
+            frames.add_output(
+                Box::new(ObjSink::create(dir, &rig_path, rig, header)?),
+                every,
+            );
+        }
+        (Some(dir), OutFormat::Bin) => {
+            frames.add_output(Box::new(BinSink::create(dir, &rig.mesh)?), every);
+        }
+    }
+    if let Some(p) = &args.metrics {
+        frames.add_output(Box::new(MetricsCsv::create(p, rig)?), 1);
+    }
+    if let Some(p) = &args.controls {
+        frames.add_output(Box::new(ControlsCsv::create(p, rig)?), 1);
+    }
+    if let Some(p) = &args.blend.weights {
+        let names = frames
+            .fitter()
+            .map(|f| f.names().to_vec())
+            .unwrap_or_default();
+        let layout = match args.weights_format {
+            WeightsFormat::Mimic => WeightsLayout::Mimic,
+            WeightsFormat::Livelink => WeightsLayout::LiveLink,
+        };
+        let csv = WeightsCsv::create(p, layout, &names, &args.namemap_path())?;
+        let lacking = csv.lacking();
+        if !lacking.is_empty() {
+            let line = format!(
+                "{}: {} of the 52 curves have no morph target in the rig (written 0): {}",
+                p.display(),
+                lacking.len(),
+                lacking.join(", ")
+            );
+            // With --json, stdout holds only the summary.
+            if args.json {
+                eprintln!("{line}");
+            } else {
+                println!("{line}");
+            }
+        }
+        frames.add_output(Box::new(csv), 1);
+    }
+    Ok(())
+}
+
+/// The GLB file of `--out`: the path itself when it ends in `.glb`, else `take.glb` in it.
+pub(super) fn glb_path(out: &std::path::Path) -> PathBuf {
+    if out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("glb"))
+    {
+        out.to_path_buf()
+    } else {
+        out.join("take.glb")
+    }
+}

@@ -1,0 +1,85 @@
+//! The one seam for a frame loop's outputs ([`FrameSink`]): every output format (OBJ frames,
+//! `frames.bin`, a GLB's keys, metrics and weights CSVs, a live viewer) takes each frame as a
+//! [`SinkFrame`] and says what it wrote at the end ([`SinkReport`]). Each implementation lives
+//! beside its format: a new output format is one implementation in one crate
+//! (docs/ARCHITECTURE.md, "Where to change what").
+
+use crate::FrameView;
+use glam::Vec3;
+use std::path::PathBuf;
+
+/// One frame as a frame loop hands it to every output.
+#[derive(Clone, Copy, Debug)]
+pub struct SinkFrame<'a> {
+    /// The frame's index in the take (0-based, every frame counted).
+    pub index: usize,
+    /// The recording's label of the frame, if any.
+    pub label: Option<i64>,
+    /// Time, status, head pose and the control displacements `d`.
+    pub view: FrameView<'a>,
+    /// Deformed vertex positions, target units (empty where the loop computes none).
+    pub positions: &'a [Vec3],
+    /// Vertex normals of `positions` (empty where the loop computes none).
+    pub normals: &'a [Vec3],
+    /// The morph-target weights of the frame (blend-shape mode, a weights take), in the rig's
+    /// target order; `None` in free-form mode.
+    pub weights: Option<&'a [f32]>,
+    /// The head's translation from its neutral, target units, where the loop knows it (a
+    /// tracked landmark frame with a source-to-target fit).
+    pub head_translation: Option<Vec3>,
+}
+
+/// What one output wrote, said when the loop finishes.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct SinkReport {
+    /// The output's kind, e.g. `obj`, `bin`, `glb`, `metrics`, `weights`.
+    pub kind: &'static str,
+    /// The file or folder written.
+    pub path: PathBuf,
+    /// Frames (or keys) written.
+    pub frames: usize,
+    /// Bytes written.
+    pub bytes: u64,
+    /// Format-specific figures (a GLB's vertices, targets, keys, ...), JSON.
+    pub detail: serde_json::Value,
+}
+
+/// An output failed: the file it writes and what went wrong.
+#[derive(Debug, thiserror::Error)]
+#[error("{}: {source}", path.display())]
+pub struct SinkError {
+    /// The file or folder the output writes.
+    pub path: PathBuf,
+    /// The cause.
+    #[source]
+    pub source: Box<dyn std::error::Error + Send + Sync + 'static>,
+}
+
+impl SinkError {
+    /// An error of the output writing `path`.
+    pub fn new(
+        path: impl Into<PathBuf>,
+        source: impl Into<Box<dyn std::error::Error + Send + Sync + 'static>>,
+    ) -> Self {
+        Self {
+            path: path.into(),
+            source: source.into(),
+        }
+    }
+}
+
+/// An output of a frame loop: takes frames one by one, then finishes (flushes, writes what it
+/// collected) and reports.
+pub trait FrameSink {
+    /// Whether the output needs the deformed mesh (`positions`, `normals`); a loop that can skip
+    /// the mesh (a weights take) computes it only when some output says yes.
+    fn wants_mesh(&self) -> bool {
+        false
+    }
+
+    /// Takes one frame.
+    fn frame(&mut self, frame: &SinkFrame<'_>) -> Result<(), SinkError>;
+
+    /// Flushes and closes the output; says what it wrote.
+    fn finish(self: Box<Self>) -> Result<SinkReport, SinkError>;
+}
