@@ -1,17 +1,17 @@
-//! Frame sources for mimic: the v1 recording format, importers of other trackers' files, paced replay.
+//! Frame sources for mimic: the v1 recording format and paced replay.
 //!
 //! Entry points: [`read_recording`] (a whole file: header, accepted frames, counts),
 //! [`RecordingReader`] / [`RecordingWriter`] / [`summarize`] (the JSON Lines
-//! format of `docs/recording-format.md`), [`gfe::import_gfe`], [`openface::import_openface`] and
-//! [`mediapipe::import_mediapipe`] (importers), [`Replay`] (frames at their recorded pace on `tokio::time`).
+//! format of `docs/recording-format.md`), [`Imported`] (a converted recording held in memory,
+//! what every tracker's importer in `mimic_trackers` returns), [`named_csv`] (CSV read by its
+//! column names), [`Replay`] (frames at their recorded pace on `tokio::time`). The trackers'
+//! own formats (GFE, OpenFace, MediaPipe, OpenSeeFace, Live Link) live in `mimic_trackers`,
+//! one module each.
 //! Depends on mimic_types, glam, serde and tokio's timer only (for [`Replay`], the default
 //! `replay` feature): no networking, no rendering.
 
-pub mod gfe;
 mod imported;
-pub mod mediapipe;
 pub mod named_csv;
-pub mod openface;
 pub mod recording;
 #[cfg(feature = "replay")]
 pub mod replay;

@@ -2,12 +2,12 @@
 
 use std::path::Path;
 
-use mimic_capture::gfe::{check_header, parse_datapoints, parse_targets};
-use mimic_capture::mediapipe::{
+use mimic_capture::{RecordingReader, parse_frame_line};
+use mimic_trackers::gfe::{check_header, parse_datapoints, parse_targets};
+use mimic_trackers::mediapipe::{
     DEFAULT_FOV_DEG, DumpFrame, POINT_COUNT, convert_dump, parse_dump_line, to_camera_space,
 };
-use mimic_capture::openface::{OpenFaceTiming, parse_csv};
-use mimic_capture::{RecordingReader, parse_frame_line};
+use mimic_trackers::openface::{OpenFaceTiming, parse_csv};
 
 /// The v1 recording reader: header, then every frame line until the end, and the same bytes as
 /// one live frame line (what `mimic serve` does with a socket line).

@@ -1,6 +1,10 @@
 //! Outside trackers' formats, as pure parsers and encoders over bytes and text (no I/O but the
-//! capped file reads, no tokio):
+//! capped file reads, no tokio); one module (or folder) per tracker, every landmark tracker's file
+//! behind one [`importer::Importer`] in the [`importer::IMPORTERS`] table:
 //!
+//! - [`gfe`]: the UCI GFE Kinect files (`kinect-gfe100`), with the depth repair (`gfe/depth.rs`);
+//! - [`openface`]: OpenFace 2.x CSVs (`ibug68`);
+//! - [`mediapipe`]: MediaPipe Face Mesh dumps (`mediapipe478`, camera-space metres);
 //! - [`openseeface`]: OpenSeeFace's UDP datagram (one 1785-byte block per face), decoded and
 //!   encoded, and the `.osf` capture container (receive time, length, datagram);
 //! - [`livelink`]: Live Link Face's UDP packet (61 curves in ARKit enum order, head and eye
@@ -20,9 +24,13 @@
 //! toml.
 
 mod error;
+pub mod gfe;
 pub mod import;
+pub mod importer;
 pub mod livelink;
+pub mod mediapipe;
 pub mod namemap;
+pub mod openface;
 pub mod openseeface;
 pub mod osf_frames;
 pub mod osf_pose;

@@ -7,11 +7,11 @@ use crate::cmd::setup::fit_candide3;
 use anyhow::Context;
 use clap::Subcommand;
 use mimic_assets::ConfigDirs;
-use mimic_capture::gfe::FramePixels;
-use mimic_capture::openface::OpenFaceTiming;
 use mimic_capture::{Imported, RecordingHeader, RecordingWriter};
 use mimic_fit::OddParts;
 use mimic_fit::capture::{CaptureFrame, KINECT121_POINTS, frame_fields};
+use mimic_trackers::gfe::FramePixels;
+use mimic_trackers::importer::{ImportOptions, importer};
 use std::io::BufWriter;
 use std::path::{Path, PathBuf};
 
@@ -83,7 +83,7 @@ pub enum ImportCommand {
         #[arg(short, long)]
         output: PathBuf,
         /// The camera's vertical field of view in degrees (MediaPipe's own default: 63).
-        #[arg(long, default_value_t = mimic_capture::mediapipe::DEFAULT_FOV_DEG)]
+        #[arg(long, default_value_t = mimic_trackers::mediapipe::DEFAULT_FOV_DEG)]
         fov_deg: f64,
         /// Text for the header's `source` field (default: names the tracker and file).
         #[arg(long)]
@@ -111,9 +111,11 @@ pub enum ImportCommand {
     },
 }
 
-/// Runs an import subcommand.
+/// Runs an import subcommand: the tracker's row of `mimic_trackers::importer::IMPORTERS` reads
+/// the file; then the recording is written, or fitted first with `--fit`.
 pub fn run(c: ImportCommand) -> anyhow::Result<()> {
-    let (imported, output, fit) = match c {
+    let mut o = ImportOptions::default();
+    let (name, input, output, fit, symmetric) = match &c {
         ImportCommand::Gfe {
             datapoints,
             targets,
@@ -123,20 +125,10 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             symmetric,
             raw_depth,
         } => {
-            let (mut imported, pixels) = mimic_capture::gfe::import_gfe_with_pixels(
-                &datapoints,
-                targets.as_deref(),
-                source.as_deref(),
-            )?;
-            // A fit reads the pixels and weighs depths itself (docs/fitter.md): it gets them raw.
-            if fit.is_none() && !raw_depth {
-                let r = mimic_capture::gfe::repair_depth(&mut imported, &pixels);
-                println!(
-                    "depth repaired: {} holes filled, {} off-face depths replaced, {} frames kept as measured",
-                    r.holes_filled, r.outliers_replaced, r.frames_kept
-                );
-            }
-            (imported, output, fit.map(|m| (m, symmetric, Some(pixels))))
+            o.targets = targets.as_deref();
+            o.source = source.as_deref();
+            o.raw_depth = *raw_depth;
+            ("gfe", datapoints, output, *fit, *symmetric)
         }
         ImportCommand::Openface {
             csv,
@@ -147,27 +139,20 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             fit,
             symmetric,
         } => {
-            let timing = if keep_timestamps {
-                OpenFaceTiming::FileTimestamps
-            } else {
-                OpenFaceTiming::Rate(rate)
-            };
-            (
-                mimic_capture::openface::import_openface(&csv, timing, source.as_deref())?,
-                output,
-                fit.map(|m| (m, symmetric, None)),
-            )
+            o.rate_hz = (!keep_timestamps).then_some(*rate);
+            o.source = source.as_deref();
+            ("openface", csv, output, *fit, *symmetric)
         }
         ImportCommand::Mediapipe {
             dump,
             output,
             fov_deg,
             source,
-        } => (
-            mimic_capture::mediapipe::import_mediapipe(&dump, fov_deg, source.as_deref())?,
-            output,
-            None,
-        ),
+        } => {
+            o.fov_deg = *fov_deg;
+            o.source = source.as_deref();
+            ("mediapipe", dump, output, None, false)
+        }
         ImportCommand::Openseeface {
             capture,
             output,
@@ -175,37 +160,31 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             frame_times,
             source,
         } => {
-            let times = frame_times
-                .as_deref()
-                .map(mimic_trackers::import::read_frame_times)
-                .transpose()?;
-            let osf = mimic_trackers::import::import_osf(
-                &capture,
-                face,
-                source.as_deref(),
-                times.as_ref(),
-            )?;
-            if osf.other_faces > 0 {
-                eprintln!(
-                    "{}: {} faces of other ids left out (imported face {}; --face picks one)",
-                    capture.display(),
-                    osf.other_faces,
-                    osf.face_id
-                );
-            }
-            (osf.imported, output, None)
+            o.face = *face;
+            o.frame_times = frame_times.as_deref();
+            o.source = source.as_deref();
+            ("openseeface", capture, output, None, false)
         }
     };
-    if let Some((FitModel::Candide3, symmetric, pixels)) = fit {
+    o.for_fit = fit.is_some();
+    let tracker = importer(name).with_context(|| format!("no importer named `{name}`"))?;
+    let import = tracker.import(input, &o)?;
+    for line in &import.notes {
+        println!("{line}");
+    }
+    for line in &import.warnings {
+        eprintln!("{line}");
+    }
+    if let Some(FitModel::Candide3) = fit {
         let odd = if symmetric {
             OddParts::Off
         } else {
             OddParts::AfterPose
         };
-        return write_fitted(&imported, pixels.as_deref(), odd, &output);
+        return write_fitted(&import.imported, import.pixels.as_deref(), odd, output);
     }
-    write(&imported, &output)?;
-    println!("{}", summary_line(&imported, &output));
+    write(&import.imported, output)?;
+    println!("{}", summary_line(&import.imported, output));
     Ok(())
 }
 

@@ -1,4 +1,4 @@
-//! Integration tests of mimic_capture: recording format, importers on real data, replay.
+//! Integration tests of mimic_capture: recording format and replay (the importers' tests live in mimic_trackers).
 
 #![allow(
     clippy::unwrap_used,
@@ -6,6 +6,4 @@
 )]
 
 mod format;
-mod limits;
-mod real_data;
 mod replay;

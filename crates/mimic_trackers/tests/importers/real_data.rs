@@ -1,8 +1,8 @@
 //! The shipped real recordings, and the importers on the shared source data when it is present.
 
-use mimic_capture::gfe::import_gfe;
-use mimic_capture::openface::{OpenFaceTiming, import_openface};
 use mimic_capture::{RecordingReader, summarize};
+use mimic_trackers::gfe::import_gfe;
+use mimic_trackers::openface::{OpenFaceTiming, import_openface};
 use std::path::{Path, PathBuf};
 
 fn repo_root() -> PathBuf {

@@ -31,9 +31,9 @@
 //! cent of the face's depth relief); mimic removes head motion and fits source to target scale
 //! anyway, so the default serves when the camera is unknown.
 
-use crate::Imported;
-use crate::recording::{RecordedFrame, RecordingHeader};
 use glam::{DVec3, Vec3};
+use mimic_capture::Imported;
+use mimic_capture::{RecordedFrame, RecordingHeader};
 use mimic_types::LandmarkFrame;
 use mimic_types::limits::FileKind;
 use serde::Deserialize;

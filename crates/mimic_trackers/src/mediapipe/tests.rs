@@ -192,7 +192,8 @@ fn lost_faces_and_dumps_without_irises() {
     assert_eq!(imp.invalid_points(), POINT_COUNT - MESH_POINTS);
     // The round trip through the writer and reader keeps the frames.
     let bytes = imp.write_to(Vec::new()).unwrap();
-    let r = crate::RecordingReader::new(bytes.as_slice(), "r.jsonl", Some(POINT_COUNT)).unwrap();
+    let r = mimic_capture::RecordingReader::new(bytes.as_slice(), "r.jsonl", Some(POINT_COUNT))
+        .unwrap();
     let read = r.read_all();
     assert_eq!(read.frames.len(), 3);
     assert_eq!(read.stats.rejected.total(), 0);

@@ -5,9 +5,9 @@
 //! z forward; the recording convention is y up, z toward the camera, metres: `(X, −Y, −Z) / 1000`.
 //! `success == 0` gives a lost-tracking frame with no points.
 
-use crate::Imported;
-use crate::recording::{RecordedFrame, RecordingHeader};
 use glam::Vec3;
+use mimic_capture::Imported;
+use mimic_capture::{RecordedFrame, RecordingHeader};
 use mimic_types::LandmarkFrame;
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
@@ -119,7 +119,7 @@ pub fn import_openface(
     let frames = parse_csv(&text, path, timing)?;
     let rate_hz = match timing {
         OpenFaceTiming::Rate(r) => r,
-        OpenFaceTiming::FileTimestamps => crate::mean_rate_hz(&frames).unwrap_or(30.0),
+        OpenFaceTiming::FileTimestamps => mimic_capture::mean_rate_hz(&frames).unwrap_or(30.0),
     };
     let name = path
         .file_name()

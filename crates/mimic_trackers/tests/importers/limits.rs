@@ -1,8 +1,9 @@
 //! File limits of the importers and the recording reader: oversized files and devices are
 //! refused before a byte is read, each error naming the file (and the cap).
 
-use mimic_capture::openface::{OpenFaceTiming, import_openface};
-use mimic_capture::{RecordingReader, gfe::import_gfe};
+use mimic_capture::RecordingReader;
+use mimic_trackers::gfe::import_gfe;
+use mimic_trackers::openface::{OpenFaceTiming, import_openface};
 use mimic_types::limits::{GFE_FILE, OPENFACE_FILE};
 use std::path::Path;
 

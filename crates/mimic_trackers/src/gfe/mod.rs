@@ -7,9 +7,9 @@
 //! Timestamps are Unix seconds and a fraction whose digits are a whole number of milliseconds
 //! (`1390385015.38` is 15 s + 38 ms).
 
-use crate::Imported;
-use crate::recording::{RecordedFrame, RecordingHeader};
 use glam::{DVec2, Vec3};
+use mimic_capture::Imported;
+use mimic_capture::{RecordedFrame, RecordingHeader};
 use mimic_types::LandmarkFrame;
 use std::path::{Path, PathBuf};
 
@@ -116,7 +116,7 @@ pub fn import_gfe_with_pixels(
     let default_source =
         format!("kinect-v1 face tracking (UCI Grammatical Facial Expressions, {name})");
     // Rounded to 0.1 Hz.
-    let rate = crate::mean_rate_hz(&frames).map_or(16.0, |r| (r * 10.0).round() / 10.0);
+    let rate = mimic_capture::mean_rate_hz(&frames).map_or(16.0, |r| (r * 10.0).round() / 10.0);
     let mut header = RecordingHeader::new(
         LAYOUT,
         source.unwrap_or(&default_source),

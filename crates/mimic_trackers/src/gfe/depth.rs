@@ -16,9 +16,9 @@
 //! jaw opening, a smile, brows) is the tracker's; what is lost is expression depth (lips pushed
 //! forward), which this sensor's noise buries anyway.
 
-use crate::Imported;
-use crate::recording::RecordedFrame;
 use glam::DVec2;
+use mimic_capture::Imported;
+use mimic_capture::RecordedFrame;
 
 use super::{FOCAL_PX, FramePixels, back_project};
 
