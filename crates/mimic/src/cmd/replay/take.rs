@@ -11,7 +11,7 @@ use mimic_assets::{load_morph_targets, load_rig};
 use mimic_retarget::{BlendshapeFitter, FrameLoop, WeightMap};
 use mimic_trackers::livelink::{HEAD_YAW, head_quat};
 use mimic_trackers::namemap::NameMap;
-use mimic_trackers::take::{read_take, take_weights};
+use mimic_trackers::take::{Take, TakeWeights, read_take, take_weights};
 use serde_json::json;
 use std::time::{Duration, Instant};
 
@@ -27,15 +27,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let take = read_take(path)?;
     let rig_path = args.rig.rig_path();
     let rig = load_rig(&rig_path)?;
-    let targets = load_morph_targets(&rig_path, &rig)?;
-    if targets.is_empty() {
-        bail!(
-            "rig `{}` has no [[morph_targets]]: a Live Link take drives morph targets",
-            rig.name
-        );
-    }
-    let fitter = BlendshapeFitter::new(&rig, &targets, &args.blend.settings())
-        .with_context(|| format!("morph targets of rig `{}`", rig.name))?;
+    let (fitter, targets) = morph_fitter(args, &rig_path, &rig)?;
     let names = fitter.names().to_vec();
     let namemap_path = args.namemap_path();
     let map = NameMap::load(&namemap_path)?;
@@ -90,6 +82,43 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let paced_s = started.elapsed().as_secs_f64();
     let count = frames.frames();
     let report = frames.finish()?;
+    print_summary(
+        args, &rig, &take, &tw, &names, &lacking, paced_s, count, &report,
+    )
+}
+
+/// The rig's morph targets and their blend (a take drives nothing else).
+fn morph_fitter(
+    args: &Args,
+    rig_path: &std::path::Path,
+    rig: &mimic_types::Rig,
+) -> anyhow::Result<(BlendshapeFitter, Vec<mimic_types::MorphTarget>)> {
+    let targets = load_morph_targets(rig_path, rig)?;
+    if targets.is_empty() {
+        bail!(
+            "rig `{}` has no [[morph_targets]]: a Live Link take drives morph targets",
+            rig.name
+        );
+    }
+    let fitter = BlendshapeFitter::new(rig, &targets, &args.blend.settings())
+        .with_context(|| format!("morph targets of rig `{}`", rig.name))?;
+    Ok((fitter, targets))
+}
+
+/// Prints what the take replay did (JSON with `--json`).
+#[allow(clippy::too_many_arguments, reason = "the summary's parts, each named")]
+fn print_summary(
+    args: &Args,
+    rig: &mimic_types::Rig,
+    take: &Take,
+    tw: &TakeWeights,
+    names: &[String],
+    lacking: &[&str],
+    paced_s: f64,
+    count: usize,
+    report: &mimic_retarget::LoopReport,
+) -> anyhow::Result<()> {
+    let path = &args.recording;
     let wrote = report
         .outputs
         .iter()
