@@ -37,6 +37,9 @@ pub struct FrameLoop {
     out: FrameOutput,
     outputs: Vec<Output>,
     samples: StageSamples,
+    /// Whether tracked steps' times are kept (a replay's summary) or not (a long-lived viewer or
+    /// session, whose samples would grow without bound).
+    timing: bool,
     non_finite_frames: usize,
     index: usize,
 }
@@ -71,6 +74,7 @@ impl FrameLoop {
             out,
             outputs: Vec::new(),
             samples: StageSamples::default(),
+            timing: true,
             non_finite_frames: 0,
             index: 0,
         }
@@ -97,9 +101,16 @@ impl FrameLoop {
             out,
             outputs: Vec::new(),
             samples: StageSamples::default(),
+            timing: true,
             non_finite_frames: 0,
             index: 0,
         }
+    }
+
+    /// The same loop keeping no step times (for viewers and sessions that run without end).
+    pub fn untimed(mut self) -> Self {
+        self.timing = false;
+        self
     }
 
     /// Adds an output that takes every `every`-th frame (1 or 0: every frame).
@@ -157,7 +168,7 @@ impl FrameLoop {
             }
             None => None,
         };
-        if status == FrameStatus::Tracked {
+        if self.timing && status == FrameStatus::Tracked {
             self.samples.push(elapsed, &self.out.times);
         }
         if !self.out.positions.iter().all(|p| p.is_finite()) {

@@ -13,7 +13,7 @@ use crate::playback::Playback;
 use crate::readout::{Readout, Status, write_title};
 use glam::{Mat4, Quat, Vec3};
 use mimic_render::{Deform, Overlay, Renderer, RigGpu, Shading, View};
-use mimic_retarget::{FrameOutput, RetargetSettings, Retargeter};
+use mimic_retarget::{FrameLoop, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
 use mimic_types::{LandmarkFrame, Layout, MorphTarget, Rig, SolverSettings};
 use std::sync::mpsc;
@@ -57,9 +57,9 @@ pub struct LocalSetup {
 /// One solver of a local replay: its retargeter, its GPU rig and what it computed so far.
 struct Slot {
     settings: SolverSettings,
-    retargeter: Option<Retargeter>,
+    /// The frame loop (its retargeter), once the basis is built.
+    frames: Option<FrameLoop>,
     building: Option<mpsc::Receiver<Result<Retargeter, String>>>,
-    output: Option<FrameOutput>,
     gpu: Option<RigGpu>,
     /// `d` of every frame stepped so far, frame-major (`frames x m`).
     history: Vec<Vec3>,
@@ -73,9 +73,8 @@ impl Slot {
     fn new(settings: SolverSettings) -> Self {
         Self {
             settings,
-            retargeter: None,
+            frames: None,
             building: None,
-            output: None,
             gpu: None,
             history: Vec::new(),
             rotations: Vec::new(),
@@ -86,28 +85,32 @@ impl Slot {
 
     fn ready(&mut self, retargeter: Retargeter, frames: usize) {
         let m = retargeter.basis().control_count();
-        self.output = Some(retargeter.new_output());
+
         self.history = vec![Vec3::ZERO; frames * m];
         self.rotations = vec![Quat::IDENTITY; frames];
         self.states = vec![0; frames];
-        self.retargeter = Some(retargeter);
+        self.frames = Some(FrameLoop::landmarks(retargeter, None).untimed());
     }
 
     /// Steps the pipeline through `frame` (the filters and the neutral need every frame before
     /// it); returns true if it stepped.
     fn ensure(&mut self, frame: usize, frames: &[LandmarkFrame]) -> bool {
-        let (Some(r), Some(out)) = (self.retargeter.as_mut(), self.output.as_mut()) else {
+        let Some(fl) = self.frames.as_mut() else {
             return false;
         };
-        let m = r.basis().control_count();
+        let Some(m) = fl.retargeter().map(|r| r.basis().control_count()) else {
+            return false;
+        };
         let stepped = self.stepped <= frame;
         while self.stepped <= frame && self.stepped < frames.len() {
             let k = self.stepped;
-            r.step(&frames[k], out);
+            // No outputs are added, so the step cannot fail.
+            let _ = fl.step(&frames[k], None);
+            let out = fl.output();
             self.history[k * m..(k + 1) * m].copy_from_slice(&out.displacements);
             self.rotations[k] = out.target_rotation;
             let gated = out.status == mimic_retarget::FrameStatus::Tracked
-                && r.gate_reading().reason.is_some();
+                && fl.retargeter().is_some_and(|r| r.gate_reading().reason.is_some());
             self.states[k] = if gated {
                 4
             } else {
@@ -404,7 +407,7 @@ impl Viewer {
             return Ok(());
         };
         let other = 1 - l.active;
-        if l.slots[other].retargeter.is_some() {
+        if l.slots[other].frames.is_some() {
             l.active = other;
             self.note.clear();
             self.dirty = true;
@@ -475,7 +478,7 @@ impl Viewer {
                 let frame = l.clock.advance(dt);
                 let slot = &mut l.slots[l.active];
                 if slot.gpu.is_none()
-                    && let Some(r) = &slot.retargeter
+                    && let Some(r) = slot.frames.as_ref().and_then(FrameLoop::retargeter)
                 {
                     // The expressions on the number keys: three more columns each.
                     let extended = extend_basis(r.basis(), &l.targets);
@@ -491,8 +494,9 @@ impl Viewer {
                 let started = Instant::now();
                 let stepped = slot.ensure(frame, &l.frames);
                 let m = slot
-                    .retargeter
+                    .frames
                     .as_ref()
+                    .and_then(FrameLoop::retargeter)
                     .map_or(0, |r| r.basis().control_count());
                 let eased = self.expressions.advance(dt.as_secs_f32());
                 let changed = stepped
