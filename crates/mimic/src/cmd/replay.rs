@@ -1,6 +1,7 @@
 //! `mimic replay`: a recorded performance (or a Live Link Face take, `replay/take.rs`) onto a
-//! rig, written as OBJ frames, one binary file or one GLB (docs/gltf.md); `--weights` writes the
-//! weights per frame (`replay/weights_out.rs`).
+//! rig through the one frame loop (`mimic_retarget::FrameLoop`), its outputs picked from the flags
+//! (`replay/outputs.rs`: OBJ frames, one binary file or one GLB, the CSVs), the summary printed by
+//! `replay/summary.rs` (docs/replay.md).
 
 mod outputs;
 mod summary;
