@@ -274,3 +274,6 @@ fn send(outputs: &mut [Output], frame: &SinkFrame<'_>) -> Result<(), SinkError> 
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests;

@@ -110,7 +110,9 @@ impl Slot {
             self.history[k * m..(k + 1) * m].copy_from_slice(&out.displacements);
             self.rotations[k] = out.target_rotation;
             let gated = out.status == mimic_retarget::FrameStatus::Tracked
-                && fl.retargeter().is_some_and(|r| r.gate_reading().reason.is_some());
+                && fl
+                    .retargeter()
+                    .is_some_and(|r| r.gate_reading().reason.is_some());
             self.states[k] = if gated {
                 4
             } else {
