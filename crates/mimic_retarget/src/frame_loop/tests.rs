@@ -167,7 +167,8 @@ fn a_weights_loop_blends_the_mesh_only_for_outputs_that_want_it() {
         position_deltas: vec![delta; n],
         normal_deltas: vec![Vec3::ZERO; n],
     };
-    let fitter = || BlendshapeFitter::new(&rig, &[target.clone()], &Default::default()).unwrap();
+    let fitter =
+        || BlendshapeFitter::new(&rig, std::slice::from_ref(&target), &Default::default()).unwrap();
     let rest0 = rig.mesh.positions[0];
     let rotation = Quat::from_rotation_y(0.2);
     for mesh in [false, true] {
