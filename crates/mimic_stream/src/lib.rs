@@ -17,25 +17,33 @@
 //! also sent on to VMC and Live Link receivers. Wire
 //! encoding lives in the `mimic_wire` crate (re-exported as [`wire`]).
 //! With `Server::serve_http` it also serves the browser viewer (axum, docs/browser.md).
+//! [`launch`] starts a server as `mimic serve` does; [`send`] is the tracker simulator behind
+//! `mimic send`.
 //! Depends on mimic_types, mimic_solve, mimic_retarget, mimic_capture, mimic_wire and tokio; no
 //! renderer.
 
 mod catalog;
+mod counter;
 pub mod forward;
+pub mod launch;
 mod lines;
-pub mod pace;
 pub mod placement;
 mod queue;
 mod record;
+pub mod send;
 mod server;
 mod settings;
 mod stats;
+mod sync;
 mod timing;
 
 /// The wire protocol (`docs/protocol.md`), from the `mimic_wire` crate.
 pub use mimic_wire as wire;
 
 pub use catalog::{Catalog, CatalogError, MorphSet, RigEntry};
-pub use server::{HELLO_MAX_BYTES, HttpSettings, Server};
-pub use settings::{BindError, DEFAULT_LISTEN, LiveLinkIntake, ServerSettings, check_bind};
+pub use server::Server;
+pub use settings::{
+    BindError, DEFAULT_LISTEN, HELLO_MAX_BYTES, HttpSettings, LiveLinkIntake, ServerSettings,
+    check_bind,
+};
 pub use stats::{LatencyHistogram, LatencySummary, ServerStats, SessionSnapshot, ViewerSnapshot};

@@ -7,7 +7,7 @@
 //! [`Placement::follow`]. Frames handed over and never answered are counted lost
 //! ([`ClusterSnapshot`]: `sent = retargeted + lost` once the session has ended).
 
-use crate::stats::Counter;
+use crate::counter::Counter;
 use mimic_types::LandmarkFrame;
 use serde::Serialize;
 use serde_json::Value;

@@ -1,6 +1,6 @@
 //! A viewer's outgoing queue: control messages kept, frames bounded with the oldest dropped.
 
-use crate::stats::Counter;
+use crate::counter::Counter;
 use std::collections::VecDeque;
 use std::sync::{Arc, Mutex, PoisonError};
 use tokio::sync::Notify;

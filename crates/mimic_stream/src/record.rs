@@ -9,7 +9,7 @@ mod weights;
 
 use weights::WeightsCsv;
 
-use crate::stats::Counter;
+use crate::counter::Counter;
 use mimic_capture::{RecordedFrame, RecordingHeader, RecordingWriter, WriteError};
 use serde_json::Value;
 use std::fs::{File, OpenOptions};

@@ -1,34 +1,40 @@
-//! The server, split by what each part holds: the accept loop and hello dispatch (`accept`), the
-//! session skeleton every tracker protocol plugs into (`session`, with `admission` for refusals),
-//! the protocols (`landmark`, `weights`), UDP intake (`udp`), viewers (`viewer`), the browser
-//! viewer's HTTP and WebSocket server (`http`) and the state they share (`state`).
+//! The server, split by what each part holds, each module importing only those below it (no
+//! circle; `tests/module_graph.rs` checks): this facade ([`Server`]) on top; the accept loop and
+//! hello dispatch (`accept`); the protocols (`landmark`, `weights`, and the UDP tracker intakes
+//! `openseeface` and `livelink` on the one loop of `intake`), with what their frames go to
+//! besides viewers (`outputs`); viewers (`viewer`, `follow` for sessions of other front doors)
+//! and the browser viewer's HTTP and WebSocket server (`http`); the session skeleton every
+//! tracker protocol plugs into (`session`, with `admission` for refusals), which pushes frames
+//! to viewers (`web_frame` for browsers); UDP frames of landmark sessions (`udp`); and at the
+//! bottom the state they share (`state`) over the hubs, routes and session records (`hub`).
 
 use crate::catalog::Catalog;
-use crate::settings::ServerSettings;
+use crate::placement::Placement;
+use crate::settings::{HttpSettings, ServerSettings};
 use crate::stats::{LatencyHistogram, ServerStats};
-use state::{Shared, lock};
+use crate::sync::lock;
+use state::Shared;
+use std::future::Future;
 use std::sync::Arc;
+use tokio::net::{TcpListener, UdpSocket};
 
 mod accept;
 mod admission;
 mod follow;
 mod http;
+mod hub;
 mod intake;
 mod landmark;
 mod livelink;
 mod openseeface;
+mod outputs;
 mod session;
 mod slots;
 mod state;
 mod udp;
 mod viewer;
+mod web_frame;
 mod weights;
-
-pub use http::HttpSettings;
-
-/// Longest first line of a connection (hello or recording header), unless the message limit is
-/// smaller: a connection that has not said what it is holds at most this much.
-pub const HELLO_MAX_BYTES: usize = 64 * 1024;
 
 /// A live-session server: trackers in (TCP lines, UDP packets), viewers out (TCP messages).
 #[derive(Debug, Clone)]
@@ -49,13 +55,36 @@ impl Server {
     pub fn with_placement(
         catalog: Arc<Catalog>,
         settings: ServerSettings,
-        placement: Arc<dyn crate::placement::Placement>,
+        placement: Arc<dyn Placement>,
     ) -> Self {
         let mut shared = Shared::new(catalog, settings);
         shared.placement = Some(placement);
         Self {
             shared: Arc::new(shared),
         }
+    }
+
+    /// Serves until `shutdown` completes; then stops accepting, ends every session (frames
+    /// already read are retargeted and broadcast), lets viewers drain their queues for up to
+    /// `shutdown_grace`, and returns the final counters.
+    pub async fn run(
+        &self,
+        listener: TcpListener,
+        udp: Option<UdpSocket>,
+        shutdown: impl Future<Output = ()>,
+    ) -> ServerStats {
+        accept::run(&self.shared, listener, udp, shutdown).await
+    }
+
+    /// Serves the browser viewer on `listener` until `shutdown` completes (then open WebSockets
+    /// end when the server's viewer queues close, as TCP viewers do).
+    pub async fn serve_http(
+        &self,
+        listener: TcpListener,
+        web: HttpSettings,
+        shutdown: impl Future<Output = ()> + Send + 'static,
+    ) -> std::io::Result<()> {
+        http::serve(self.shared.clone(), listener, web, shutdown).await
     }
 
     /// Counters of the server, its live sessions and the most recent ended ones.

@@ -1,6 +1,7 @@
 //! Limits and knobs of a server.
 
 use mimic_retarget::RetargetSettings;
+use std::collections::BTreeMap;
 use std::net::SocketAddr;
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -8,6 +9,20 @@ use std::time::Duration;
 
 /// The address `mimic serve` listens on unless told otherwise: loopback only.
 pub const DEFAULT_LISTEN: &str = "127.0.0.1:7878";
+
+/// Longest first line of a connection (hello or recording header), unless the message limit is
+/// smaller: a connection that has not said what it is holds at most this much.
+pub const HELLO_MAX_BYTES: usize = 64 * 1024;
+
+/// What the browser viewer needs beyond the server's state: where each rig's file is (for its
+/// look and morph targets in the GLB) and the skin colour of the rig's look.
+#[derive(Clone, Debug, Default)]
+pub struct HttpSettings {
+    /// Rig name -> its `.toml` file, for every rig of the catalog.
+    pub rig_paths: BTreeMap<String, PathBuf>,
+    /// Linear RGB of the look's skin materials (`mimic_render::SKIN_ALBEDO` in `mimic serve`).
+    pub skin: [f32; 3],
+}
 
 /// Live Link Face's intake: its bound UDP socket and the name map its curves go through.
 #[derive(Clone, Debug)]

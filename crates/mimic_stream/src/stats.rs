@@ -1,7 +1,6 @@
 //! Counters of sessions and viewers, and a fixed-bucket latency histogram.
 
 use serde::Serialize;
-use std::sync::atomic::{AtomicU64, Ordering};
 
 /// Width of a latency bucket (µs).
 pub const LATENCY_BUCKET_US: u64 = 5;
@@ -89,25 +88,6 @@ pub struct LatencySummary {
     pub p99_us: u64,
     /// Largest sample.
     pub max_us: u64,
-}
-
-/// A counter that many tasks may bump.
-#[derive(Debug, Default)]
-pub struct Counter(AtomicU64);
-
-impl Counter {
-    /// Adds one.
-    pub fn bump(&self) {
-        self.0.fetch_add(1, Ordering::Relaxed);
-    }
-    /// Adds `k`.
-    pub fn add(&self, k: u64) {
-        self.0.fetch_add(k, Ordering::Relaxed);
-    }
-    /// Current value.
-    pub fn get(&self) -> u64 {
-        self.0.load(Ordering::Relaxed)
-    }
 }
 
 /// Counters of one viewer, as served by the stats request.

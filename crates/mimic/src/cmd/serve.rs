@@ -2,6 +2,7 @@
 
 use crate::cmd::setup::{PipelineArgs, RigArgs, parse_seconds};
 use anyhow::Context;
+use mimic_stream::launch::{self, Listeners};
 use mimic_stream::{DEFAULT_LISTEN, Server, ServerSettings, check_bind};
 use std::io::Write;
 use std::net::SocketAddr;
@@ -145,28 +146,96 @@ fn seconds(s: f64, what: &str) -> anyhow::Result<Duration> {
 pub fn run(args: Args) -> anyhow::Result<()> {
     // Protected mode first: no rig is loaded for a server that may not start.
     let token = crate::cmd::setup::token_or_env(args.token.as_deref());
-    check_bind("TCP", args.listen, token.as_deref())?;
+    let t = token.as_deref();
+    check_bind("TCP", args.listen, t)?;
     if !args.no_udp {
-        check_bind("UDP", args.udp.unwrap_or(args.listen), token.as_deref())?;
+        check_bind("UDP", args.udp.unwrap_or(args.listen), t)?;
     }
     // The trackers' own protocols carry no token: beyond loopback they need one all the same
-    // (an operator's explicit choice), and are warned about in `bind_udp`.
-    if let Some(addr) = args.openseeface {
-        check_bind("OpenSeeFace UDP", addr, token.as_deref())?;
+    // (an operator's explicit choice), and are warned about when bound.
+    let more = [
+        ("OpenSeeFace UDP", args.openseeface),
+        ("Live Link Face UDP", args.livelink),
+        ("HTTP", args.http),
+    ];
+    for (what, addr) in more {
+        if let Some(addr) = addr {
+            check_bind(what, addr, t)?;
+        }
     }
-    if let Some(addr) = args.livelink {
-        check_bind("Live Link Face UDP", addr, token.as_deref())?;
-    }
-    if let Some(addr) = args.http {
-        check_bind("HTTP", addr, token.as_deref())?;
-    }
-    let dirs = args.rig.config_dirs();
     let (catalog, rig_paths) = crate::cmd::setup::build_catalog(&args.rig, &args.also_rig)?;
     let web = mimic_stream::HttpSettings {
         skin: mimic_render::SKIN_ALBEDO,
         rig_paths,
     };
-    let settings = ServerSettings {
+    let settings = settings(&args, token)?;
+    if !args.listen.ip().is_loopback() {
+        tracing::warn!(addr = %args.listen, "listening beyond loopback with a token: every hello must present it");
+    }
+    let runtime = tokio::runtime::Builder::new_multi_thread()
+        .enable_all()
+        .build()?;
+    let stats = runtime.block_on(async {
+        let udp = (!args.no_udp).then_some(args.udp);
+        let bound = Listeners::bind(args.listen, udp, args.http).await?;
+        // Connected to NATS (and its buckets) before the ready line.
+        let (placement, nats) = match &args.nats {
+            Some(url) => {
+                let tcp = bound.tcp.local_addr()?;
+                let cluster = mimic_cluster::Cluster::connect(url, Default::default()).await?;
+                let p = mimic_cluster::NatsPlacement::new(cluster, &format!("front-{tcp}"));
+                (Some(p), format!(" nats {}", mimic_cluster::redact(url)))
+            }
+            None => (None, String::new()),
+        };
+        // The first stdout line says where to connect (tests and scripts read it).
+        println!(
+            "{}",
+            bound.ready_line(&settings, &catalog.rig_names(), &nats)?
+        );
+        std::io::stdout().flush()?;
+        let catalog = Arc::new(catalog);
+        let server = match placement {
+            None => Server::new(catalog, settings),
+            Some(p) => Server::with_placement(catalog, settings, Arc::new(p)),
+        };
+        let ctrl_c = || async {
+            let _ = tokio::signal::ctrl_c().await;
+        };
+        anyhow::Ok(launch::serve(server, bound, web, ctrl_c).await)
+    })?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&stats)?);
+        return Ok(());
+    }
+    println!(
+        "mimic serve: {} connections, {} sessions; latency p50 {} us, p99 {} us; {} frames dropped for slow viewers",
+        stats.connections,
+        stats.sessions.len(),
+        stats.latency.p50_us,
+        stats.latency.p99_us,
+        stats.viewer_frames_dropped
+    );
+    if let Some(dir) = &args.record {
+        let recorded: u64 = stats.sessions.iter().map(|s| s.recorded).sum();
+        let lost: u64 = stats.sessions.iter().map(|s| s.record_lost).sum();
+        println!(
+            "mimic serve: {recorded} frames recorded in {} ({lost} not recorded)",
+            dir.display()
+        );
+    }
+    Ok(())
+}
+
+/// The server's settings from the arguments (the tracker sockets bound, the record folder
+/// checked, the name maps read).
+fn settings(args: &Args, token: Option<String>) -> anyhow::Result<ServerSettings> {
+    let root = args.rig.config_dirs().root;
+    let namemap = args
+        .namemap
+        .clone()
+        .unwrap_or_else(|| root.join("namemaps/arkit.toml"));
+    Ok(ServerSettings {
         max_sessions: args.max_sessions,
         max_viewers: args.max_viewers,
         max_message_bytes: args.max_message_bytes,
@@ -180,168 +249,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         shutdown_grace: seconds(args.shutdown_grace, "--shutdown-grace")?,
         viewer_write_timeout: seconds(args.viewer_write_timeout, "--viewer-write-timeout")?,
         max_time_jump: seconds(args.max_time_jump, "--max-time-jump")?,
-        record_dir: record_dir(args.record.as_deref())?,
+        record_dir: launch::record_dir(args.record.as_deref())?,
         token,
         record_queue_frames: args.record_queue.max(1),
         record_sync: args.record_sync,
         retarget: args.pipeline.settings(),
-        openseeface: bind_udp(args.openseeface, "--openseeface")?,
-        livelink: match bind_udp(args.livelink, "--livelink")? {
-            Some(socket) => {
-                let path = args
-                    .namemap
-                    .clone()
-                    .unwrap_or_else(|| dirs.root.join("namemaps/arkit.toml"));
-                let namemap = Arc::new(mimic_trackers::namemap::NameMap::load(&path)?);
-                Some(mimic_stream::LiveLinkIntake { socket, namemap })
-            }
-            None => None,
-        },
-        forward: forward_settings(&args, &dirs.root)?,
+        openseeface: launch::bind_tracker_udp(args.openseeface, "--openseeface")?,
+        livelink: launch::livelink_intake(
+            launch::bind_tracker_udp(args.livelink, "--livelink")?,
+            &namemap,
+        )?,
+        forward: launch::forward_settings(
+            args.forward.clone(),
+            args.forward_allow.clone(),
+            &namemap,
+            args.forward_vmc_names.as_deref(),
+        )?,
         ..ServerSettings::default()
-    };
-    if !args.listen.ip().is_loopback() {
-        tracing::warn!(addr = %args.listen, "listening beyond loopback with a token: every hello must present it");
-    }
-    let runtime = tokio::runtime::Builder::new_multi_thread()
-        .enable_all()
-        .build()?;
-    let stats = runtime.block_on(async {
-        let listener = tokio::net::TcpListener::bind(args.listen)
-            .await
-            .with_context(|| format!("binding {}", args.listen))?;
-        let tcp = listener.local_addr()?;
-        let udp = if args.no_udp {
-            None
-        } else {
-            let addr = args.udp.unwrap_or(tcp);
-            Some(
-                tokio::net::UdpSocket::bind(addr)
-                    .await
-                    .with_context(|| format!("binding UDP {addr}"))?,
-            )
-        };
-        let udp_addr = match &udp {
-            Some(u) => u.local_addr()?.to_string(),
-            None => "off".to_string(),
-        };
-        let http = match args.http {
-            Some(addr) => Some(
-                tokio::net::TcpListener::bind(addr)
-                    .await
-                    .with_context(|| format!("--http: binding {addr}"))?,
-            ),
-            None => None,
-        };
-        let http_addr = match &http {
-            Some(l) => format!(" http {}", l.local_addr()?),
-            None => String::new(),
-        };
-        // The first stdout line says where to connect (tests and scripts read it).
-        let livelink = settings.livelink.as_ref().map(|l| l.socket.clone());
-        let trackers: String = [
-            ("openseeface", &settings.openseeface),
-            ("livelink", &livelink),
-        ]
-        .iter()
-        .filter_map(|(name, s)| Some(format!(" {name} {}", s.as_ref()?.local_addr().ok()?)))
-        .collect();
-        // Connected to NATS (and its buckets) before the ready line.
-        let placement = match &args.nats {
-            Some(url) => {
-                let cluster = mimic_cluster::Cluster::connect(url, Default::default()).await?;
-                Some(mimic_cluster::NatsPlacement::new(
-                    cluster,
-                    &format!("front-{tcp}"),
-                ))
-            }
-            None => None,
-        };
-        let nats = args
-            .nats
-            .as_ref()
-            .map(|u| format!(" nats {}", mimic_cluster::redact(u)))
-            .unwrap_or_default();
-        println!(
-            "mimic serve: tcp {tcp} udp {udp_addr} rigs {:?}{trackers}{nats}{http_addr}",
-            catalog.rig_names()
-        );
-        std::io::stdout().flush()?;
-        let catalog = Arc::new(catalog);
-        let server = match placement {
-            None => Server::new(catalog, settings),
-            Some(p) => Server::with_placement(catalog, settings, Arc::new(p)),
-        };
-        let shutdown = async {
-            let _ = tokio::signal::ctrl_c().await;
-        };
-        let web_task = http.map(|listener| {
-            let server = server.clone();
-            let stop = async {
-                let _ = tokio::signal::ctrl_c().await;
-            };
-            tokio::spawn(async move { server.serve_http(listener, web, stop).await })
-        });
-        let stats = server.run(listener, udp, shutdown).await;
-        if let Some(task) = web_task {
-            // Browser viewers end with the server's viewer queues; give them a moment.
-            let abort = task.abort_handle();
-            match tokio::time::timeout(Duration::from_secs(2), task).await {
-                Ok(Ok(Err(e))) => tracing::warn!("HTTP server: {e}"),
-                Err(_) => abort.abort(),
-                _ => {}
-            }
-        }
-        anyhow::Ok(stats)
-    })?;
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&stats)?);
-    } else {
-        println!(
-            "mimic serve: {} connections, {} sessions; latency p50 {} us, p99 {} us; {} frames dropped for slow viewers",
-            stats.connections,
-            stats.sessions.len(),
-            stats.latency.p50_us,
-            stats.latency.p99_us,
-            stats.viewer_frames_dropped
-        );
-        if let Some(dir) = &args.record {
-            let recorded: u64 = stats.sessions.iter().map(|s| s.recorded).sum();
-            let lost: u64 = stats.sessions.iter().map(|s| s.record_lost).sum();
-            println!(
-                "mimic serve: {recorded} frames recorded in {} ({lost} not recorded)",
-                dir.display()
-            );
-        }
-    }
-    Ok(())
-}
-
-/// `--forward`, `--forward-allow` and the name maps forwarding reads.
-fn forward_settings(
-    args: &Args,
-    root: &std::path::Path,
-) -> anyhow::Result<mimic_stream::forward::ForwardSettings> {
-    use mimic_trackers::namemap::NameMap;
-    for t in &args.forward {
-        if !t.addr.ip().is_loopback() {
-            tracing::warn!(target = %t, "--forward beyond loopback, as asked");
-        }
-    }
-    let path = args
-        .namemap
-        .clone()
-        .unwrap_or_else(|| root.join("namemaps/arkit.toml"));
-    let namemap = Arc::new(NameMap::load(&path)?);
-    let vmc_names = match &args.forward_vmc_names {
-        Some(p) => Some(Arc::new(NameMap::load(p)?)),
-        None => None,
-    };
-    Ok(mimic_stream::forward::ForwardSettings {
-        targets: args.forward.clone(),
-        allow: args.forward_allow.clone(),
-        namemap,
-        vmc_names,
     })
 }
 
@@ -352,40 +276,4 @@ fn parse_http_addr(s: &str) -> Result<SocketAddr, String> {
     }
     s.parse()
         .map_err(|_| format!("`{s}` is neither a port nor an address like 127.0.0.1:8080"))
-}
-
-/// A tracker's UDP socket bound at `addr` (warned about beyond loopback), for the server.
-fn bind_udp(
-    addr: Option<SocketAddr>,
-    flag: &str,
-) -> anyhow::Result<Option<Arc<std::net::UdpSocket>>> {
-    let Some(addr) = addr else { return Ok(None) };
-    if !addr.ip().is_loopback() {
-        tracing::warn!(%addr, "{flag}: receiving beyond loopback, as asked: this tracker protocol carries no token, so anyone who can reach it can open sessions");
-    }
-    let socket =
-        std::net::UdpSocket::bind(addr).with_context(|| format!("{flag}: binding UDP {addr}"))?;
-    Ok(Some(Arc::new(socket)))
-}
-
-/// The `--record` folder, created if missing and checked writable before any session starts.
-fn record_dir(dir: Option<&std::path::Path>) -> anyhow::Result<Option<PathBuf>> {
-    let Some(dir) = dir else { return Ok(None) };
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("--record: creating {}", dir.display()))?;
-    let probe = probe_writable(dir)?;
-    std::fs::remove_file(&probe).with_context(|| format!("--record: {}", probe.display()))?;
-    Ok(Some(dir.to_path_buf()))
-}
-
-/// Creates an empty, unused file in `dir` (proof that recordings can be written there).
-fn probe_writable(dir: &std::path::Path) -> anyhow::Result<PathBuf> {
-    let probe = dir.join(format!(".mimic-serve-probe-{}", std::process::id()));
-    std::fs::OpenOptions::new()
-        .write(true)
-        .create(true)
-        .truncate(true)
-        .open(&probe)
-        .with_context(|| format!("--record: {} is not writable", dir.display()))?;
-    Ok(probe)
 }

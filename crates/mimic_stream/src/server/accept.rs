@@ -1,17 +1,21 @@
-//! The accept loop ([`Server::run`]), shutdown, and what the first line of a connection makes it:
+//! The accept loop (`Server::run`), shutdown, and what the first line of a connection makes it:
 //! a tracker session (of one of the protocols), a viewer, or a stats request.
 
-use super::admission::{Refusal, refuse, write_and_close};
+use super::admission::{Refusal, refuse, token_ok, write_and_close};
+use super::intake;
 use super::landmark::{Landmark, LandmarkHello};
+use super::livelink::LiveLink;
+use super::openseeface::OpenSeeFace;
 use super::session;
 use super::slots::{Slot, Slots, general_slots, keepalive};
-use super::state::{Shared, lock};
+use super::state::Shared;
 use super::udp::udp_loop;
 use super::viewer::viewer;
 use super::weights::{Weights, WeightsSession};
-use super::{HELLO_MAX_BYTES, Server};
 use crate::lines::{Line, LineReader};
+use crate::settings::HELLO_MAX_BYTES;
 use crate::stats::ServerStats;
+use crate::sync::lock;
 use mimic_wire::{Hello, KIND_ERROR};
 use std::future::Future;
 use std::sync::Arc;
@@ -21,102 +25,97 @@ use tokio::net::{TcpListener, TcpStream, UdpSocket};
 use tokio::sync::{mpsc, watch};
 use tokio::time::sleep;
 
-impl Server {
-    /// Serves until `shutdown` completes; then stops accepting, ends every session (frames
-    /// already read are retargeted and broadcast), lets viewers drain their queues for up to
-    /// `shutdown_grace`, and returns the final counters.
-    pub async fn run(
-        &self,
-        listener: TcpListener,
-        udp: Option<UdpSocket>,
-        shutdown: impl Future<Output = ()>,
-    ) -> ServerStats {
-        let shared = &self.shared;
-        let settings = &shared.settings;
-        let (stop_tx, stop_rx) = watch::channel(false);
-        let (done_tx, mut done_rx) = mpsc::channel::<()>(1);
-        let slots = Slots::new(general_slots(settings), settings.stats_slots);
-        if let Some(udp) = udp {
-            tokio::spawn(udp_loop(
-                shared.clone(),
-                udp,
-                stop_rx.clone(),
-                done_tx.clone(),
-            ));
-        }
-        super::openseeface::spawn(shared, &stop_rx, &done_tx);
-        super::livelink::spawn(shared, &stop_rx, &done_tx);
-        tokio::pin!(shutdown);
-        loop {
-            let accepted = tokio::select! {
-                _ = &mut shutdown => break,
-                a = listener.accept() => a,
-            };
-            match accepted {
-                Ok((socket, peer)) => {
-                    shared.connections.bump();
-                    tracing::debug!(%peer, "connection");
-                    keepalive(&socket, settings.tcp_keepalive);
-                    let (guard, slot) = match slots.admit(shared, peer.ip()) {
-                        Ok(s) => s,
-                        Err(refusal) => {
-                            tracing::debug!(%peer, "refused: {refusal}");
-                            slots.refuse(shared, socket, &refusal);
-                            continue;
-                        }
-                    };
-                    let stats_only = matches!(slot, Slot::Stats(_));
-                    let (shared, stop, done) = (shared.clone(), stop_rx.clone(), done_tx.clone());
-                    tokio::spawn(async move {
-                        connection(shared, socket, stop, stats_only).await;
-                        drop(slot);
-                        drop(guard);
-                        drop(done);
-                    });
-                }
-                Err(e) => {
-                    // E.g. out of file descriptors: back off instead of spinning.
-                    tracing::warn!("accept failed: {e}");
-                    sleep(std::time::Duration::from_millis(50)).await;
-                }
-            }
-        }
-        drop(listener);
-        tracing::info!("shutting down");
-        let _ = stop_tx.send(true);
-        let deadline =
-            crate::timing::instant_after(tokio::time::Instant::now(), settings.shutdown_grace);
-        // Sessions end first (their END message reaches the viewers), then the viewer queues close.
-        while shared.sessions_active.load(Ordering::Acquire) > 0
-            && tokio::time::Instant::now() < deadline
-        {
-            sleep(std::time::Duration::from_millis(5)).await;
-        }
-        for hub in lock(&shared.hubs).values() {
-            hub.viewers.iter().for_each(|v| v.queue.close());
-        }
-        drop(done_tx);
-        let _ = tokio::time::timeout_at(deadline, done_rx.recv()).await;
-        // Accepted frames are never given up: wait (past the grace) until every session's
-        // recording has written, flushed and synced what it was given.
-        let mut waited = 0u32;
-        while shared.recordings_open.load(Ordering::Acquire) > 0 {
-            if waited % 1000 == 999 {
-                tracing::warn!(
-                    open = shared.recordings_open.load(Ordering::Acquire),
-                    "waiting for session recordings to reach the disk"
-                );
-            }
-            waited = waited.wrapping_add(1);
-            sleep(std::time::Duration::from_millis(5)).await;
-        }
-        let stats = shared.stats();
-        for s in &stats.sessions {
-            tracing::info!(session = %s.name, frames = s.frames, late = s.late, malformed = s.malformed,
-                p50_us = s.latency.p50_us, p99_us = s.latency.p99_us, "final session counters");
-        }
-        stats
+/// Serves until `shutdown` completes, then shuts down (`Server::run`).
+pub(crate) async fn run(
+    shared: &Arc<Shared>,
+    listener: TcpListener,
+    udp: Option<UdpSocket>,
+    shutdown: impl Future<Output = ()>,
+) -> ServerStats {
+    let settings = &shared.settings;
+    let (stop_tx, stop_rx) = watch::channel(false);
+    let (done_tx, mut done_rx) = mpsc::channel::<()>(1);
+    let slots = Slots::new(general_slots(settings), settings.stats_slots);
+    if let Some(udp) = udp {
+        tokio::spawn(udp_loop(
+            shared.clone(),
+            udp,
+            stop_rx.clone(),
+            done_tx.clone(),
+        ));
     }
+    intake::spawn::<OpenSeeFace>(shared, &stop_rx, &done_tx);
+    intake::spawn::<LiveLink>(shared, &stop_rx, &done_tx);
+    tokio::pin!(shutdown);
+    loop {
+        let accepted = tokio::select! {
+            _ = &mut shutdown => break,
+            a = listener.accept() => a,
+        };
+        match accepted {
+            Ok((socket, peer)) => {
+                shared.connections.bump();
+                tracing::debug!(%peer, "connection");
+                keepalive(&socket, settings.tcp_keepalive);
+                let (guard, slot) = match slots.admit(shared, peer.ip()) {
+                    Ok(s) => s,
+                    Err(refusal) => {
+                        tracing::debug!(%peer, "refused: {refusal}");
+                        slots.refuse(shared, socket, &refusal);
+                        continue;
+                    }
+                };
+                let stats_only = matches!(slot, Slot::Stats(_));
+                let (shared, stop, done) = (shared.clone(), stop_rx.clone(), done_tx.clone());
+                tokio::spawn(async move {
+                    connection(shared, socket, stop, stats_only).await;
+                    drop(slot);
+                    drop(guard);
+                    drop(done);
+                });
+            }
+            Err(e) => {
+                // E.g. out of file descriptors: back off instead of spinning.
+                tracing::warn!("accept failed: {e}");
+                sleep(std::time::Duration::from_millis(50)).await;
+            }
+        }
+    }
+    drop(listener);
+    tracing::info!("shutting down");
+    let _ = stop_tx.send(true);
+    let deadline =
+        crate::timing::instant_after(tokio::time::Instant::now(), settings.shutdown_grace);
+    // Sessions end first (their END message reaches the viewers), then the viewer queues close.
+    while shared.sessions_active.load(Ordering::Acquire) > 0
+        && tokio::time::Instant::now() < deadline
+    {
+        sleep(std::time::Duration::from_millis(5)).await;
+    }
+    for hub in lock(&shared.hubs).values() {
+        hub.viewers.iter().for_each(|v| v.queue.close());
+    }
+    drop(done_tx);
+    let _ = tokio::time::timeout_at(deadline, done_rx.recv()).await;
+    // Accepted frames are never given up: wait (past the grace) until every session's
+    // recording has written, flushed and synced what it was given.
+    let mut waited = 0u32;
+    while shared.recordings_open.load(Ordering::Acquire) > 0 {
+        if waited % 1000 == 999 {
+            tracing::warn!(
+                open = shared.recordings_open.load(Ordering::Acquire),
+                "waiting for session recordings to reach the disk"
+            );
+        }
+        waited = waited.wrapping_add(1);
+        sleep(std::time::Duration::from_millis(5)).await;
+    }
+    let stats = shared.stats();
+    for s in &stats.sessions {
+        tracing::info!(session = %s.name, frames = s.frames, late = s.late, malformed = s.malformed,
+            p50_us = s.latency.p50_us, p99_us = s.latency.p99_us, "final session counters");
+    }
+    stats
 }
 
 /// How long a connection in a stats slot has for its hello.
@@ -215,17 +214,4 @@ async fn connection(
             session::run::<Weights>(shared, lines, w, hello, stop).await;
         }
     }
-}
-
-/// Whether a hello's token is the server's (always, when the server has none); compared
-/// without an early exit.
-pub(crate) fn token_ok(server: Option<&str>, presented: Option<&str>) -> bool {
-    let Some(want) = server else { return true };
-    let got = presented.unwrap_or_default().as_bytes();
-    let want = want.as_bytes();
-    let mut diff = u8::from(got.len() != want.len());
-    for (k, w) in want.iter().enumerate() {
-        diff |= w ^ got.get(k).copied().unwrap_or(!w);
-    }
-    std::hint::black_box(diff) == 0
 }

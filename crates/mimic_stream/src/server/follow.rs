@@ -2,10 +2,12 @@
 //! viewers but no tracker here follows the session through the server's placement, and its
 //! viewers get the same SESSION, RIG, FRAME and END messages as viewers on the hosting front door.
 
+use super::hub::Hub;
 use super::session::push_frame;
-use super::state::{Hub, Shared, lock};
+use super::state::Shared;
 use crate::catalog::RigEntry;
 use crate::placement::{Followed, StepResult};
+use crate::sync::lock;
 use glam::{Quat, Vec3};
 use mimic_retarget::{FrameOutput, FrameStatus, StageTimes};
 use mimic_types::HeadPose;

@@ -1,16 +1,56 @@
-//! What the UDP tracker intakes share (`openseeface.rs`, `livelink.rs`): sessions opened on a
-//! key's first packet (a face id, a subject name), never answered, ended after the idle timeout
-//! and at shutdown.
+//! The UDP tracker intakes' one loop ([`spawn`], for `openseeface.rs` and `livelink.rs`): a
+//! datagram is split into blocks and each decoded ([`UdpTracker`], the per-protocol part); a
+//! session opens on a key's first block (a face id, a subject name), is never answered, and
+//! ends after the idle timeout and at shutdown.
 
-use super::admission::open;
-use super::session::{Protocol, Session, teardown};
+use super::session::{Protocol, Session, open, teardown};
 use super::state::Shared;
+use crate::settings::ServerSettings;
 use std::collections::HashMap;
+use std::collections::hash_map::Entry;
+use std::future::Future;
 use std::hash::Hash;
+use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
 use tokio::net::UdpSocket;
-use tokio::sync::mpsc;
+use tokio::sync::{mpsc, watch};
+
+/// A UDP tracker protocol: how its datagrams decode and which session each block goes to.
+pub(crate) trait UdpTracker: Protocol + Idle + 'static {
+    /// What a block is routed by (one session per key).
+    type Key: Clone + Eq + Hash + Send;
+    /// One decoded block.
+    type Unit: Send + Sync;
+    /// Decoding state reused from block to block.
+    type Decoder: Default + Send;
+    /// The intake's name in logs.
+    const INTAKE: &'static str;
+
+    /// The intake's bound socket, when the settings have one.
+    fn socket(settings: &ServerSettings) -> Option<&std::net::UdpSocket>;
+
+    /// The blocks of a datagram; `None` (counted in `udp_bad_packets`) for a datagram that
+    /// cannot hold any.
+    fn blocks(datagram: &[u8]) -> Option<impl Iterator<Item = &[u8]> + Send>;
+
+    /// Decodes one block; `None` (counted in `udp_bad_packets`) when it is not one.
+    fn decode<'d>(decoder: &'d mut Self::Decoder, block: &[u8]) -> Option<&'d Self::Unit>;
+
+    /// The session a block goes to.
+    fn key(unit: &Self::Unit) -> Self::Key;
+
+    /// The hello of a key's first block from `peer`, and how the log names it.
+    fn hello(unit: &Self::Unit, peer: SocketAddr) -> (Self::Hello, String);
+
+    /// Takes one block of session `s`, which arrived at `arrival`.
+    fn accept(
+        &mut self,
+        s: &Session,
+        unit: &Self::Unit,
+        arrival: Instant,
+    ) -> impl Future<Output = ()> + Send;
+}
 
 /// A frame path that knows when its last packet came (for the idle timeout).
 pub(crate) trait Idle {
@@ -41,7 +81,7 @@ async fn end<P: Protocol>(live: Live<P>, reason: &str) {
 /// Opens the session of a key seen for the first time; `None` (counted as refused, logged with
 /// `what`) when it cannot be opened. Nothing is ever answered over these trackers' UDP: the
 /// replies are drained and dropped.
-pub(crate) async fn open_live<P: Protocol>(
+async fn open_live<P: Protocol>(
     shared: &Arc<Shared>,
     hello: P::Hello,
     what: &str,
@@ -66,8 +106,77 @@ pub(crate) async fn open_live<P: Protocol>(
     }
 }
 
+/// Receives datagrams of protocol `P` until shutdown, one session per key.
+async fn intake_loop<P: UdpTracker>(
+    shared: Arc<Shared>,
+    udp: UdpSocket,
+    mut stop: watch::Receiver<bool>,
+    done: mpsc::Sender<()>,
+) {
+    let mut buf = vec![0u8; 65_536];
+    let mut sessions: HashMap<P::Key, Live<P>> = HashMap::new();
+    let mut decoder = P::Decoder::default();
+    let idle = shared.settings.idle_timeout;
+    let mut tick = idle_tick(idle);
+    loop {
+        let got = tokio::select! {
+            _ = stop.changed() => break,
+            _ = tick.tick() => {
+                end_idle(&mut sessions, idle).await;
+                continue;
+            }
+            r = udp.recv_from(&mut buf) => r,
+        };
+        let Ok((len, peer)) = got else { continue };
+        let arrival = Instant::now();
+        let Some(blocks) = P::blocks(buf.get(..len).unwrap_or_default()) else {
+            shared.udp_bad.bump();
+            continue;
+        };
+        for block in blocks {
+            let Some(unit) = P::decode(&mut decoder, block) else {
+                shared.udp_bad.bump();
+                continue;
+            };
+            let live = match sessions.entry(P::key(unit)) {
+                Entry::Occupied(e) => e.into_mut(),
+                Entry::Vacant(e) => {
+                    let (hello, what) = P::hello(unit, peer);
+                    match open_live::<P>(&shared, hello, &what).await {
+                        Some(live) => e.insert(live),
+                        None => continue,
+                    }
+                }
+            };
+            live.proto.accept(&live.session, unit, arrival).await;
+        }
+    }
+    end_all(&mut sessions).await;
+    drop(done);
+}
+
+/// Starts the intake of protocol `P` when the settings hold its socket (a socket tokio cannot
+/// take is logged and left unused).
+pub(crate) fn spawn<P: UdpTracker>(
+    shared: &Arc<Shared>,
+    stop: &watch::Receiver<bool>,
+    done: &mpsc::Sender<()>,
+) {
+    let Some(socket) = P::socket(&shared.settings) else {
+        return;
+    };
+    if let Some(udp) = tokio_socket(socket, P::INTAKE) {
+        tokio::spawn(intake_loop::<P>(
+            shared.clone(),
+            udp,
+            stop.clone(),
+            done.clone(),
+        ));
+    }
+}
+
 /// Ends every session whose last packet is `idle` or more ago (`idle_timeout`).
-pub(crate) async fn end_idle<K: Clone + Eq + Hash, P: Protocol + Idle>(
+async fn end_idle<K: Clone + Eq + Hash, P: Protocol + Idle>(
     live: &mut HashMap<K, Live<P>>,
     idle: Duration,
 ) {
@@ -85,19 +194,19 @@ pub(crate) async fn end_idle<K: Clone + Eq + Hash, P: Protocol + Idle>(
 }
 
 /// Ends every session (`shutdown`).
-pub(crate) async fn end_all<K, P: Protocol>(live: &mut HashMap<K, Live<P>>) {
+async fn end_all<K, P: Protocol>(live: &mut HashMap<K, Live<P>>) {
     for (_, l) in live.drain() {
         end(l, "shutdown").await;
     }
 }
 
 /// The idle sweep's tick: every 100 ms, or every idle timeout when that is shorter.
-pub(crate) fn idle_tick(idle: Duration) -> tokio::time::Interval {
+fn idle_tick(idle: Duration) -> tokio::time::Interval {
     tokio::time::interval(Duration::from_millis(100).min(idle.max(Duration::from_millis(1))))
 }
 
 /// The intake's socket for tokio; `None`, logged with `what`, for a socket tokio cannot take.
-pub(crate) fn tokio_socket(socket: &std::net::UdpSocket, what: &str) -> Option<UdpSocket> {
+fn tokio_socket(socket: &std::net::UdpSocket, what: &str) -> Option<UdpSocket> {
     let udp = socket.try_clone().and_then(|s| {
         s.set_nonblocking(true)?;
         UdpSocket::from_std(s)

@@ -4,16 +4,17 @@
 
 use super::admission::{Admission, Refusal, find_rig};
 use super::follow::read_result;
+use super::hub::Route;
+use super::outputs::{Recording, count_forward, own_forward, start_forwarder};
 use super::session::{LineOutcome, Protocol, Session, TrackerLine, future_line, is_blank};
-use super::state::{Shared, lock};
-use super::udp::Route;
-use super::weights::{count_forward, own_forward, start_forwarder};
+use super::state::Shared;
 use crate::catalog::RigEntry;
 use crate::forward::{ForwardTarget, Forwarder};
 use crate::placement::{PlaceRequest, PlacedFrame, PlacementStatus, StepResult};
-use crate::record::{Entry, RecordCounters, RecordKind, Recorder, SessionLabel};
+use crate::record::RecordKind;
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
+use crate::sync::lock;
 use crate::timing::{FrameClock, TimeProblem};
 use glam::Vec3;
 use mimic_capture::{FrameProblem, RecordedFrame, RecordingHeader, parse_frame_line};
@@ -62,89 +63,6 @@ enum Outcome {
     Refused(TimeProblem),
     /// Wrong point count or refused by the pipeline (counted in `malformed`).
     Malformed,
-}
-
-/// A session's recording (landmark, weights and Live Link sessions): off, on, or asked for but
-/// not started (its frames count as lost).
-#[derive(Debug)]
-pub(crate) enum Recording {
-    /// The server does not record.
-    Off,
-    /// Recording.
-    On(Recorder),
-    /// Asked for, but the file could not be started.
-    Failed(Arc<RecordCounters>),
-}
-
-impl Recording {
-    /// Starts a session's recording when the server records; a failure is logged, and the
-    /// session's accepted frames are then counted as `record_lost`.
-    pub(crate) async fn start(s: &Session, kind: RecordKind<'_>, peer: Option<SocketAddr>) -> Self {
-        let settings = s.settings();
-        let Some(dir) = settings.record_dir.as_ref() else {
-            return Recording::Off;
-        };
-        let who = SessionLabel {
-            name: &s.name,
-            id: s.id,
-            rig: s.rig.name(),
-            peer,
-        };
-        let started = Recorder::start(
-            dir,
-            kind,
-            &who,
-            settings.record_queue_frames,
-            s.record.record.clone(),
-            s.shared.recordings_open.clone(),
-        )
-        .await;
-        match started {
-            Ok(r) => {
-                *lock(&s.record.recording) = Some(r.path().display().to_string());
-                tracing::info!(session = %s.name, path = %r.path().display(), "recording");
-                Recording::On(r)
-            }
-            Err(e) => {
-                tracing::error!(session = %s.name, "not recorded; its accepted frames count as record_lost: {e}");
-                Recording::Failed(s.record.record.clone())
-            }
-        }
-    }
-
-    /// True when frames go (or were meant to go) to a file.
-    pub(crate) fn is_on(&self) -> bool {
-        !matches!(self, Recording::Off)
-    }
-
-    /// `--record-sync`: writes an accepted frame and syncs it to the disk before returning;
-    /// false when it could not be (then it is counted `record_lost` and must not be broadcast).
-    pub(crate) async fn frame_durable(&self, f: impl Into<Entry>) -> bool {
-        match self {
-            Recording::Off => true,
-            Recording::On(r) => r.record_durable(f).await,
-            Recording::Failed(c) => {
-                c.lost.bump();
-                false
-            }
-        }
-    }
-
-    /// Hands an accepted frame to the recording, if the server records.
-    pub(crate) async fn frame(&self, f: impl Into<Entry>) {
-        match self {
-            Recording::Off => {}
-            Recording::On(r) => r.record(f).await,
-            Recording::Failed(c) => c.lost.bump(),
-        }
-    }
-
-    /// Waits until every queued frame is written, flushed and synced.
-    pub(crate) async fn finish(self) {
-        if let Recording::On(r) = self {
-            r.finish().await;
-        }
-    }
 }
 
 /// Frames handed to a placement whose arrival times are kept for the latency (older ones are

@@ -10,7 +10,7 @@
 //! in the server's `udp_bad_packets`. Nothing is sent back.
 
 use super::admission::{Admission, Refusal, find_rig};
-use super::intake::{Idle, Live, end_all, end_idle, idle_tick, open_live, tokio_socket};
+use super::intake::{Idle, UdpTracker};
 use super::session::{LineOutcome, Protocol, Session, TrackerLine};
 use super::state::Shared;
 use super::weights::{MorphFrame, describe_weights, morph_targets, weights_summary};
@@ -22,14 +22,10 @@ use glam::{EulerRot, Quat};
 use mimic_trackers::livelink::{BLENDSHAPES, CURVE_NAMES, LiveLinkPacket, decode_packet};
 use mimic_trackers::namemap::{Mapping, NameMap};
 use serde_json::{Map, Value, json};
-use std::collections::HashMap;
-use std::collections::hash_map::Entry;
 use std::convert::Infallible;
 use std::net::SocketAddr;
 use std::sync::Arc;
 use std::time::Instant;
-use tokio::net::UdpSocket;
-use tokio::sync::{mpsc, watch};
 
 /// A subject's first packet, as admission sees it.
 #[derive(Debug)]
@@ -56,7 +52,7 @@ pub(crate) struct LiveLink {
 
 impl LiveLink {
     /// Maps, poses, broadcasts and records one packet.
-    async fn accept(&mut self, s: &Session, p: &LiveLinkPacket, arrival: Instant) {
+    async fn take(&mut self, s: &Session, p: &LiveLinkPacket, arrival: Instant) {
         self.last_packet = arrival;
         let Some(morph) = s.rig.morph.as_ref() else {
             return;
@@ -206,63 +202,39 @@ impl Protocol for LiveLink {
     }
 }
 
-/// Receives Live Link Face packets until shutdown, one session per subject name.
-async fn livelink_loop(
-    shared: Arc<Shared>,
-    udp: UdpSocket,
-    mut stop: watch::Receiver<bool>,
-    done: mpsc::Sender<()>,
-) {
-    let mut buf = vec![0u8; 65_536];
-    let mut subjects: HashMap<String, Live<LiveLink>> = HashMap::new();
-    let idle = shared.settings.idle_timeout;
-    let mut tick = idle_tick(idle);
-    loop {
-        let got = tokio::select! {
-            _ = stop.changed() => break,
-            _ = tick.tick() => {
-                end_idle(&mut subjects, idle).await;
-                continue;
-            }
-            r = udp.recv_from(&mut buf) => r,
-        };
-        let Ok((len, peer)) = got else { continue };
-        let arrival = Instant::now();
-        let Ok(p) = decode_packet(buf.get(..len).unwrap_or_default()) else {
-            shared.udp_bad.bump();
-            continue;
-        };
-        let live = match subjects.entry(p.subject.clone()) {
-            Entry::Occupied(e) => e.into_mut(),
-            Entry::Vacant(e) => {
-                let hello = LiveLinkHello {
-                    subject: p.subject.clone(),
-                    peer,
-                };
-                let what = format!("livelink subject `{}` from {peer}", p.subject);
-                match open_live::<LiveLink>(&shared, hello, &what).await {
-                    Some(live) => e.insert(live),
-                    None => continue,
-                }
-            }
-        };
-        live.proto.accept(&live.session, &p, arrival).await;
-    }
-    end_all(&mut subjects).await;
-    drop(done);
-}
+impl UdpTracker for LiveLink {
+    type Key = String;
+    type Unit = LiveLinkPacket;
+    type Decoder = Option<LiveLinkPacket>;
+    const INTAKE: &'static str = "Live Link";
 
-/// Starts the Live Link intake when the settings hold its socket.
-pub(crate) fn spawn(shared: &Arc<Shared>, stop: &watch::Receiver<bool>, done: &mpsc::Sender<()>) {
-    let Some(intake) = shared.settings.livelink.as_ref() else {
-        return;
-    };
-    if let Some(udp) = tokio_socket(&intake.socket, "Live Link") {
-        tokio::spawn(livelink_loop(
-            shared.clone(),
-            udp,
-            stop.clone(),
-            done.clone(),
-        ));
+    fn socket(settings: &ServerSettings) -> Option<&std::net::UdpSocket> {
+        settings.livelink.as_ref().map(|l| &*l.socket)
+    }
+
+    fn blocks(datagram: &[u8]) -> Option<impl Iterator<Item = &[u8]> + Send> {
+        Some(std::iter::once(datagram))
+    }
+
+    fn decode<'d>(decoder: &'d mut Self::Decoder, block: &[u8]) -> Option<&'d LiveLinkPacket> {
+        *decoder = decode_packet(block).ok();
+        decoder.as_ref()
+    }
+
+    fn key(p: &LiveLinkPacket) -> String {
+        p.subject.clone()
+    }
+
+    fn hello(p: &LiveLinkPacket, peer: SocketAddr) -> (LiveLinkHello, String) {
+        let what = format!("livelink subject `{}` from {peer}", p.subject);
+        let hello = LiveLinkHello {
+            subject: p.subject.clone(),
+            peer,
+        };
+        (hello, what)
+    }
+
+    async fn accept(&mut self, s: &Session, p: &LiveLinkPacket, arrival: Instant) {
+        self.take(s, p, arrival).await;
     }
 }

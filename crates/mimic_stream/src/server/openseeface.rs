@@ -11,13 +11,14 @@
 //! no reply, so nothing is sent back.
 
 use super::admission::{Admission, Refusal, find_rig};
-use super::intake::{Idle, Live, end_all, end_idle, idle_tick, open_live, tokio_socket};
+use super::intake::{Idle, UdpTracker};
 use super::session::{LineOutcome, Protocol, Session, TrackerLine};
-use super::state::{Shared, lock};
+use super::state::Shared;
 use crate::catalog::RigEntry;
 use crate::record::{RecordKind, Recorder, SessionLabel};
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
+use crate::sync::lock;
 use crate::timing::FrameClock;
 use glam::Vec3;
 use mimic_capture::{RecordedFrame, RecordingHeader};
@@ -26,14 +27,9 @@ use mimic_trackers::openseeface::{FACE_BYTES, OsfFace, decode_face};
 use mimic_trackers::osf_frames::{LAYOUT, POINT_COUNT, fill_frame};
 use mimic_types::LandmarkFrame;
 use serde_json::{Map, Value, json};
-use std::collections::HashMap;
-use std::collections::hash_map::Entry;
 use std::convert::Infallible;
 use std::net::SocketAddr;
-use std::sync::Arc;
 use std::time::Instant;
-use tokio::net::UdpSocket;
-use tokio::sync::{mpsc, watch};
 
 /// A face's first packet, as admission sees it.
 #[derive(Debug)]
@@ -66,7 +62,7 @@ pub(crate) struct OpenSeeFace {
 
 impl OpenSeeFace {
     /// Retargets, broadcasts and records one face of a datagram.
-    async fn accept(&mut self, s: &Session, face: &OsfFace, arrival: Instant) {
+    async fn take(&mut self, s: &Session, face: &OsfFace, arrival: Instant) {
         self.last_packet = arrival;
         let t0 = *self.first_timestamp.get_or_insert(face.timestamp);
         let t_us = (face.timestamp - t0) * 1e6;
@@ -230,72 +226,39 @@ impl Protocol for OpenSeeFace {
     }
 }
 
-/// Receives OpenSeeFace datagrams until shutdown, one session per face id.
-pub(crate) async fn openseeface_loop(
-    shared: Arc<Shared>,
-    udp: UdpSocket,
-    mut stop: watch::Receiver<bool>,
-    done: mpsc::Sender<()>,
-) {
-    let mut buf = vec![0u8; 65_536];
-    let mut faces: HashMap<i32, Live<OpenSeeFace>> = HashMap::new();
-    let mut face = OsfFace::default();
-    let idle = shared.settings.idle_timeout;
-    let mut tick = idle_tick(idle);
-    loop {
-        let got = tokio::select! {
-            _ = stop.changed() => break,
-            _ = tick.tick() => {
-                end_idle(&mut faces, idle).await;
-                continue;
-            }
-            r = udp.recv_from(&mut buf) => r,
-        };
-        let Ok((len, peer)) = got else { continue };
-        let arrival = Instant::now();
-        let packet = buf.get(..len).unwrap_or_default();
-        if packet.is_empty() || !packet.len().is_multiple_of(FACE_BYTES) {
-            shared.udp_bad.bump();
-            continue;
-        }
-        for block in packet.chunks_exact(FACE_BYTES) {
-            if decode_face(block, &mut face).is_err() {
-                shared.udp_bad.bump();
-                continue;
-            }
-            let live = match faces.entry(face.face_id) {
-                Entry::Occupied(e) => e.into_mut(),
-                Entry::Vacant(e) => {
-                    let hello = OsfHello {
-                        face_id: face.face_id,
-                        peer,
-                    };
-                    let what = format!("openseeface face {} from {peer}", face.face_id);
-                    match open_live::<OpenSeeFace>(&shared, hello, &what).await {
-                        Some(live) => e.insert(live),
-                        None => continue,
-                    }
-                }
-            };
-            live.proto.accept(&live.session, &face, arrival).await;
-        }
-    }
-    end_all(&mut faces).await;
-    drop(done);
-}
+impl UdpTracker for OpenSeeFace {
+    type Key = i32;
+    type Unit = OsfFace;
+    type Decoder = OsfFace;
+    const INTAKE: &'static str = "OpenSeeFace";
 
-/// Starts the OpenSeeFace intake when the settings hold its socket (a socket tokio cannot take
-/// is logged and left unused).
-pub(crate) fn spawn(shared: &Arc<Shared>, stop: &watch::Receiver<bool>, done: &mpsc::Sender<()>) {
-    let Some(socket) = shared.settings.openseeface.as_ref() else {
-        return;
-    };
-    if let Some(udp) = tokio_socket(socket, "OpenSeeFace") {
-        tokio::spawn(openseeface_loop(
-            shared.clone(),
-            udp,
-            stop.clone(),
-            done.clone(),
-        ));
+    fn socket(settings: &ServerSettings) -> Option<&std::net::UdpSocket> {
+        settings.openseeface.as_deref()
+    }
+
+    fn blocks(datagram: &[u8]) -> Option<impl Iterator<Item = &[u8]> + Send> {
+        let whole = !datagram.is_empty() && datagram.len().is_multiple_of(FACE_BYTES);
+        whole.then(|| datagram.chunks_exact(FACE_BYTES))
+    }
+
+    fn decode<'d>(face: &'d mut OsfFace, block: &[u8]) -> Option<&'d OsfFace> {
+        decode_face(block, face).ok().map(|()| &*face)
+    }
+
+    fn key(face: &OsfFace) -> i32 {
+        face.face_id
+    }
+
+    fn hello(face: &OsfFace, peer: SocketAddr) -> (OsfHello, String) {
+        let what = format!("openseeface face {} from {peer}", face.face_id);
+        let hello = OsfHello {
+            face_id: face.face_id,
+            peer,
+        };
+        (hello, what)
+    }
+
+    async fn accept(&mut self, s: &Session, face: &OsfFace, arrival: Instant) {
+        self.take(s, face, arrival).await;
     }
 }

@@ -8,16 +8,18 @@
 //! `start` (its frame path and welcome), `on_line` / `next_event` + `on_event` (per line and per
 //! packet), `finish` and `summary` (teardown).
 
-use super::admission::{Admission, Refusal, open, refuse};
-use super::state::{SessionRecord, Shared, lock};
+use super::admission::{Admission, Refusal, refuse};
+use super::hub::SessionRecord;
+use super::state::Shared;
 use crate::catalog::RigEntry;
 use crate::lines::{Line, LineReader};
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
+use crate::sync::lock;
 use crate::timing::{FrameClock, TimeProblem};
 use glam::Vec3;
 use mimic_retarget::FrameOutput;
-use mimic_wire::{ErrorCode, KIND_END, encode_frame, encode_json, error_line};
+use mimic_wire::{ErrorCode, KIND_END, KIND_SESSION, encode_frame, encode_json, error_line};
 use serde_json::{Map, Value, json};
 use std::future::Future;
 use std::sync::Arc;
@@ -241,7 +243,7 @@ pub(crate) fn push_frame(
     let d_message = want_d.then(|| Arc::new(encode_frame(seq, &out.view(), None)));
     // Browser viewers (`server/http`): their own layout, with the arrival time.
     let web_message = want_web.then(|| {
-        Arc::new(super::http::encode_web_frame(
+        Arc::new(super::web_frame::encode_web_frame(
             seq,
             out,
             web.arrival,
@@ -337,6 +339,42 @@ fn log_counters(record: &SessionRecord) {
         viewers = s.viewers.iter().filter(|v| v.connected).count(),
         viewers_total = s.viewers_total, viewer_drops = s.viewer_frames_dropped,
         p50_us = s.latency.p50_us, p99_us = s.latency.p99_us, "session counters");
+}
+
+/// Admits a tracker: the protocol's checks, then the session limit, an id and a name, and the
+/// session's hub (refused when the name already has a tracker). The session's replies go to
+/// `replies`.
+pub(crate) fn open<P: Protocol>(
+    shared: &Arc<Shared>,
+    hello: P::Hello,
+    replies: tokio::sync::mpsc::Sender<String>,
+) -> Result<(Session, P::Admitted), Refusal> {
+    let a = P::admit(shared, hello)?;
+    let settings = &shared.settings;
+    if shared.sessions_active.fetch_add(1, Ordering::AcqRel) >= settings.max_sessions {
+        shared.sessions_active.fetch_sub(1, Ordering::AcqRel);
+        return Err(Refusal::TooManySessions {
+            max: settings.max_sessions,
+        });
+    }
+    let id = shared.next_session.fetch_add(1, Ordering::Relaxed);
+    let name = a.session.unwrap_or_else(|| format!("s{id}"));
+    let record = Arc::new(SessionRecord::new(id, &name, a.rig.name(), &a.layout));
+    let description = P::describe(&a.admitted, &a.rig, &name, id);
+    let session_message = Arc::new(encode_json(KIND_SESSION, &description));
+    if !shared.go_live(&name, &record, session_message, &a.rig_message) {
+        shared.sessions_active.fetch_sub(1, Ordering::AcqRel);
+        return Err(Refusal::SessionBusy { session: name });
+    }
+    let session = Session {
+        shared: shared.clone(),
+        record,
+        id,
+        name,
+        rig: a.rig,
+        replies,
+    };
+    Ok((session, a.admitted))
 }
 
 /// A tracker session of protocol `P`: admit it, then hand its lines and events to `P` until it

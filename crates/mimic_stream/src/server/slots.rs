@@ -2,7 +2,8 @@
 //! them, and the answer a connection gets past them (a reply line, then close: never a backlog).
 
 use super::admission::{Refusal, write_and_close};
-use super::state::{Shared, lock};
+use super::state::Shared;
+use crate::sync::lock;
 use mimic_wire::{Hello, KIND_ERROR, encode_json, error_line, parse_hello};
 use std::net::IpAddr;
 use std::sync::Arc;
@@ -154,7 +155,7 @@ const REFUSAL_HELLO_WAIT: Duration = Duration::from_secs(2);
 
 /// Connection slots of the shared pool: every session and viewer, plus 16 for connections
 /// that have not said hello yet and stats requests.
-pub(crate) fn general_slots(s: &crate::ServerSettings) -> usize {
+pub(crate) fn general_slots(s: &crate::settings::ServerSettings) -> usize {
     s.max_sessions
         .saturating_add(s.max_viewers)
         .saturating_add(16)

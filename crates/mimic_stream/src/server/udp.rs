@@ -1,28 +1,12 @@
 //! UDP intake: frame packets of landmark sessions, routed by session id and key.
 
-use super::state::{SessionRecord, Shared, lock};
-use mimic_types::LandmarkFrame;
-use std::net::{IpAddr, SocketAddr};
+use super::state::Shared;
+use crate::sync::lock;
+use std::net::IpAddr;
 use std::sync::Arc;
 use std::time::Instant;
 use tokio::net::UdpSocket;
 use tokio::sync::{mpsc, watch};
-
-/// Where a UDP frame for a session goes.
-#[derive(Debug)]
-pub(crate) struct Route {
-    /// The key the session's welcome line gave its tracker.
-    pub(crate) key: u32,
-    /// The address the tracker's TCP hello came from: packets must come from it.
-    pub(crate) peer_ip: Option<IpAddr>,
-    /// The source (address and port) of the session's first accepted packet: later packets
-    /// must come from it.
-    pub(crate) source: Option<SocketAddr>,
-    /// The session's bounded packet queue.
-    pub(crate) tx: mpsc::Sender<(Instant, LandmarkFrame)>,
-    /// The session's counters (a full queue is counted there).
-    pub(crate) record: Arc<SessionRecord>,
-}
 
 /// Receives UDP frame packets and hands each to its session's queue (dropped when full).
 pub(crate) async fn udp_loop(

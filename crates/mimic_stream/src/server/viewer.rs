@@ -1,10 +1,11 @@
 //! Viewers: join a hub by session name, get its messages through a drop-oldest queue, leave.
 
 use super::admission::{Refusal, write_and_close};
-use super::state::{Shared, lock};
+use super::hub::Viewer;
+use super::state::Shared;
 use crate::lines::LineReader;
 use crate::queue::ViewerQueue;
-use crate::stats::ViewerSnapshot;
+use crate::sync::lock;
 use mimic_wire::{ErrorCode, KIND_ERROR, encode_json};
 use serde_json::json;
 use std::sync::Arc;
@@ -12,34 +13,6 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use tokio::io::{AsyncWriteExt, BufReader};
 use tokio::net::tcp::{OwnedReadHalf, OwnedWriteHalf};
 use tokio::time::timeout;
-
-/// One connected viewer.
-#[derive(Debug)]
-pub(crate) struct Viewer {
-    pub(crate) id: u64,
-    pub(crate) session: String,
-    pub(crate) positions: bool,
-    /// A browser viewer (`/ws/SESSION`): its queue gets the WebSocket frame layout
-    /// (`http::ws::encode_web_frame`) instead of the TCP FRAME message.
-    pub(crate) web: bool,
-    pub(crate) queue: ViewerQueue,
-    pub(crate) connected: AtomicBool,
-}
-
-impl Viewer {
-    /// The viewer's counters as the stats report them.
-    pub(crate) fn snapshot(&self) -> ViewerSnapshot {
-        ViewerSnapshot {
-            id: self.id,
-            session: self.session.clone(),
-            positions: self.positions,
-            frames_sent: self.queue.sent.get(),
-            frames_dropped: self.queue.dropped.get(),
-            queued: self.queue.queued() as u64,
-            connected: self.connected.load(Ordering::Relaxed),
-        }
-    }
-}
 
 /// Takes a viewer slot and attaches a new viewer of `session` to its hub (it gets the session
 /// and rig messages at once when the session is live); `TooManyViewers` when every slot is

@@ -4,11 +4,11 @@
 //! or as positions `P0 + sum_k w_k dP_k`.
 
 use super::admission::{Admission, Refusal, find_rig};
-use super::landmark::Recording;
+use super::outputs::{Recording, count_forward, own_forward, start_forwarder};
 use super::session::{LineOutcome, Protocol, Session, TrackerLine, future_line, is_blank};
 use super::state::Shared;
 use crate::catalog::{MorphSet, RigEntry};
-use crate::forward::{ForwardTarget, Forwarder, Sent};
+use crate::forward::{ForwardTarget, Forwarder};
 use crate::record::{Entry, RecordKind};
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
@@ -45,35 +45,6 @@ pub(crate) struct MorphFrame {
     forward: Option<Forwarder>,
     /// The Live Link curves of this frame as they came (forwarded as they are), if any.
     pub(crate) curves: Option<Box<[f32; CURVES]>>,
-}
-
-/// The forwarding of session `s` (the server's `--forward` targets and `own`, the tracker's),
-/// or `None` without targets; a socket that cannot be opened is logged and forwards nothing.
-pub(crate) fn start_forwarder(
-    s: &Session,
-    own: Option<ForwardTarget>,
-    rig_names: &[String],
-) -> Option<Forwarder> {
-    let settings = &s.settings().forward;
-    let targets: Vec<ForwardTarget> = settings.targets.iter().copied().chain(own).collect();
-    match Forwarder::new(settings, &targets, rig_names, &s.name) {
-        Ok(Some(f)) => {
-            let list: Vec<String> = f.targets().map(ToString::to_string).collect();
-            tracing::info!(session = %s.name, "forwarding to {}", list.join(", "));
-            Some(f)
-        }
-        Ok(None) => None,
-        Err(e) => {
-            tracing::error!(session = %s.name, "not forwarded: {e}");
-            None
-        }
-    }
-}
-
-/// Counts what a forward did in the session's `forwarded` and `forward_dropped`.
-pub(crate) fn count_forward(s: &Session, sent: Sent) {
-    s.record.forwarded.add(sent.sent);
-    s.record.forward_dropped.add(sent.dropped);
 }
 
 impl MorphFrame {
@@ -315,16 +286,6 @@ impl WeightsSession {
             own_forward: None,
         }
     }
-}
-
-/// A hello's `"forward"` checked against the server's rules: loopback or `--forward-allow`.
-pub(crate) fn own_forward(
-    shared: &Shared,
-    text: Option<&str>,
-) -> Result<Option<ForwardTarget>, Refusal> {
-    text.map(|t| shared.settings.forward.check_session_target(t))
-        .transpose()
-        .map_err(|e| Refusal::Forward(e.to_string()))
 }
 
 impl Protocol for Weights {

@@ -1,12 +1,16 @@
 //! The rigs as GLB files for the browser viewer, built once per rig and kind and kept.
 
-use super::{EXPRESSION_KEYS, HttpSettings};
-use crate::server::state::{Shared, lock};
+use crate::server::state::Shared;
+use crate::settings::HttpSettings;
+use crate::sync::lock;
 use axum::body::Bytes;
 use mimic_gltf::{basis_morphs, target_morphs, write_rig_glb};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use tokio::sync::OnceCell;
+
+/// Morph targets on the page's number keys 1-9 (as `mimic view`'s): the rig's first nine.
+pub(super) const EXPRESSION_KEYS: usize = 9;
 
 /// One rig's GLB (or why it could not be written), built on first request.
 type Slot = Arc<OnceCell<Result<Bytes, String>>>;

@@ -10,11 +10,10 @@ mod assets;
 mod glb;
 mod ws;
 
-pub(crate) use ws::encode_web_frame;
-
-use super::Server;
-use super::accept::token_ok;
-use super::state::{Shared, lock};
+use super::admission::token_ok;
+use super::state::Shared;
+use crate::settings::HttpSettings;
+use crate::sync::lock;
 use axum::Router;
 use axum::body::Bytes;
 use axum::extract::ws::WebSocketUpgrade;
@@ -24,24 +23,9 @@ use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use serde_json::json;
-use std::collections::BTreeMap;
 use std::future::Future;
-use std::path::PathBuf;
 use std::sync::Arc;
 use tokio::net::TcpListener;
-
-/// What the browser viewer needs beyond the server's state: where each rig's file is (for its
-/// look and morph targets in the GLB) and the skin colour of the rig's look.
-#[derive(Clone, Debug, Default)]
-pub struct HttpSettings {
-    /// Rig name -> its `.toml` file, for every rig of the catalog.
-    pub rig_paths: BTreeMap<String, PathBuf>,
-    /// Linear RGB of the look's skin materials (`mimic_render::SKIN_ALBEDO` in `mimic serve`).
-    pub skin: [f32; 3],
-}
-
-/// Morph targets on the page's number keys 1-9 (as `mimic view`'s): the rig's first nine.
-const EXPRESSION_KEYS: usize = 9;
 
 /// State of the HTTP routes.
 #[derive(Debug)]
@@ -52,32 +36,29 @@ struct App {
 
 type AppState = State<Arc<App>>;
 
-impl Server {
-    /// Serves the browser viewer on `listener` until `shutdown` completes (then open WebSockets
-    /// end when the server's viewer queues close, as TCP viewers do).
-    pub async fn serve_http(
-        &self,
-        listener: TcpListener,
-        web: HttpSettings,
-        shutdown: impl Future<Output = ()> + Send + 'static,
-    ) -> std::io::Result<()> {
-        let app = Arc::new(App {
-            shared: self.shared.clone(),
-            glbs: glb::GlbCache::new(web),
-        });
-        let router = Router::new()
-            .route("/", get(index))
-            .route("/sessions", get(sessions))
-            .route("/stats", get(stats))
-            .route("/view/{session}", get(view))
-            .route("/rig/{file}", get(rig_glb))
-            .route("/ws/{session}", get(ws_upgrade))
-            .route("/static/{*path}", get(static_file))
-            .with_state(app);
-        axum::serve(listener, router)
-            .with_graceful_shutdown(shutdown)
-            .await
-    }
+/// Serves the browser viewer on `listener` until `shutdown` completes (`Server::serve_http`).
+pub(crate) async fn serve(
+    shared: Arc<Shared>,
+    listener: TcpListener,
+    web: HttpSettings,
+    shutdown: impl Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
+    let app = Arc::new(App {
+        shared,
+        glbs: glb::GlbCache::new(web),
+    });
+    let router = Router::new()
+        .route("/", get(index))
+        .route("/sessions", get(sessions))
+        .route("/stats", get(stats))
+        .route("/view/{session}", get(view))
+        .route("/rig/{file}", get(rig_glb))
+        .route("/ws/{session}", get(ws_upgrade))
+        .route("/static/{*path}", get(static_file))
+        .with_state(app);
+    axum::serve(listener, router)
+        .with_graceful_shutdown(shutdown)
+        .await
 }
 
 /// The `token` parameter of a query string, percent-decoded (`+` as a space).
@@ -214,7 +195,7 @@ async fn stats(State(app): AppState, RawQuery(q): RawQuery) -> Response {
 /// The rig and kind of the session named `name`: its live tracker's, else the most recent
 /// ended session of that name's; `(rig, weights session)`.
 fn session_rig(shared: &Shared, name: &str) -> Option<(String, bool)> {
-    let of = |r: &super::state::SessionRecord| (r.rig.clone(), r.layout == "weights");
+    let of = |r: &super::hub::SessionRecord| (r.rig.clone(), r.layout == "weights");
     if let Some(live) = lock(&shared.hubs).get(name).and_then(|h| h.live.as_ref()) {
         return Some(of(&live.record));
     }

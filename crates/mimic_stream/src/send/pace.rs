@@ -1,4 +1,4 @@
-//! Pacing for senders (`mimic send`): frames handed out at their recorded times, `start +
+//! Pacing for the sender (`mimic send`): frames handed out at their recorded times, `start +
 //! offset / speed`, on the calling thread (a blocking sleep), or at once with `fast`.
 
 use std::time::{Duration, Instant};

@@ -1,0 +1,23 @@
+//! The tracker simulator behind `mimic send`: a recording (or a CSV of named blendshape weights,
+//! as a weights session) replayed into a server over TCP at its pace ([`send_recording`],
+//! [`send_weights`], a Live Link Face take through [`TakeSender`]), or sent as a tracker's own
+//! UDP datagrams ([`send_openseeface`], [`send_take_udp`]). The server's replies are read on
+//! their own thread (`connection`); what each send did comes back as a report for the caller to
+//! print.
+
+mod connection;
+mod error;
+mod options;
+mod pace;
+mod recording;
+mod take;
+mod udp;
+mod weights;
+
+pub use connection::TcpSent;
+pub use error::SendError;
+pub use options::SendOptions;
+pub use recording::send_recording;
+pub use take::{TakeSender, TakeSent};
+pub use udp::{DEFAULT_SUBJECT, UdpSent, send_openseeface, send_take_udp};
+pub use weights::send_weights;
