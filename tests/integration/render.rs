@@ -254,3 +254,32 @@ fn the_legend_is_opt_in_and_only_touches_its_corner() {
     ]);
     assert!(!o.status.success());
 }
+
+#[test]
+fn render_prints_no_stray_wayland_line_without_a_runtime_dir() {
+    if skip() {
+        return;
+    }
+    // Mesa's Vulkan device-select layer asked libwayland for a display, which printed
+    // `error: XDG_RUNTIME_DIR is invalid or not set in the environment.` twice on success.
+    let dir = tempfile::tempdir().unwrap();
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_mimic"))
+        .args([
+            "render",
+            "recordings/a_yn_question.jsonl",
+            "--rig",
+            "ict-face",
+        ])
+        .args(["--frames", "0", "--size", "64x64", "-o"])
+        .arg(dir.path())
+        .current_dir(repo())
+        .env_remove("RUST_LOG")
+        .env_remove("XDG_RUNTIME_DIR")
+        .env_remove("NODEVICE_SELECT")
+        .output()
+        .unwrap();
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "mimic render failed:\n{stderr}");
+    assert!(stdout.contains("frame_000000.png"), "{stdout}");
+    assert!(!stderr.contains("XDG_RUNTIME_DIR"), "{stderr}");
+}

@@ -449,3 +449,35 @@ fn an_eos_mapping_without_the_jaw_contour_gives_the_whole_lists_rig() {
         r.solver.shell.stiffness
     );
 }
+
+#[test]
+fn rig_new_makes_its_output_folder_and_refuses_an_unwritable_one_before_the_work() {
+    let dir = tempfile::tempdir().unwrap();
+    let mesh = ict_dir().join("generic_neutral_mesh.obj");
+    let marks = repo().join("configs/rigs/ict-face.landmarks.json");
+    // A folder that does not exist yet, two levels deep: made.
+    let nested = dir.path().join("new/dir/x.toml");
+    let o = rig_new_from(&mesh, &nested, &marks, &["--units", "cm"]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}\n{stderr}");
+    assert!(mimic_assets::load_rig(&nested).is_ok());
+    // A folder under a regular file cannot be made: one clear line, and no registration ran
+    // (without --landmarks the ICT head would be registered first, which takes seconds).
+    let file = dir.path().join("plain");
+    std::fs::write(&file, "not a folder").unwrap();
+    let under = file.join("sub/x.toml");
+    let o = mimic(&[
+        "rig",
+        "new",
+        mesh.to_str().unwrap(),
+        "-o",
+        under.to_str().unwrap(),
+    ]);
+    let (_, stderr) = text(&o);
+    assert!(!o.status.success(), "{stderr}");
+    assert_eq!(stderr.trim_end().lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("x.toml: cannot create the folder") && !stderr.contains("registered"),
+        "{stderr}"
+    );
+}

@@ -188,6 +188,168 @@ impl MorphEval {
     }
 }
 
+/// One shape evaluated by [`evaluate`].
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Evaluated {
+    /// The deformation `u` the solver made (per rig vertex).
+    pub displacements: Vec<Vec3>,
+    /// Its error against the shape.
+    pub error: ShapeError,
+    /// With morph targets: the fitted weights by target name.
+    pub weights: Option<Vec<(String, f32)>>,
+}
+
+/// Drives the rig's controls with `shape`'s own control displacements, deforms the neutral with
+/// `basis` (`u = B d`) or, given `blend`, with fitted morph-target weights, and measures the
+/// result at the `measured` vertices.
+pub fn evaluate(
+    rig: &Rig,
+    basis: &Basis,
+    blend: Option<&MorphEval>,
+    shape: &[Vec3],
+    measured: &[bool],
+) -> Result<Evaluated, BlendshapeError> {
+    let d = control_displacements(rig, shape);
+    let mut u = vec![Vec3::ZERO; rig.mesh.vertex_count()];
+    let weights = match blend {
+        Some(b) => {
+            let mut fitter = b.fitter(rig, shape)?;
+            Some(MorphEval::deform(&mut fitter, &d, &mut u))
+        }
+        None => {
+            basis.apply(&d, &mut u);
+            None
+        }
+    };
+    let error = measure(rig, &u, shape, measured);
+    Ok(Evaluated {
+        displacements: u,
+        error,
+        weights,
+    })
+}
+
+/// The median and the largest of the shapes' overall ratios (NaN for none).
+pub fn median_and_max(errors: &[ShapeError]) -> (f64, f64) {
+    let mut ratios: Vec<f64> = errors.iter().map(|e| e.all.ratio).collect();
+    let median = median(&mut ratios);
+    (median, ratios.last().copied().unwrap_or(f64::NAN))
+}
+
+/// The evaluation in words for people: a line per shape (ratio and errors in `units`), then the
+/// median and worst ratio and the noise gain, each explained.
+pub fn summary_text(shapes: &[(String, ShapeError)], units: &str, noise_gain: f64) -> String {
+    use std::fmt::Write as _;
+    let mut t = String::new();
+    let measured = shapes.first().map_or(0, |(_, e)| e.all.vertices);
+    let _ = writeln!(
+        t,
+        "Error: the distance from the true expression at each of the {measured} measured vertices, {units}.\n\
+         Ratio: mean error / mean true movement (0 is perfect, 1 is no better than leaving the face at rest)."
+    );
+    let width = shapes
+        .iter()
+        .map(|(n, _)| n.len())
+        .max()
+        .unwrap_or(5)
+        .max(5);
+    let _ = writeln!(
+        t,
+        "{:<width$}  {:>6}  {:>10}  {:>10}  {:>10}",
+        "shape", "ratio", "mean error", "95% within", "worst"
+    );
+    for (name, e) in shapes {
+        let a = &e.all;
+        let _ = writeln!(
+            t,
+            "{name:<width$}  {:>6.3}  {:>10.4}  {:>10.4}  {:>10.4}",
+            a.ratio, a.mean_error, a.p95_error, a.max_error
+        );
+    }
+    let errors: Vec<ShapeError> = shapes.iter().map(|(_, e)| *e).collect();
+    let (median, max) = median_and_max(&errors);
+    let worst = shapes
+        .iter()
+        .max_by(|a, b| a.1.all.ratio.total_cmp(&b.1.all.ratio))
+        .map_or("", |(n, _)| n.as_str());
+    let above = shapes
+        .iter()
+        .filter(|(_, e)| e.all.ratio >= 1.0 || e.all.ratio.is_nan())
+        .count();
+    let verdict = if above == 0 {
+        "every shape is better than leaving the face at rest".to_string()
+    } else {
+        format!(
+            "{above} of {} shapes are no better than leaving the face at rest",
+            shapes.len()
+        )
+    };
+    let _ = writeln!(
+        t,
+        "Median ratio {median:.3}, worst {max:.3} ({worst}): {verdict}."
+    );
+    let _ = writeln!(
+        t,
+        "Noise gain {noise_gain:.2}: tracking noise at one control can show up to {noise_gain:.2} times as large at a vertex."
+    );
+    t
+}
+
+/// The per-region table of the shapes (developer detail): vertices, mean, p95 and largest
+/// error, mean true displacement and ratio, for all measured vertices and each region.
+pub fn region_table(shapes: &[(String, ShapeError)]) -> String {
+    use std::fmt::Write as _;
+    let mut t = format!(
+        "{:<28} {:<7} {:>7} {:>9} {:>9} {:>9} {:>9} {:>6}\n",
+        "shape", "region", "verts", "mean_err", "p95_err", "max_err", "mean_disp", "ratio"
+    );
+    for (name, e) in shapes {
+        let rows = std::iter::once(("all", &e.all)).chain(
+            mimic_types::Region::ALL
+                .iter()
+                .map(|r| r.name())
+                .zip(e.regions.iter()),
+        );
+        for (region, s) in rows {
+            let _ = writeln!(
+                t,
+                "{name:<28} {region:<7} {:>7} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>6.3}",
+                s.vertices, s.mean_error, s.p95_error, s.max_error, s.mean_displacement, s.ratio
+            );
+        }
+    }
+    t
+}
+
+/// The jitter of replayed recordings in words for people: a line per recording (`name`, its
+/// jitter, and how many tracked frames the plausibility gate held), lengths in `units`.
+pub fn jitter_text(rows: &[(String, Jitter, u64)], units: &str) -> String {
+    use std::fmt::Write as _;
+    let mut t = format!(
+        "Jitter: how much the moving vertices wobble from frame to frame (RMS second difference, {units}).\n\
+         Movement: how much they move between frames (RMS first difference), for scale.\n\
+         Triples: runs of three tracked frames measured. Held: tracked frames the plausibility gate held (docs/gate.md).\n"
+    );
+    let width = rows.iter().map(|(n, ..)| n.len()).max().unwrap_or(9).max(9);
+    let _ = writeln!(
+        t,
+        "{:<width$}  {:>8}  {:>14}  {:>12}  {:>15}  {:>5}",
+        "recording", "triples", "median jitter", "95% jitter", "median movement", "held"
+    );
+    for (name, j, held) in rows {
+        let _ = writeln!(
+            t,
+            "{name:<width$}  {:>8}  {:>14.5}  {:>12.5}  {:>15.5}  {:>5}",
+            j.triples,
+            j.median_second_difference,
+            j.p95_second_difference,
+            j.median_first_difference,
+            held
+        );
+    }
+    t
+}
+
 /// Frame-to-frame jitter of a replay's deformed mesh ([`jitter`]), rig units.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
 pub struct Jitter {
@@ -280,5 +442,26 @@ mod tests {
         let empty = ErrorStats::of(&mut [], &[]);
         assert_eq!(empty.vertices, 0);
         assert!(ErrorStats::of(&mut [1.0], &[0.0]).ratio.is_nan());
+    }
+
+    #[test]
+    fn summary_names_the_worst_shape_and_says_whether_any_is_worse_than_rest() {
+        let shape = |ratio: f64| ShapeError {
+            all: ErrorStats {
+                vertices: 10,
+                ratio,
+                ..ErrorStats::default()
+            },
+            regions: [ErrorStats::default(); 3],
+        };
+        let good = [("a".to_string(), shape(0.2)), ("b".to_string(), shape(0.6))];
+        let text = summary_text(&good, "cm", 1.5);
+        assert!(
+            text.contains("worst 0.600 (b): every shape is better"),
+            "{text}"
+        );
+        let bad = [("a".to_string(), shape(1.2)), ("b".to_string(), shape(0.6))];
+        assert!(summary_text(&bad, "cm", 1.5).contains("1 of 2 shapes are no better"));
+        assert_eq!(region_table(&good).lines().count(), 1 + 2 * 4);
     }
 }

@@ -10,6 +10,8 @@ pub mod gltf_mesh;
 pub mod head_template;
 pub mod icp;
 pub mod landmarks;
+pub mod make;
+pub mod morph;
 pub mod nearest;
 pub mod new;
 pub mod nonrigid;
@@ -18,6 +20,7 @@ pub mod parts;
 pub mod picture;
 pub mod place;
 pub mod register;
+pub mod summary;
 pub mod write;
 
 pub use check::{Warning, check_rig};
@@ -27,8 +30,10 @@ pub use landmarks::{
     IBUG_POINTS, LandmarkBase, Landmarks, Numbering, landmarks_json, load_landmarks,
     parse_landmarks,
 };
+pub use make::{MadeRig, NewRig, make_rig_file, prepare_output, write_rig_with_controls};
 pub use new::{Defaults, GeneratedRig, guess_units, make_rig};
 pub use overrides::apply_overrides;
+pub use summary::{LayoutSummary, RigSummary};
 pub use write::{relative_path, write_rig_toml};
 
 use std::path::{Path, PathBuf};
@@ -99,5 +104,29 @@ pub enum RigNewError {
         key: String,
         /// What was wrong.
         message: String,
+    },
+    /// A file that could not be written.
+    #[error("{}: {cause}", path.display())]
+    Write {
+        /// The file.
+        path: PathBuf,
+        /// What the OS said.
+        cause: std::io::Error,
+    },
+    /// An output path that cannot be written (checked before the work).
+    #[error("{}: {message}", path.display())]
+    Output {
+        /// The path asked for.
+        path: PathBuf,
+        /// What is wrong with it.
+        message: String,
+    },
+    /// An error with what was being done in front of it.
+    #[error("{context}: {cause}")]
+    Context {
+        /// What was being done.
+        context: String,
+        /// The error (its text is part of this one's, so it is no `source`).
+        cause: Box<RigNewError>,
     },
 }

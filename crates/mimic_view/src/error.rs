@@ -26,6 +26,9 @@ pub enum ViewError {
     /// Building a basis or a retargeter for the other solver failed.
     #[error("{0}")]
     Solver(String),
+    /// An option that names nothing the rig has (`--heat control:FDP`).
+    #[error("{0}")]
+    Option(String),
     /// The recording has no frames to play.
     #[error("the recording has no accepted frames")]
     NoFrames,

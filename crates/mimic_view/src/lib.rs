@@ -6,6 +6,7 @@
 //! readout ([`readout`]) and what is drawn over the head ([`hud`]), the newest-wins frame queue ([`latest`]), the live client ([`client`])
 //! and the viewer state ([`viewer`]). [`window`] is the winit event loop around it, and
 //! [`headless`] the same loop into an offscreen target (`mimic view --headless-frames N`).
+//! [`stills`] draws chosen frames of a replay to images (`mimic render`).
 
 pub mod client;
 mod error;
@@ -18,6 +19,7 @@ pub mod look;
 pub mod orbit;
 pub mod playback;
 pub mod readout;
+pub mod stills;
 pub mod viewer;
 pub mod window;
 

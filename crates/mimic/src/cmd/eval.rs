@@ -3,14 +3,15 @@
 
 use crate::cmd::setup::{RigArgs, SolverChoice, SolverTuningArgs, parse_ranges, timed_basis};
 use anyhow::{Context, bail};
-use glam::Vec3;
 use mimic_assets::{load_morph_targets, load_obj};
 use mimic_retarget::quality::{
-    MorphEval, ShapeError, control_displacements, error_csv, jitter, measure, median, noise_gain,
+    MorphEval, ShapeError, error_csv, evaluate, jitter, jitter_text, median_and_max, noise_gain,
+    region_table, summary_text,
 };
-use mimic_types::Region;
+use mimic_solve::Basis;
+use mimic_types::{Region, Rig};
 use serde_json::json;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Arguments of `mimic eval`.
 #[derive(clap::Args, Debug)]
@@ -29,9 +30,12 @@ pub struct Args {
     /// With `--jitter`: the One Euro filter off.
     #[arg(long, requires = "jitter")]
     pub no_filter: bool,
-    /// Print the report as JSON.
+    /// Print the report as JSON (every figure, the solver's settings, per region).
     #[arg(long)]
     pub json: bool,
+    /// Also print the solver's settings, each region's errors and morph-target weights.
+    #[arg(long)]
+    pub detail: bool,
     /// Blendshapes: leave a shape's own morph target out of its fit.
     #[arg(long)]
     pub leave_one_out: bool,
@@ -78,23 +82,28 @@ fn parse_vertices(text: &str) -> Result<Ranges, String> {
     parse_ranges(text, false).map(Ranges)
 }
 
-/// Runs `mimic eval`.
-pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut rig = args.rig.load_rig()?;
+/// The file name of `path`, as the reports name shapes and recordings.
+fn file_name(path: &Path) -> String {
+    path.file_name().map_or_else(
+        || path.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    )
+}
+
+/// Puts the `--controls` set on the rig (registered from its template), and writes the rig with
+/// it under `--write-rig`.
+fn apply_controls(args: &Args, rig: &mut Rig) -> anyhow::Result<()> {
     let rig_path = args.rig.rig_path();
-    let landmarks_path = args.landmarks.clone().or_else(|| {
+    let landmarks = args.landmarks.clone().or_else(|| {
         let p = rig_path.with_extension("landmarks.json");
         p.is_file().then_some(p)
     });
-    let marks = match (&landmarks_path, args.controls.as_str()) {
-        (Some(p), "ibug68") => Some(mimic_rig::load_landmarks(
-            p,
-            mimic_rig::Numbering::default(),
-        )?),
+    let marks = match (&landmarks, args.controls.as_str()) {
+        (Some(p), "ibug68") => Some(mimic_rig::load_landmarks(p, Default::default())?),
         _ => None,
     };
     let registration = mimic_rig::register::apply_control_set(
-        &mut rig,
+        rig,
         &args.controls,
         &args.rig.config_dirs().root,
         marks.as_ref(),
@@ -102,33 +111,65 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     )
     .with_context(|| format!("--controls {}", args.controls))?;
     if let (Some(out), Some(reg)) = (&args.write_rig, &registration) {
-        let same_dir = out
-            .parent()
-            .map(std::path::Path::to_path_buf)
-            .unwrap_or_default()
-            == rig_path
-                .parent()
-                .map(std::path::Path::to_path_buf)
-                .unwrap_or_default();
-        if !same_dir {
-            bail!(
-                "--write-rig {}: write it beside {} (its mesh path is relative)",
-                out.display(),
-                rig_path.display()
-            );
-        }
-        let text = mimic_types::limits::read_capped(&rig_path, &mimic_types::limits::RIG_FILE)
-            .with_context(|| rig_path.display().to_string())?;
-        let written = mimic_rig::register::replace_controls_toml(&text, &rig.controls, reg);
-        std::fs::write(out, written).with_context(|| out.display().to_string())?;
-        mimic_assets::load_rig(out)
-            .with_context(|| format!("{}: the written rig does not load", out.display()))?;
+        mimic_rig::write_rig_with_controls(&rig_path, out, rig, reg).context("--write-rig")?;
         eprintln!("wrote {} ({} controls)", out.display(), rig.controls.len());
     }
+    Ok(())
+}
+
+/// The shapes' errors (by path) and, with morph targets, their fitted weights.
+type Scores = (
+    Vec<(String, ShapeError)>,
+    serde_json::Map<String, serde_json::Value>,
+);
+
+/// Evaluates each `--shapes` mesh (writing its `--dump` CSV).
+fn score_shapes(
+    args: &Args,
+    rig: &Rig,
+    basis: &Basis,
+    blend: Option<&MorphEval>,
+) -> anyhow::Result<Scores> {
+    let (mut shapes, mut weights) = (Vec::new(), serde_json::Map::new());
+    let measured: Vec<bool> = (0..rig.mesh.vertex_count())
+        .map(|i| !rig.frozen[i] && args.vertices.as_ref().is_none_or(|r| r.contains(i)))
+        .collect();
+    for path in &args.shapes {
+        let mesh = load_obj(path)?;
+        if mesh.vertex_count() != rig.mesh.vertex_count() || mesh.triangles != rig.mesh.triangles {
+            bail!(
+                "{}: not the rig mesh's topology ({} vertices, {} triangles; the rig mesh has {} and {})",
+                path.display(),
+                mesh.vertex_count(),
+                mesh.triangles.len(),
+                rig.mesh.vertex_count(),
+                rig.mesh.triangles.len()
+            );
+        }
+        let e = evaluate(rig, basis, blend, &mesh.positions, &measured)?;
+        if let Some(w) = &e.weights {
+            weights.insert(path.display().to_string(), json!(w));
+        }
+        if let Some(dir) = &args.dump {
+            let stem = path
+                .file_stem()
+                .map_or_else(|| "shape".into(), |s| s.to_string_lossy().into_owned());
+            let out = dir.join(format!("{stem}.errors.csv"));
+            let csv = error_csv(rig, &e.displacements, &mesh.positions, &measured);
+            std::fs::write(&out, csv).with_context(|| out.display().to_string())?;
+        }
+        shapes.push((path.display().to_string(), e.error));
+    }
+    Ok((shapes, weights))
+}
+
+/// Runs `mimic eval`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut rig = args.rig.load_rig()?;
+    apply_controls(&args, &mut rig)?;
     args.tuning.apply_to_rig(&mut rig);
     let settings = args.tuning.solver_settings(&args.rig, &rig)?;
     let (basis, took) = timed_basis(&rig, &settings)?;
-    let setup_ms = took.as_secs_f64() * 1e3;
     let noise_gain = noise_gain(&basis);
     if !args.jitter.is_empty() {
         return run_jitter(&args, &rig, basis, noise_gain);
@@ -142,129 +183,74 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     } else {
         None
     };
-    let mut weights = serde_json::Map::new();
-    let mut shapes: Vec<(PathBuf, ShapeError)> = Vec::new();
-    for path in &args.shapes {
-        let mesh = load_obj(path)?;
-        if mesh.vertex_count() != rig.mesh.vertex_count() || mesh.triangles != rig.mesh.triangles {
-            bail!(
-                "{}: not the rig mesh's topology ({} vertices, {} triangles; the rig mesh has {} and {})",
-                path.display(),
-                mesh.vertex_count(),
-                mesh.triangles.len(),
-                rig.mesh.vertex_count(),
-                rig.mesh.triangles.len()
-            );
-        }
-        let measured: Vec<bool> = (0..rig.mesh.vertex_count())
-            .map(|i| !rig.frozen[i] && args.vertices.as_ref().is_none_or(|r| r.contains(i)))
-            .collect();
-        let d = control_displacements(&rig, &mesh.positions);
-        let mut u = vec![Vec3::ZERO; rig.mesh.vertex_count()];
-        match &blend {
-            Some(b) => {
-                let mut fitter = b.fitter(&rig, &mesh.positions)?;
-                let w = MorphEval::deform(&mut fitter, &d, &mut u);
-                weights.insert(path.display().to_string(), json!(w));
-            }
-            None => basis.apply(&d, &mut u),
-        }
-        if let Some(dir) = &args.dump {
-            let stem = path
-                .file_stem()
-                .map_or_else(|| "shape".into(), |s| s.to_string_lossy().into_owned());
-            let out = dir.join(format!("{stem}.errors.csv"));
-            let csv = error_csv(&rig, &u, &mesh.positions, &measured);
-            std::fs::write(&out, csv).with_context(|| out.display().to_string())?;
-        }
-        shapes.push((path.clone(), measure(&rig, &u, &mesh.positions, &measured)));
-    }
-    let mut ratios: Vec<f64> = shapes.iter().map(|s| s.1.all.ratio).collect();
-    let median = median(&mut ratios);
-    let report = json!({
-        "rig": args.rig.rig,
-        "controls": args.controls,
-        "control_count": rig.controls.len(),
-        "units": rig.units,
-        "settings": serde_json::to_value(settings)?,
-        "band": rig.regions.band,
-        "vertices": args.vertices.as_ref().map(|r| r.0.iter().map(|(a, b)| json!([a, b])).collect::<Vec<_>>()),
-        "setup_ms": setup_ms,
-        "noise_gain": noise_gain,
-        "blendshape_weights": blend.is_some().then_some(&weights),
-        "median_ratio": median,
-        "max_ratio": ratios.last().copied().unwrap_or(f64::NAN),
-        "shapes": shapes.iter().map(|(p, e)| json!({
-            "shape": p.display().to_string(),
-            "all": e.all,
-            "regions": Region::ALL.iter().zip(&e.regions).map(|(r, s)| (r.name().to_string(), json!(s))).collect::<serde_json::Map<_, _>>(),
-        })).collect::<Vec<_>>(),
-    });
+    let (shapes, weights) = score_shapes(&args, &rig, &basis, blend.as_ref())?;
+    let errors: Vec<ShapeError> = shapes.iter().map(|s| s.1).collect();
+    let (median, max) = median_and_max(&errors);
+    let setup_ms = took.as_secs_f64() * 1e3;
+    let settings_json = serde_json::to_value(settings)?;
     if args.json {
+        let report = json!({
+            "rig": args.rig.rig,
+            "controls": args.controls,
+            "control_count": rig.controls.len(),
+            "units": rig.units,
+            "settings": settings_json,
+            "band": rig.regions.band,
+            "vertices": args.vertices.as_ref().map(|r| r.0.iter().map(|(a, b)| json!([a, b])).collect::<Vec<_>>()),
+            "setup_ms": setup_ms,
+            "noise_gain": noise_gain,
+            "blendshape_weights": blend.is_some().then_some(&weights),
+            "median_ratio": median,
+            "max_ratio": max,
+            "shapes": shapes.iter().map(|(p, e)| json!({
+                "shape": p,
+                "all": e.all,
+                "regions": Region::ALL.iter().zip(&e.regions).map(|(r, s)| (r.name().to_string(), json!(s))).collect::<serde_json::Map<_, _>>(),
+            })).collect::<Vec<_>>(),
+        });
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
+    let solver = match blend {
+        Some(_) => "the rig's morph targets (weights fitted to the controls)".to_string(),
+        None => format!(
+            "the {} solver (basis built in {setup_ms:.0} ms)",
+            settings.kind.name()
+        ),
+    };
     println!(
-        "rig {} ({}), controls {} ({}), solver {:?}, regions {}, top split {:?}, kernel {:?}, affine {}, distance {:?}, weights {:?}, constraint weight {}, shell {:?}, shell blend {:?}, band {}; setup {:.0} ms",
+        "Evaluated rig {} ({} controls: {}; units {}) with {solver} on {} expression meshes.",
         args.rig.rig,
-        rig.units,
-        args.controls,
         rig.controls.len(),
-        settings.kind,
-        settings.regions,
-        settings.top_split,
-        settings.kernel,
-        settings.affine,
-        settings.distance,
-        settings.weights,
-        settings.constraint_weight,
-        settings.shell,
-        settings.shell_blend,
-        rig.regions.band,
-        setup_ms
+        args.controls,
+        rig.units,
+        shapes.len()
     );
-    println!(
-        "{:<28} {:<7} {:>7} {:>9} {:>9} {:>9} {:>9} {:>6}",
-        "shape", "region", "verts", "mean_err", "p95_err", "max_err", "mean_disp", "ratio"
-    );
-    for (path, e) in &shapes {
-        let name = path.file_name().map_or_else(
-            || path.display().to_string(),
-            |n| n.to_string_lossy().into_owned(),
+    let named: Vec<(String, ShapeError)> = shapes
+        .iter()
+        .map(|(p, e)| (file_name(Path::new(p)), *e))
+        .collect();
+    print!("{}", summary_text(&named, &rig.units, noise_gain));
+    if !args.detail {
+        println!(
+            "(--detail adds the solver's settings and each region's errors; --json prints everything)"
         );
-        let rows = std::iter::once(("all", &e.all))
-            .chain(Region::ALL.iter().map(|r| r.name()).zip(e.regions.iter()));
-        for (region, s) in rows {
-            println!(
-                "{:<28} {:<7} {:>7} {:>9.4} {:>9.4} {:>9.4} {:>9.4} {:>6.3}",
-                name,
-                region,
-                s.vertices,
-                s.mean_error,
-                s.p95_error,
-                s.max_error,
-                s.mean_displacement,
-                s.ratio
-            );
-        }
+        return Ok(());
     }
+    println!("\nSolver settings:");
+    if let serde_json::Value::Object(map) = settings_json {
+        map.iter()
+            .for_each(|(key, value)| println!("  {key}: {value}"));
+    }
+    print!("  band: {}\n\n{}", rig.regions.band, region_table(&named));
     for (shape, w) in &weights {
         println!("weights for {shape}: {w}");
     }
-    println!(
-        "median ratio {median:.3}, max ratio {:.3}, noise gain {noise_gain:.2}",
-        ratios.last().copied().unwrap_or(f64::NAN)
-    );
     Ok(())
 }
 
 /// `mimic eval --jitter REC...`: the jitter of each replayed recording on the rig.
-fn run_jitter(
-    args: &Args,
-    rig: &mimic_types::Rig,
-    basis: mimic_solve::Basis,
-    noise_gain: f64,
-) -> anyhow::Result<()> {
+fn run_jitter(args: &Args, rig: &Rig, basis: Basis, noise_gain: f64) -> anyhow::Result<()> {
     let basis = std::sync::Arc::new(basis);
     let measured: Vec<bool> = rig.frozen.iter().map(|f| !f).collect();
     let mut rows = Vec::new();
@@ -302,28 +288,18 @@ fn run_jitter(
         return Ok(());
     }
     println!(
-        "rig {} ({}), controls {} ({}), filter {}, noise gain {noise_gain:.2}",
+        "Jitter of rig {} ({} controls: {}; units {}) replaying {} recordings, the One Euro filter {}; noise gain {noise_gain:.2}.",
         args.rig.rig,
-        rig.units,
-        args.controls,
         rig.controls.len(),
+        args.controls,
+        rig.units,
+        rows.len(),
         if args.no_filter { "off" } else { "on" }
     );
-    println!(
-        "{:<40} {:>7} {:>12} {:>12} {:>12} {:>6}",
-        "recording", "triples", "median_d2", "p95_d2", "median_d1", "gated"
-    );
-    for (p, j, s) in &rows {
-        println!(
-            "{:<40} {:>7} {:>12.5} {:>12.5} {:>12.5} {:>6}",
-            p.file_name()
-                .map_or_else(String::new, |n| n.to_string_lossy().into_owned()),
-            j.triples,
-            j.median_second_difference,
-            j.p95_second_difference,
-            j.median_first_difference,
-            s.gated
-        );
-    }
+    let named: Vec<_> = rows
+        .iter()
+        .map(|(p, j, s)| (file_name(p), *j, s.gated))
+        .collect();
+    print!("{}", jitter_text(&named, &rig.units));
     Ok(())
 }

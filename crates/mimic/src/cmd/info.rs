@@ -1,10 +1,11 @@
-//! `mimic info`: validate a recording, layout or rig and summarise it.
+//! `mimic info`: validate a recording, layout or rig and summarise it (the summaries are
+//! `mimic_rig::summary` and `mimic_capture::summarize_reader`).
 
 use anyhow::Context;
 use mimic_assets::{ConfigDirs, load_layout, load_rig};
+use mimic_rig::{LayoutSummary, RigSummary};
 use mimic_stream::wire::escape_untrusted;
-use mimic_types::{Layout, Region, Rig};
-use serde_json::{Value, json};
+use serde_json::Value;
 use std::path::{Path, PathBuf};
 
 /// Arguments of `mimic info`.
@@ -51,8 +52,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 fn summarise(args: Args) -> anyhow::Result<()> {
     let summary = match kind_of(&args.file)? {
-        Kind::Layout => layout_summary(&load_layout(&args.file)?),
-        Kind::Rig => rig_summary(&load_rig(&args.file)?),
+        Kind::Layout => serde_json::to_value(LayoutSummary::of(&load_layout(&args.file)?))?,
+        Kind::Rig => {
+            let summary = RigSummary::of(&load_rig(&args.file)?);
+            for w in &summary.warnings {
+                eprintln!("warning: {w}");
+            }
+            serde_json::to_value(summary)?
+        }
         Kind::Recording => {
             let configs = ConfigDirs::locate(args.configs.as_deref());
             recording_summary(&args.file, &configs)?
@@ -94,68 +101,6 @@ fn plain(v: &Value, indent: usize, out: &mut String) {
             };
         }
     }
-}
-
-fn layout_summary(l: &Layout) -> Value {
-    let by_region = |r: Region| l.controls.iter().filter(|c| c.region == r).count();
-    json!({
-        "kind": "layout",
-        "name": l.name,
-        "points": l.point_count,
-        "controls": l.controls.len(),
-        "controls_by_region": {
-            "top": by_region(Region::Top),
-            "middle": by_region(Region::Middle),
-            "bottom": by_region(Region::Bottom),
-        },
-        "stable_points": l.stable.len(),
-        "undocumented_points": l.undocumented.len(),
-        "fdps": l.controls.iter().map(|c| c.fdp.to_string()).collect::<Vec<_>>().join(" "),
-    })
-}
-
-fn rig_summary(r: &Rig) -> Value {
-    let movable = r.frozen.iter().filter(|f| !**f).count();
-    let mut region_vertices = [0usize; 3];
-    for (p, frozen) in r.mesh.positions.iter().zip(&r.frozen) {
-        if !frozen {
-            region_vertices[r.regions.region_at(p.y).index()] += 1;
-        }
-    }
-    let (lo, hi) = r.mesh.bounds().unwrap_or_default();
-    let warnings: Vec<String> = r
-        .coincident_controls()
-        .into_iter()
-        .map(|(a, b)| {
-            format!(
-                "controls {a} and {b} share one rest position: an RBF solve merges them into one \
-                 centre driven by their mean, so they cannot move apart (use --solver laplacian, or \
-                 put them on different vertices)"
-            )
-        })
-        .collect();
-    for w in &warnings {
-        eprintln!("warning: {w}");
-    }
-    json!({
-        "kind": "rig",
-        "name": r.name,
-        "units": r.units,
-        "vertices": r.mesh.vertex_count(),
-        "triangles": r.mesh.triangles.len(),
-        "textured": !r.mesh.uvs.is_empty(),
-        "controls": r.controls.len(),
-        "frozen_vertices": r.mesh.vertex_count() - movable,
-        "movable_vertices_by_region": {
-            "top": region_vertices[0],
-            "middle": region_vertices[1],
-            "bottom": region_vertices[2],
-        },
-        "bounds_min": [lo.x, lo.y, lo.z],
-        "bounds_max": [hi.x, hi.y, hi.z],
-        "solver": serde_json::to_value(r.solver).unwrap_or(Value::Null),
-        "warnings": warnings,
-    })
 }
 
 /// Validates a recording strictly (the first rejected frame is the error) and returns its summary.

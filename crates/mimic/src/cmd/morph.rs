@@ -1,10 +1,12 @@
-//! `mimic morph`: a rig's morph targets to the morph data file and back (docs/morph-format.md).
+//! `mimic morph`: a rig's morph targets to the morph data file and back (docs/morph-format.md;
+//! the checks are `mimic_rig::morph`).
 
 use crate::cmd::setup::{load_rig_with_targets, write_obj_frame};
 use anyhow::{Context, bail};
 use clap::Subcommand;
-use mimic_assets::{MORPH_FILE_DECIMALS, compare_deltas, load_morph_file, save_morph_file};
+use mimic_assets::{MORPH_FILE_DECIMALS, load_morph_file, save_morph_file};
 use mimic_retarget::{BlendshapeFitter, BlendshapeSettings, WeightMap};
+use mimic_rig::morph::{MorphCheck, WeightColumns};
 use serde_json::json;
 use std::path::{Path, PathBuf};
 
@@ -71,110 +73,95 @@ pub fn run(command: MorphCommand) -> anyhow::Result<()> {
             rig,
             output,
             configs,
-        } => {
-            let (rig, targets) = load_rig_with_targets(&rig, configs.as_deref())?;
-            if targets.is_empty() {
-                bail!("rig `{}` has no morph targets", rig.name);
-            }
-            let comment = format!(
-                "rig {}, units {}, {} targets: {}",
-                rig.name,
-                rig.units,
-                targets.len(),
-                targets
-                    .iter()
-                    .map(|t| t.name.as_str())
-                    .collect::<Vec<_>>()
-                    .join(" ")
-            );
-            save_morph_file(&output, &comment, &targets)?;
-            println!(
-                "wrote {} targets x {} vertices of rig {} to {}",
-                targets.len(),
-                rig.mesh.vertex_count(),
-                rig.name,
-                output.display()
-            );
-            Ok(())
-        }
+        } => export(&rig, configs.as_deref(), &output),
         MorphCommand::Import {
             file,
             rig,
             configs,
             json,
-        } => {
-            let read = load_morph_file(&file)?;
-            let (rig, targets) = load_rig_with_targets(&rig, configs.as_deref())?;
-            let n = rig.mesh.vertex_count();
-            if let Some(t) = read.iter().find(|t| t.vertex_count() != n) {
-                bail!(
-                    "{}: {} vertices per target, rig `{}` has {n}",
-                    file.display(),
-                    t.vertex_count(),
-                    rig.name
-                );
-            }
-            let mut rows = Vec::new();
-            let mut all_ok = read.len() == targets.len();
-            for t in &read {
-                let Some(own) = targets.iter().find(|o| o.name == t.name) else {
-                    all_ok = false;
-                    rows.push(json!({"target": t.name, "in_rig": false}));
-                    continue;
-                };
-                let (dp, okp) = compare_deltas(&own.position_deltas, &t.position_deltas);
-                let (dn, okn) = compare_deltas(&own.normal_deltas, &t.normal_deltas);
-                all_ok &= okp && okn;
-                rows.push(json!({
-                    "target": t.name,
-                    "in_rig": true,
-                    "max_position_difference": dp,
-                    "max_normal_difference": dn,
-                    "within_printed_precision": okp && okn,
-                }));
-            }
-            let report = json!({
-                "file": file.display().to_string(),
-                "rig": rig.name,
-                "targets_in_file": read.len(),
-                "targets_in_rig": targets.len(),
-                "vertices": n,
-                "decimals": MORPH_FILE_DECIMALS,
-                "targets": rows,
-                "round_trip_ok": all_ok,
-            });
-            if json {
-                println!("{}", serde_json::to_string_pretty(&report)?);
-            } else {
-                println!(
-                    "{}: {} targets x {n} vertices; rig {} has {} targets",
-                    file.display(),
-                    read.len(),
-                    rig.name,
-                    targets.len()
-                );
-                for r in &rows {
-                    println!(
-                        "  {:<16} max |position diff| {:>10.3e}   max |normal diff| {:>10.3e}",
-                        r["target"].as_str().unwrap_or(""),
-                        r["max_position_difference"].as_f64().unwrap_or(f64::NAN),
-                        r["max_normal_difference"].as_f64().unwrap_or(f64::NAN)
-                    );
-                }
-            }
-            if !all_ok {
-                bail!(
-                    "{}: does not match rig `{}`'s targets to {MORPH_FILE_DECIMALS} decimals",
-                    file.display(),
-                    rig.name
-                );
-            }
-            if !json {
-                println!("round trip ok: every value within the printed precision");
-            }
-            Ok(())
+        } => import(&file, &rig, configs.as_deref(), json),
+    }
+}
+
+/// `mimic morph export`: a rig's targets to a morph data file.
+fn export(rig: &str, configs: Option<&Path>, output: &Path) -> anyhow::Result<()> {
+    let (rig, targets) = load_rig_with_targets(rig, configs)?;
+    if targets.is_empty() {
+        bail!("rig `{}` has no morph targets", rig.name);
+    }
+    let names: Vec<&str> = targets.iter().map(|t| t.name.as_str()).collect();
+    let comment = format!(
+        "rig {}, units {}, {} targets: {}",
+        rig.name,
+        rig.units,
+        targets.len(),
+        names.join(" ")
+    );
+    save_morph_file(output, &comment, &targets)?;
+    println!(
+        "wrote {} targets x {} vertices of rig {} to {}",
+        targets.len(),
+        rig.mesh.vertex_count(),
+        rig.name,
+        output.display()
+    );
+    Ok(())
+}
+
+/// `mimic morph import`: a morph data file checked against a rig's own targets.
+fn import(file: &Path, rig: &str, configs: Option<&Path>, as_json: bool) -> anyhow::Result<()> {
+    let read = load_morph_file(file)?;
+    let (rig, targets) = load_rig_with_targets(rig, configs)?;
+    let n = rig.mesh.vertex_count();
+    if let Some(t) = read.iter().find(|t| t.vertex_count() != n) {
+        bail!(
+            "{}: {} vertices per target, rig `{}` has {n}",
+            file.display(),
+            t.vertex_count(),
+            rig.name
+        );
+    }
+    let check = MorphCheck::compare(&read, &targets);
+    if as_json {
+        let report = json!({
+            "file": file.display().to_string(),
+            "rig": rig.name,
+            "targets_in_file": read.len(),
+            "targets_in_rig": targets.len(),
+            "vertices": n,
+            "decimals": MORPH_FILE_DECIMALS,
+            "targets": serde_json::to_value(&check.rows)?,
+            "round_trip_ok": check.round_trip_ok,
+        });
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!(
+            "{}: {} targets x {n} vertices; rig {} has {} targets",
+            file.display(),
+            read.len(),
+            rig.name,
+            targets.len()
+        );
+        for r in &check.rows {
+            println!(
+                "  {:<16} max |position diff| {:>10.3e}   max |normal diff| {:>10.3e}",
+                r.target,
+                r.max_position_difference.map_or(f64::NAN, f64::from),
+                r.max_normal_difference.map_or(f64::NAN, f64::from)
+            );
         }
     }
+    if !check.round_trip_ok {
+        bail!(
+            "{}: does not match rig `{}`'s targets to {MORPH_FILE_DECIMALS} decimals",
+            file.display(),
+            rig.name
+        );
+    }
+    if !as_json {
+        println!("round trip ok: every value within the printed precision");
+    }
+    Ok(())
 }
 
 /// `mimic morph apply`: meshes from a CSV of named weights.
@@ -190,13 +177,8 @@ fn apply(
         .with_context(|| format!("blendshapes of rig `{}`", rig.name))?;
     let map = WeightMap::new(fitter.names());
     let csv = mimic_capture::named_csv::read_named_csv(weights)?;
-    let header: Vec<&str> = csv.header.iter().map(String::as_str).collect();
-    // Columns that drive at least one target (checked one by one against the map).
-    let mut probe = vec![0f32; fitter.target_count()];
-    let used: Vec<usize> = (0..header.len())
-        .filter(|&c| map.apply([(header[c], 1.0)], &mut probe) == 0)
-        .collect();
-    if used.is_empty() {
+    let columns = WeightColumns::new(&csv.header, &map, fitter.target_count());
+    if columns.used.is_empty() {
         bail!(
             "{}: no column names a target of rig `{}` ({})",
             weights.display(),
@@ -206,24 +188,20 @@ fn apply(
     }
     std::fs::create_dir_all(out).with_context(|| out.display().to_string())?;
     let mut w = vec![0f32; fitter.target_count()];
-    let mut pairs: Vec<(&str, f32)> = Vec::with_capacity(used.len());
     let mut positions = rig.mesh.positions.clone();
     let (mut frames, mut written) = (0usize, 0usize);
     for row in &csv.rows {
-        pairs.clear();
-        for &c in &used {
-            let field = row.field(c);
-            let v: f32 = field.parse().with_context(|| {
-                format!(
-                    "{}:{}: column `{}`: `{field}` is not a number",
+        columns
+            .weights(&csv.header, &map, |c| row.field(c), &mut w)
+            .map_err(|c| {
+                anyhow::anyhow!(
+                    "{}:{}: column `{}`: `{}` is not a number",
                     weights.display(),
                     row.line,
-                    header[c]
+                    csv.header[c],
+                    row.field(c)
                 )
             })?;
-            pairs.push((header[c], v));
-        }
-        map.apply(pairs.iter().copied(), &mut w);
         if frames.is_multiple_of(every.max(1)) {
             fitter.evaluate(&w, &mut positions, &mut []);
             let header = format!("mimic morph apply onto rig {}: frame {frames}", rig.name);
@@ -232,18 +210,14 @@ fn apply(
         }
         frames += 1;
     }
-    let ignored: Vec<&str> = (0..header.len())
-        .filter(|c| !used.contains(c))
-        .map(|c| header[c])
-        .collect();
+    let names =
+        |cols: &[usize]| -> Vec<&str> { cols.iter().map(|&c| csv.header[c].as_str()).collect() };
+    let ignored = names(&columns.ignored);
     println!(
         "{}: {frames} frames, {written} written to {}; columns used: {}; ignored: {}",
         weights.display(),
         out.display(),
-        used.iter()
-            .map(|&c| header[c])
-            .collect::<Vec<_>>()
-            .join(" "),
+        names(&columns.used).join(" "),
         if ignored.is_empty() {
             "none".to_string()
         } else {

@@ -27,6 +27,9 @@ pub struct Args {
 
 /// Runs `mimic rig check`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.output.is_some() {
+        crate::cmd::render::quiet_headless_vulkan();
+    }
     let path = ConfigDirs::locate(None).rig_path(&args.rig);
     let (rig, _) = load_rig_with_targets(&args.rig, None)?;
     let warnings = mimic_rig::check_rig(&rig);

@@ -8,7 +8,7 @@ use mimic_render::Renderer;
 use mimic_retarget::RetargetSettings;
 use mimic_types::SolverKind;
 use mimic_view::{Action, HELP, LocalSetup, Look, LookFor, Options, Viewer};
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// Arguments of `mimic view`.
@@ -72,8 +72,83 @@ pub struct Args {
     pub headless_timeout: f64,
 }
 
+/// The viewer following a live `mimic serve` session at `addr`.
+fn live_viewer(args: &Args, addr: &str, options: Options) -> anyhow::Result<Viewer> {
+    let live = mimic_view::client::connect(
+        addr,
+        &args.session,
+        crate::cmd::setup::token_or_env(args.token.as_deref()).as_deref(),
+    )
+    .with_context(|| format!("connecting to {addr}"))?;
+    // Colour a live rig with the local configs' materials when they have that rig.
+    let (rig_args, hide, materials) = (args.rig.clone(), args.hide.clone(), !args.no_materials);
+    let look_for: LookFor = Box::new(move |name: &str, n: usize| {
+        let local = RigArgs {
+            rig: name.to_string(),
+            ..rig_args.clone()
+        };
+        match local.load_rig() {
+            Ok(rig) if rig.mesh.vertex_count() == n => {
+                rig_look(&local, &rig, hide.as_deref(), materials).unwrap_or_else(|e| {
+                    tracing::warn!("rig `{name}`: {e:#}; drawing it in skin colour");
+                    Look::default()
+                })
+            }
+            _ => Look::default(),
+        }
+    });
+    Ok(Viewer::live(live, &args.session, look_for, options).with_address(addr))
+}
+
+/// The viewer replaying `recording` locally.
+fn local_viewer(args: &Args, recording: &Path, options: Options) -> anyhow::Result<Viewer> {
+    let mut reader = RecordingReader::open(recording, None)?;
+    let layout = args
+        .rig
+        .config_dirs()
+        .load_layout_named(&reader.header().layout)?;
+    let rig = args.rig.load_rig()?;
+    let (basis, first, _) = args.rig.build_basis(&rig)?;
+    let mut other = first;
+    other.kind = match first.kind {
+        SolverKind::Rbf => SolverKind::Laplacian,
+        SolverKind::Laplacian | SolverKind::Shell => SolverKind::Rbf,
+    };
+    // Lines the reader rejects are skipped, as `mimic render` does.
+    reader.expect_points(layout.point_count)?;
+    let frames = reader
+        .read_all()
+        .frames
+        .into_iter()
+        .map(|f| f.frame)
+        .collect();
+    let look = rig_look(&args.rig, &rig, args.hide.as_deref(), !args.no_materials)?;
+    // The GPU computes u = B d and the normals: the pipeline only needs d.
+    let settings = RetargetSettings {
+        positions: false,
+        normals: false,
+        ..args.pipeline.settings()
+    };
+    // The rig's morph targets go on the number keys 1-9.
+    let expressions = mimic_assets::load_morph_targets(&args.rig.rig_path(), &rig)?;
+    let setup = LocalSetup {
+        rig,
+        layout,
+        settings,
+        first: (first, basis),
+        other,
+        frames,
+        look,
+        expressions,
+    };
+    Ok(Viewer::local(setup, options)?)
+}
+
 /// Runs `mimic view`.
 pub fn run(args: Args) -> anyhow::Result<()> {
+    if args.headless_frames.is_some() {
+        crate::cmd::render::quiet_headless_vulkan();
+    }
     let (width, height) = parse_size(&args.size)?;
     let keys: Vec<Action> = args
         .headless_keys
@@ -90,81 +165,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         blocking_builds: args.headless_frames.is_some(),
         headless_overlay: args.headless_overlay,
     };
-    let mut viewer = match &args.connect {
-        Some(addr) => {
-            let live = mimic_view::client::connect(
-                addr,
-                &args.session,
-                crate::cmd::setup::token_or_env(args.token.as_deref()).as_deref(),
-            )
-            .with_context(|| format!("connecting to {addr}"))?;
-            // Colour a live rig with the local configs' materials when they have that rig.
-            let (rig_args, hide, materials) =
-                (args.rig.clone(), args.hide.clone(), !args.no_materials);
-            let look_for: LookFor = Box::new(move |name: &str, n: usize| {
-                let local = RigArgs {
-                    rig: name.to_string(),
-                    ..rig_args.clone()
-                };
-                match local.load_rig() {
-                    Ok(rig) if rig.mesh.vertex_count() == n => {
-                        rig_look(&local, &rig, hide.as_deref(), materials).unwrap_or_else(|e| {
-                            tracing::warn!("rig `{name}`: {e:#}; drawing it in skin colour");
-                            Look::default()
-                        })
-                    }
-                    _ => Look::default(),
-                }
-            });
-            Viewer::live(live, &args.session, look_for, options).with_address(addr)
-        }
-        None => {
-            let Some(recording) = &args.recording else {
-                bail!("give a recording, or --connect ADDR");
-            };
-            let mut reader = RecordingReader::open(recording, None)?;
-            let layout = args
-                .rig
-                .config_dirs()
-                .load_layout_named(&reader.header().layout)?;
-            let rig = args.rig.load_rig()?;
-            let (basis, first, _) = args.rig.build_basis(&rig)?;
-            let mut other = first;
-            other.kind = match first.kind {
-                SolverKind::Rbf => SolverKind::Laplacian,
-                SolverKind::Laplacian | SolverKind::Shell => SolverKind::Rbf,
-            };
-            // Lines the reader rejects are skipped, as `mimic render` does.
-            reader.expect_points(layout.point_count)?;
-            let frames = reader
-                .read_all()
-                .frames
-                .into_iter()
-                .map(|f| f.frame)
-                .collect();
-            let look = rig_look(&args.rig, &rig, args.hide.as_deref(), !args.no_materials)?;
-            // The GPU computes u = B d and the normals: the pipeline only needs d.
-            let settings = RetargetSettings {
-                positions: false,
-                normals: false,
-                ..args.pipeline.settings()
-            };
-            // The rig's morph targets go on the number keys 1-9.
-            let expressions = mimic_assets::load_morph_targets(&args.rig.rig_path(), &rig)?;
-            let setup = LocalSetup {
-                rig,
-                layout,
-                settings,
-                first: (first, basis),
-                other,
-                frames,
-                look,
-                expressions,
-            };
-            Viewer::local(setup, options)?
-        }
+    let mut viewer = match (&args.connect, &args.recording) {
+        (Some(addr), _) => live_viewer(&args, addr, options)?,
+        (None, Some(recording)) => local_viewer(&args, recording, options)?,
+        (None, None) => bail!("give a recording, or --connect ADDR"),
     };
-
     let Some(n) = args.headless_frames else {
         println!("{HELP}");
         mimic_view::run_window(viewer, width, height, args.print_readout)?;

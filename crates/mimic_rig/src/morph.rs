@@ -1,0 +1,146 @@
+//! A rig's morph targets against a morph data file ([`MorphCheck`], `mimic morph import`), and
+//! the columns of a named-weights table that drive them ([`WeightColumns`], `mimic morph apply`).
+
+use mimic_assets::compare_deltas;
+use mimic_types::{MorphTarget, WeightMap};
+use serde::Serialize;
+
+/// One target of a morph data file compared with the rig's target of that name.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct TargetCheck {
+    /// The target's name.
+    pub target: String,
+    /// Whether the rig has a target of that name (the figures below are `None` when not).
+    pub in_rig: bool,
+    /// Largest difference of a position delta component.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_position_difference: Option<f32>,
+    /// Largest difference of a normal delta component.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub max_normal_difference: Option<f32>,
+    /// Whether both are within the file's printed precision.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub within_printed_precision: Option<bool>,
+}
+
+/// A morph data file's targets compared with a rig's own.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MorphCheck {
+    /// One row per target of the file, in its order.
+    pub rows: Vec<TargetCheck>,
+    /// Whether the file has exactly the rig's targets, each within the printed precision.
+    pub round_trip_ok: bool,
+}
+
+impl MorphCheck {
+    /// Compares the targets `read` from a file with the rig's `own`.
+    pub fn compare(read: &[MorphTarget], own: &[MorphTarget]) -> Self {
+        let mut all_ok = read.len() == own.len();
+        let rows = read
+            .iter()
+            .map(|t| {
+                let Some(o) = own.iter().find(|o| o.name == t.name) else {
+                    all_ok = false;
+                    return TargetCheck {
+                        target: t.name.clone(),
+                        in_rig: false,
+                        max_position_difference: None,
+                        max_normal_difference: None,
+                        within_printed_precision: None,
+                    };
+                };
+                let (dp, okp) = compare_deltas(&o.position_deltas, &t.position_deltas);
+                let (dn, okn) = compare_deltas(&o.normal_deltas, &t.normal_deltas);
+                all_ok &= okp && okn;
+                TargetCheck {
+                    target: t.name.clone(),
+                    in_rig: true,
+                    max_position_difference: Some(dp),
+                    max_normal_difference: Some(dn),
+                    within_printed_precision: Some(okp && okn),
+                }
+            })
+            .collect();
+        Self {
+            rows,
+            round_trip_ok: all_ok,
+        }
+    }
+}
+
+/// Which columns of a table of named weights (a header of names) drive a rig's targets.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct WeightColumns {
+    /// Columns that drive at least one target, in order.
+    pub used: Vec<usize>,
+    /// The other columns.
+    pub ignored: Vec<usize>,
+}
+
+impl WeightColumns {
+    /// Sorts the `header`'s columns by whether `map` (over `targets` targets) takes their name.
+    pub fn new(header: &[String], map: &WeightMap, targets: usize) -> Self {
+        let mut probe = vec![0f32; targets];
+        let (used, ignored) = (0..header.len())
+            .partition(|&c| map.apply([(header[c].as_str(), 1.0)], &mut probe) == 0);
+        Self { used, ignored }
+    }
+
+    /// The weights of one row (its field per column by `field`) into `out`; the column whose
+    /// field is not a number is the error.
+    pub fn weights<'a>(
+        &self,
+        header: &[String],
+        map: &WeightMap,
+        field: impl Fn(usize) -> &'a str,
+        out: &mut [f32],
+    ) -> Result<(), usize> {
+        let mut pairs: Vec<(&str, f32)> = Vec::with_capacity(self.used.len());
+        for &c in &self.used {
+            let v: f32 = field(c).parse().map_err(|_| c)?;
+            pairs.push((header[c].as_str(), v));
+        }
+        map.apply(pairs.iter().copied(), out);
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use glam::Vec3;
+
+    fn target(name: &str, d: f32) -> MorphTarget {
+        MorphTarget {
+            name: name.into(),
+            position_deltas: vec![Vec3::splat(d); 2],
+            normal_deltas: vec![Vec3::ZERO; 2],
+        }
+    }
+
+    #[test]
+    fn a_file_with_the_rigs_targets_round_trips_and_one_without_does_not() {
+        let own = [target("a", 1.0), target("b", 2.0)];
+        assert!(MorphCheck::compare(&own, &own).round_trip_ok);
+        let other = [target("a", 1.0), target("c", 2.0)];
+        let check = MorphCheck::compare(&other, &own);
+        assert!(!check.round_trip_ok);
+        assert!(!check.rows[1].in_rig);
+    }
+
+    #[test]
+    fn columns_that_name_no_target_are_ignored() {
+        let map = WeightMap::new(&["jawOpen".to_string()]);
+        let header = vec!["time".to_string(), "JawOpen".to_string()];
+        let cols = WeightColumns::new(&header, &map, 1);
+        assert_eq!(
+            (cols.used.clone(), cols.ignored.clone()),
+            (vec![1], vec![0])
+        );
+        let mut w = [0f32];
+        let fields = ["0.1", "0.5"];
+        assert_eq!(cols.weights(&header, &map, |c| fields[c], &mut w), Ok(()));
+        assert_eq!(w, [0.5]);
+        assert_eq!(cols.weights(&header, &map, |_| "x", &mut w), Err(1));
+    }
+}

@@ -1,0 +1,182 @@
+//! Still images of a replay (`mimic render`): the frames to draw ([`spread`] for a contact
+//! sheet), the shading a `--heat` name asks for ([`shading_named`]), the heat map's legend
+//! ([`legend`]), the replay drawn at chosen frames ([`render_stills`]), a plot of a frame's
+//! landmarks ([`landmark_plot`]) and the sheet of head and plot tiles ([`contact_sheet`]).
+
+use crate::ViewError;
+use glam::{Mat4, Vec3};
+use mimic_render::overlay::legend_ticks;
+use mimic_render::{Deform, Image, Overlay, Renderer, RigGpu, Shading, View};
+use mimic_retarget::Retargeter;
+use mimic_types::{ControlName, LandmarkFrame, Layout, Rig};
+
+/// Frames to render for a sheet of `n` out of `total`: evenly spread, first and last included.
+pub fn spread(n: usize, total: usize) -> Vec<usize> {
+    match (n, total) {
+        (0, _) | (_, 0) => Vec::new(),
+        (1, _) => vec![total / 2],
+        _ => {
+            let mut v: Vec<usize> = (0..n).map(|k| k * (total - 1) / (n - 1)).collect();
+            v.dedup();
+            v
+        }
+    }
+}
+
+/// The shading `heat` names for `rig`: `None` lit skin, `displacement` (hottest at `scale`,
+/// default 5% of the rig's diagonal) or `control:FDP` (that control's weights).
+pub fn shading_named(
+    rig: &Rig,
+    heat: Option<&str>,
+    scale: Option<f32>,
+) -> Result<Shading, ViewError> {
+    let Some(s) = heat else {
+        return Ok(Shading::Lit);
+    };
+    if s == "displacement" {
+        let (lo, hi) = rig
+            .mesh
+            .bounds()
+            .ok_or_else(|| ViewError::Option("the rig's mesh is empty".into()))?;
+        let full_scale = scale.unwrap_or(0.05 * (hi - lo).length());
+        return Ok(Shading::Displacement { full_scale });
+    }
+    let name = s.strip_prefix("control:").ok_or_else(|| {
+        ViewError::Option(format!(
+            "--heat `{s}`: expected `displacement` or `control:FDP` (e.g. control:8.3)"
+        ))
+    })?;
+    let fdp: ControlName = name
+        .parse()
+        .map_err(|e| ViewError::Option(format!("--heat `{s}`: {e}")))?;
+    let control = rig
+        .controls
+        .iter()
+        .position(|c| c.fdp == fdp)
+        .ok_or_else(|| ViewError::Option(format!("rig `{}` has no control {fdp}", rig.name)))?;
+    Ok(Shading::ControlWeight { control })
+}
+
+/// The colour legend of `shading` for a `size` image, labelled in the rig's `units`.
+pub fn legend(shading: Shading, units: &str, size: (u32, u32)) -> Overlay {
+    let (title, full) = match shading {
+        Shading::Displacement { full_scale } => ("|P - P0|", Some(full_scale)),
+        Shading::ControlWeight { .. } => ("weight", None),
+        Shading::Lit => return Overlay::new(),
+    };
+    let mut o = Overlay::new();
+    let scale = crate::hud::text_scale(size);
+    o.legend(
+        size,
+        crate::hud::MARGIN,
+        scale,
+        title,
+        &legend_ticks(full, units),
+    );
+    o
+}
+
+/// How [`render_stills`] draws: the uploaded rig, the view, the head turned by the performer's
+/// rotation about `pivot` or not, and an overlay.
+pub struct Stills<'a> {
+    /// The renderer.
+    pub renderer: &'a Renderer,
+    /// The rig on the GPU (with its basis: the frames deform it by control displacements).
+    pub gpu: &'a RigGpu,
+    /// Camera and shading.
+    pub view: View,
+    /// The point the head turns about, with `pose`.
+    pub pivot: Vec3,
+    /// Turn the head by the performer's head rotation.
+    pub pose: bool,
+    /// Drawn over each image (the heat map's legend), if anything.
+    pub overlay: Option<&'a Overlay>,
+}
+
+/// Steps `retargeter` through `frames` up to the last of `wanted` (indices into `frames`) and
+/// draws the head at each wanted frame, in frame order.
+pub fn render_stills(
+    stills: &mut Stills<'_>,
+    retargeter: &mut Retargeter,
+    frames: &[&LandmarkFrame],
+    wanted: &[usize],
+) -> Result<Vec<(usize, Image)>, ViewError> {
+    let last = wanted.iter().copied().max().unwrap_or(0);
+    let mut out = retargeter.new_output();
+    let mut images = Vec::new();
+    for (index, &frame) in frames.iter().enumerate().take(last + 1) {
+        retargeter.step(frame, &mut out);
+        if !wanted.contains(&index) {
+            continue;
+        }
+        stills.view.model = if stills.pose {
+            View::head_rotation(out.target_rotation, stills.pivot)
+        } else {
+            Mat4::IDENTITY
+        };
+        let d: &[Vec3] = &out.displacements;
+        let image = stills.renderer.render_with(
+            stills.gpu,
+            Deform::Controls(d),
+            &stills.view,
+            stills.overlay,
+        )?;
+        images.push((index, image));
+    }
+    Ok(images)
+}
+
+/// A `width` x `height` plot of `frame`'s source landmarks, the `layout`'s control points on top
+/// in orange.
+pub fn landmark_plot(frame: &LandmarkFrame, layout: &Layout, width: u32, height: u32) -> Image {
+    let mut plot = Image::filled(width, height, [236, 236, 232, 255]);
+    let all: Vec<[f32; 2]> = frame.points.iter().map(|p| [p.x, p.y]).collect();
+    let radius = (width.min(height) as f32 / 160.0).max(1.0);
+    plot.plot_points(&all, &all, 0.12, radius, [90, 90, 100, 255]);
+    let marked: Vec<[f32; 2]> = layout
+        .controls
+        .iter()
+        .flat_map(|c| c.points.iter().copied())
+        .filter_map(|i| all.get(i).copied())
+        .collect();
+    plot.plot_points(&marked, &all, 0.12, radius * 1.4, [230, 110, 20, 255]);
+    plot
+}
+
+/// One sheet of `(head, plot)` tile pairs of `width` x `height` each, `columns` pairs a row.
+pub fn contact_sheet(tiles: &[(Image, Image)], columns: usize, width: u32, height: u32) -> Image {
+    let cols = columns.clamp(1, tiles.len().max(1));
+    let rows = tiles.len().div_ceil(cols);
+    let mut sheet = Image::filled(
+        width * 2 * cols as u32,
+        height * rows as u32,
+        [255, 255, 255, 255],
+    );
+    for (k, (image, plot)) in tiles.iter().enumerate() {
+        let (x, y) = ((k % cols) as u32 * width * 2, (k / cols) as u32 * height);
+        sheet.paste(image, x, y);
+        sheet.paste(plot, x + width, y);
+    }
+    sheet
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn sheet_frames_spread_from_first_to_last() {
+        assert_eq!(spread(4, 1062), vec![0, 353, 707, 1061]);
+        assert_eq!(spread(1, 10), vec![5]);
+        // More frames asked than exist: each frame once.
+        assert_eq!(spread(5, 3), vec![0, 1, 2]);
+        assert!(spread(0, 10).is_empty() && spread(3, 0).is_empty());
+    }
+
+    #[test]
+    fn a_sheet_holds_its_tiles_in_rows() {
+        let tile = || (Image::filled(4, 3, [0; 4]), Image::filled(4, 3, [9; 4]));
+        let sheet = contact_sheet(&[tile(), tile(), tile()], 2, 4, 3);
+        assert_eq!((sheet.width, sheet.height), (16, 6));
+    }
+}
