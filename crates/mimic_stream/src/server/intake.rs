@@ -17,7 +17,7 @@ use tokio::net::UdpSocket;
 use tokio::sync::{mpsc, watch};
 
 /// A UDP tracker protocol: how its datagrams decode and which session each block goes to.
-pub(crate) trait UdpTracker: Protocol + Idle + 'static {
+pub(crate) trait UdpTracker: Protocol + 'static {
     /// What a block is routed by (one session per key).
     type Key: Clone + Eq + Hash + Send;
     /// One decoded block.
@@ -43,6 +43,9 @@ pub(crate) trait UdpTracker: Protocol + Idle + 'static {
     /// The hello of a key's first block from `peer`, and how the log names it.
     fn hello(unit: &Self::Unit, peer: SocketAddr) -> (Self::Hello, String);
 
+    /// The arrival of the session's last block (for the idle timeout).
+    fn last_packet(&self) -> Instant;
+
     /// Takes one block of session `s`, which arrived at `arrival`.
     fn accept(
         &mut self,
@@ -52,18 +55,12 @@ pub(crate) trait UdpTracker: Protocol + Idle + 'static {
     ) -> impl Future<Output = ()> + Send;
 }
 
-/// A frame path that knows when its last packet came (for the idle timeout).
-pub(crate) trait Idle {
-    /// The arrival of the session's last packet.
-    fn last_packet(&self) -> Instant;
-}
-
 /// A live intake session: the session and its frame path.
-pub(crate) struct Live<P> {
+struct Live<P> {
     /// The session.
-    pub(crate) session: Session,
+    session: Session,
     /// Its frame path.
-    pub(crate) proto: P,
+    proto: P,
     writer: tokio::task::JoinHandle<()>,
 }
 
@@ -176,7 +173,7 @@ pub(crate) fn spawn<P: UdpTracker>(
 }
 
 /// Ends every session whose last packet is `idle` or more ago (`idle_timeout`).
-async fn end_idle<K: Clone + Eq + Hash, P: Protocol + Idle>(
+async fn end_idle<K: Clone + Eq + Hash, P: UdpTracker>(
     live: &mut HashMap<K, Live<P>>,
     idle: Duration,
 ) {

@@ -10,7 +10,7 @@
 //! in the server's `udp_bad_packets`. Nothing is sent back.
 
 use super::admission::{Admission, Refusal, find_rig};
-use super::intake::{Idle, UdpTracker};
+use super::intake::UdpTracker;
 use super::session::{LineOutcome, Protocol, Session, TrackerLine};
 use super::state::Shared;
 use super::weights::{MorphFrame, describe_weights, morph_targets, weights_summary};
@@ -89,12 +89,6 @@ impl LiveLink {
         self.frame
             .keep(s, morph, t_us, rotation, true, arrival)
             .await;
-    }
-}
-
-impl Idle for LiveLink {
-    fn last_packet(&self) -> Instant {
-        self.last_packet
     }
 }
 
@@ -232,6 +226,10 @@ impl UdpTracker for LiveLink {
             peer,
         };
         (hello, what)
+    }
+
+    fn last_packet(&self) -> Instant {
+        self.last_packet
     }
 
     async fn accept(&mut self, s: &Session, p: &LiveLinkPacket, arrival: Instant) {

@@ -11,7 +11,7 @@
 //! no reply, so nothing is sent back.
 
 use super::admission::{Admission, Refusal, find_rig};
-use super::intake::{Idle, UdpTracker};
+use super::intake::UdpTracker;
 use super::session::{LineOutcome, Protocol, Session, TrackerLine};
 use super::state::Shared;
 use crate::catalog::RigEntry;
@@ -100,12 +100,6 @@ impl OpenSeeFace {
             rec.record(RecordedFrame::unlabelled(self.frame.clone()))
                 .await;
         }
-    }
-}
-
-impl Idle for OpenSeeFace {
-    fn last_packet(&self) -> Instant {
-        self.last_packet
     }
 }
 
@@ -256,6 +250,10 @@ impl UdpTracker for OpenSeeFace {
             peer,
         };
         (hello, what)
+    }
+
+    fn last_packet(&self) -> Instant {
+        self.last_packet
     }
 
     async fn accept(&mut self, s: &Session, face: &OsfFace, arrival: Instant) {
