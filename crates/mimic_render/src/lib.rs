@@ -14,7 +14,6 @@
 //! Runs on any Vulkan adapter, including Mesa's software lavapipe. No tokio.
 
 mod camera;
-pub mod compute;
 mod error;
 mod image;
 pub mod overlay;

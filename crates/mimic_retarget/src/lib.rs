@@ -28,7 +28,6 @@ pub mod quality;
 mod scale;
 mod settings;
 mod stage_stats;
-pub mod throughput;
 mod weight_stats;
 
 pub use blendshape::{BlendshapeError, BlendshapeFitter, BlendshapeSettings, WeightMap};

@@ -1,5 +1,5 @@
 // Many sessions' morphs in one dispatch: P[s, i] = P0[i] + sum_j B[i, j] d[s, j], then the
-// area-weighted vertex normals of each session's morphed surface (crates/mimic_render/src/compute).
+// area-weighted vertex normals of each session's morphed surface (crates/mimic_bench/src/batch.rs).
 //
 // Only the rows of B that are not all zero are stored and computed ("moving rows"); the other
 // vertices keep the rest positions and normals the buffers were filled with at setup.

@@ -1,4 +1,4 @@
-//! GPU tests of the many-sessions morph (`mimic_render::compute::BatchMorph`, `mimic bench --gpu`)
+//! GPU tests of the many-sessions morph (`mimic_bench::BatchMorph`, `mimic bench --gpu`)
 //! on the 3k-vertex benchmark face (lavapipe on CI): every session's positions against the CPU's
 //! `rest + Basis::apply` (what `MovingDeform` gives bit for bit), its normals against
 //! `vertex_normals` of the same positions.
@@ -11,7 +11,7 @@
 )]
 
 use glam::{DVec3, Vec3, Vec3A};
-use mimic_render::compute::{BatchError, BatchMorph};
+use mimic_bench::{BatchError, BatchMorph};
 use mimic_solve::{Basis, deform::MovingDeform, vertex_normals};
 use mimic_testkit::Lcg;
 use std::path::PathBuf;

@@ -1,4 +1,4 @@
-//! Many sessions' morphs in one GPU dispatch, for `mimic bench --gpu`: one basis `B` (its moving
+//! Many sessions' morphs in one GPU dispatch, what `mimic bench --gpu` times: one basis `B` (its moving
 //! rows, column-major) in a storage buffer, `sessions x controls x 3` weights in another, and per
 //! session the morphed positions `P0 + B d` and, in a second pass over each vertex's triangles,
 //! the area-weighted vertex normals (`morph.wgsl`).
@@ -8,12 +8,13 @@
 //! [`BatchMorph::time`] times whole dispatches, by GPU timestamps where the adapter has
 //! `TIMESTAMP_QUERY`, and always by the wall clock around upload, submit and wait.
 
-use crate::RenderError;
 use glam::Vec3;
+use mimic_render::RenderError;
 use mimic_solve::Basis;
 use std::sync::mpsc;
 use std::time::Instant;
-use wgpu::util::DeviceExt;
+
+mod setup;
 
 /// Threads per workgroup (matches `@workgroup_size` in morph.wgsl).
 const WORKGROUP: u32 = 64;
@@ -46,18 +47,6 @@ pub enum BatchError {
         /// Most one dispatch holds.
         max: usize,
     },
-}
-
-/// Size of the uniform `Params` of morph.wgsl.
-#[repr(C)]
-#[derive(Clone, Copy, bytemuck::Pod, bytemuck::Zeroable)]
-struct Params {
-    vertices: u32,
-    moving: u32,
-    controls: u32,
-    sessions: u32,
-    normal_count: u32,
-    pad: [u32; 3],
 }
 
 /// How [`BatchMorph::time`] measured the GPU's own time.
@@ -173,268 +162,28 @@ impl BatchMorph {
             .into());
         }
         let info = adapter.get_info();
-        let have = adapter.limits();
-        let max_sessions = have.max_compute_workgroups_per_dimension as usize;
-        if sessions == 0 || sessions > max_sessions {
-            return Err(BatchError::BadSessions {
-                sessions,
-                max: max_sessions,
-            });
-        }
-        let bytes = (sessions * n.max(1) * 16) as u64;
-        let max = have
-            .max_storage_buffer_binding_size
-            .min(have.max_buffer_size);
-        if bytes > max {
-            return Err(BatchError::TooLarge {
-                sessions,
-                vertices: n,
-                bytes,
-                max,
-            });
-        }
-        let stamps = adapter.features().contains(wgpu::Features::TIMESTAMP_QUERY);
-        let limits = wgpu::Limits {
-            max_storage_buffer_binding_size: have.max_storage_buffer_binding_size,
-            max_buffer_size: have.max_buffer_size,
-            max_compute_workgroups_per_dimension: have.max_compute_workgroups_per_dimension,
-            ..wgpu::Limits::default()
-        };
-        let (device, queue) = pollster::block_on(adapter.request_device(&wgpu::DeviceDescriptor {
-            label: Some("mimic_render batch morph"),
-            required_features: if stamps {
-                wgpu::Features::TIMESTAMP_QUERY
-            } else {
-                wgpu::Features::empty()
-            },
-            required_limits: limits,
-            ..Default::default()
-        }))
-        .map_err(|e| RenderError::NoDevice(e.to_string()))?;
-
-        // The moving rows, column-major, with their rest positions.
-        let rows: Vec<u32> = (0..n)
-            .filter(|&i| basis.row(i).iter().any(|w| *w != 0.0))
-            .map(|i| i as u32)
-            .collect();
-        let mut columns = Vec::with_capacity(rows.len() * m);
-        for j in 0..m {
-            columns.extend(rows.iter().map(|&i| basis.row(i as usize)[j]));
-        }
-        let rest_rows: Vec<[f32; 4]> = rows
-            .iter()
-            .map(|&i| {
-                let p = positions[i as usize];
-                [p.x, p.y, p.z, 1.0]
-            })
-            .collect();
-        // Vertices whose normal can change, and their triangles (ascending, as the CPU sums them).
-        let mut moving = vec![false; n];
-        rows.iter().for_each(|&i| moving[i as usize] = true);
-        let mut in_normal_set = vec![false; n];
-        for (t, tri) in triangles.iter().enumerate() {
-            for &v in tri {
-                if v as usize >= n {
-                    return Err(RenderError::BadIndex {
-                        triangle: t,
-                        vertex: v,
-                        vertex_count: n,
-                    }
-                    .into());
-                }
-            }
-            if tri.iter().any(|&v| moving[v as usize]) {
-                tri.iter().for_each(|&v| in_normal_set[v as usize] = true);
-            }
-        }
-        let normal_vertices: Vec<u32> = (0..n as u32)
-            .filter(|&v| in_normal_set[v as usize])
-            .collect();
-        let mut local = vec![u32::MAX; n];
-        for (k, &v) in normal_vertices.iter().enumerate() {
-            local[v as usize] = k as u32;
-        }
-        let mut first = vec![0u32; normal_vertices.len() + 1];
-        for tri in triangles {
-            for &v in tri {
-                if let Some(&k) = local.get(v as usize).filter(|k| **k != u32::MAX) {
-                    first[k as usize + 1] += 1;
-                }
-            }
-        }
-        for k in 0..normal_vertices.len() {
-            first[k + 1] += first[k];
-        }
-        let mut fill = first.clone();
-        let mut incident = vec![0u32; first[normal_vertices.len()] as usize];
-        for (t, tri) in triangles.iter().enumerate() {
-            for &v in tri {
-                if let Some(&k) = local.get(v as usize).filter(|k| **k != u32::MAX) {
-                    incident[fill[k as usize] as usize] = t as u32;
-                    fill[k as usize] += 1;
-                }
-            }
-        }
-        let flat: Vec<u32> = triangles.iter().flatten().copied().collect();
-        // Every session starts at the rest shape with its normals.
-        let mut rest_normals = vec![Vec3::ZERO; n];
-        mimic_solve::vertex_normals(positions, triangles, &mut rest_normals);
-        let per_session = |v: &[Vec3], w: f32| -> Vec<[f32; 4]> {
-            let one: Vec<[f32; 4]> = v.iter().map(|p| [p.x, p.y, p.z, w]).collect();
-            let mut all = Vec::with_capacity(one.len() * sessions);
-            for _ in 0..sessions {
-                all.extend_from_slice(&one);
-            }
-            all
-        };
-
-        let storage = wgpu::BufferUsages::STORAGE;
-        let init = |label: &str, bytes: &[u8], usage: wgpu::BufferUsages| {
-            // Zero-sized bindings are invalid: pad empty buffers to one vec4.
-            let padded = [0u8; 16];
-            let contents = if bytes.is_empty() { &padded[..] } else { bytes };
-            device.create_buffer_init(&wgpu::util::BufferInitDescriptor {
-                label: Some(label),
-                contents,
-                usage,
-            })
-        };
-        let params = Params {
-            vertices: n as u32,
-            moving: rows.len() as u32,
-            controls: m as u32,
-            sessions: sessions as u32,
-            normal_count: normal_vertices.len() as u32,
-            pad: [0; 3],
-        };
-        let params_buf = init(
-            "params",
-            bytemuck::bytes_of(&params),
-            wgpu::BufferUsages::UNIFORM,
-        );
-        let basis_buf = init("basis columns", bytemuck::cast_slice(&columns), storage);
-        let rest_buf = init("rest rows", bytemuck::cast_slice(&rest_rows), storage);
-        let rows_buf = init("rows", bytemuck::cast_slice(&rows), storage);
-        let weights = device.create_buffer(&wgpu::BufferDescriptor {
-            label: Some("weights"),
-            size: (sessions * m.max(1) * 12).next_multiple_of(16) as u64,
-            usage: storage | wgpu::BufferUsages::COPY_DST,
-            mapped_at_creation: false,
-        });
-        let rw = storage | wgpu::BufferUsages::COPY_SRC;
-        let positions_buf = init(
-            "positions",
-            bytemuck::cast_slice(&per_session(positions, 1.0)),
-            rw,
-        );
-        let normals_buf = init(
-            "normals",
-            bytemuck::cast_slice(&per_session(&rest_normals, 0.0)),
-            rw,
-        );
-        let triangles_buf = init("triangles", bytemuck::cast_slice(&flat), storage);
-        let normal_vertices_buf = init(
-            "normal vertices",
-            bytemuck::cast_slice(&normal_vertices),
-            storage,
-        );
-        let first_buf = init("first", bytemuck::cast_slice(&first), storage);
-        let incident_buf = init("incident", bytemuck::cast_slice(&incident), storage);
-
-        let module = device.create_shader_module(wgpu::ShaderModuleDescriptor {
-            label: Some("morph.wgsl"),
-            source: wgpu::ShaderSource::Wgsl(include_str!("morph.wgsl").into()),
-        });
-        let pipeline = |entry: &str| {
-            device.create_compute_pipeline(&wgpu::ComputePipelineDescriptor {
-                label: Some(entry),
-                layout: None,
-                module: &module,
-                entry_point: Some(entry),
-                compilation_options: Default::default(),
-                cache: None,
-            })
-        };
-        let morph = pipeline("morph");
-        let vertex_normals = pipeline("vertex_normals");
-        let group = |p: &wgpu::ComputePipeline, entries: &[(u32, &wgpu::Buffer)]| {
-            let entries: Vec<wgpu::BindGroupEntry> = entries
-                .iter()
-                .map(|(binding, b)| wgpu::BindGroupEntry {
-                    binding: *binding,
-                    resource: b.as_entire_binding(),
-                })
-                .collect();
-            device.create_bind_group(&wgpu::BindGroupDescriptor {
-                label: None,
-                layout: &p.get_bind_group_layout(0),
-                entries: &entries,
-            })
-        };
-        let morph_group = group(
-            &morph,
-            &[
-                (0, &params_buf),
-                (1, &basis_buf),
-                (2, &rest_buf),
-                (3, &rows_buf),
-                (4, &weights),
-                (5, &positions_buf),
-            ],
-        );
-        let normals_group = group(
-            &vertex_normals,
-            &[
-                (0, &params_buf),
-                (6, &triangles_buf),
-                (7, &normal_vertices_buf),
-                (8, &first_buf),
-                (9, &incident_buf),
-                (10, &normals_buf),
-                (11, &positions_buf),
-            ],
-        );
-        let timestamps = stamps.then(|| {
-            let size = 4 * u64::from(wgpu::QUERY_SIZE);
-            Timestamps {
-                set: device.create_query_set(&wgpu::QuerySetDescriptor {
-                    label: Some("batch timestamps"),
-                    ty: wgpu::QueryType::Timestamp,
-                    count: 4,
-                }),
-                resolve: device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("timestamps resolve"),
-                    size,
-                    usage: wgpu::BufferUsages::QUERY_RESOLVE | wgpu::BufferUsages::COPY_SRC,
-                    mapped_at_creation: false,
-                }),
-                readback: device.create_buffer(&wgpu::BufferDescriptor {
-                    label: Some("timestamps readback"),
-                    size,
-                    usage: wgpu::BufferUsages::COPY_DST | wgpu::BufferUsages::MAP_READ,
-                    mapped_at_creation: false,
-                }),
-                period_ns: f64::from(queue.get_timestamp_period()),
-            }
-        });
+        let (device, queue, stamps) = setup::open_device(adapter, sessions, n)?;
+        let plan = setup::MorphPlan::new(basis, positions, triangles)?;
+        let gpu = setup::upload(&device, &plan, positions, sessions, m);
+        let timestamps = stamps.then(|| setup::timestamps(&device, &queue));
         Ok(Self {
-            device,
-            queue,
             adapter: format!("{} ({:?}, {:?})", info.name, info.device_type, info.backend),
             vertex_count: n,
             control_count: m,
             sessions,
-            moving: rows.len() as u32,
-            normal_count: normal_vertices.len() as u32,
-            weights,
-            positions: positions_buf,
-            normals: normals_buf,
-            morph,
-            vertex_normals,
-            morph_group,
-            normals_group,
+            moving: plan.rows.len() as u32,
+            normal_count: plan.normal_vertices.len() as u32,
+            weights: gpu.weights,
+            positions: gpu.positions,
+            normals: gpu.normals,
+            morph: gpu.morph,
+            vertex_normals: gpu.vertex_normals,
+            morph_group: gpu.morph_group,
+            normals_group: gpu.normals_group,
             timestamps,
             staging: Vec::with_capacity(sessions * m * 3),
+            device,
+            queue,
         })
     }
 

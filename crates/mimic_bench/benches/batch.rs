@@ -1,8 +1,8 @@
-//! Many sessions morphed in one GPU dispatch (`mimic_render::compute::BatchMorph`, what
+//! Many sessions morphed in one GPU dispatch (`mimic_bench::BatchMorph`, what
 //! `mimic bench --gpu` times): the 3k-vertex benchmark face (`ict-face-3k`, its RBF basis), 1 and
 //! 64 sessions, morph and normals passes, weights uploaded every dispatch, waited for.
 //!
-//! `cargo bench -p mimic_render --bench batch` (lavapipe unless a GPU is present). Without an
+//! `cargo bench -p mimic_bench --bench batch` (lavapipe unless a GPU is present). Without an
 //! adapter it says so and times nothing; `cargo test --benches` smoke-runs it.
 
 #![allow(
@@ -12,8 +12,8 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::Vec3;
+use mimic_bench::{BatchError, BatchMorph};
 use mimic_render::RenderError;
-use mimic_render::compute::{BatchError, BatchMorph};
 use std::path::PathBuf;
 
 fn bench(c: &mut Criterion) {
