@@ -19,6 +19,8 @@
 mod blendshape;
 mod checkpoint;
 mod filter;
+#[cfg(any(test, feature = "test-fixtures"))]
+pub mod fixtures;
 mod frame_loop;
 pub use mimic_types::frame_metrics;
 mod gate;

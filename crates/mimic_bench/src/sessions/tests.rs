@@ -1,8 +1,8 @@
-//! Tests of the sessions runs on a synthetic face (a bumpy grid rig, `tests/grid.rs`).
+//! Tests of the sessions runs on a synthetic face (mimic_retarget's grid rig, `fixtures`).
 
 #![allow(clippy::unwrap_used, reason = "tests")]
 
-mod grid;
+use mimic_retarget::fixtures as grid;
 
 use super::*;
 use glam::Vec3;

@@ -1,16 +1,21 @@
-//! A synthetic face for the sessions tests: a bumpy 15 x 15 grid rig with 6 controls and a
-//! 12-point layout read off it (the copy of mimic_retarget's pipeline-test rig).
+//! A synthetic face for tests, this crate's and (through the `test-fixtures` feature)
+//! mimic_bench's: a bumpy 15 x 15 grid rig (cm) with 6 controls and a 12-point layout read off it.
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test fixture: its FDP names are constants that parse"
+)]
 
 use glam::Vec3;
 use mimic_types::{
     Layout, LayoutControl, Mesh, Region, RegionBands, Rig, RigControl, SolverSettings,
 };
 
-const GRID: usize = 15;
+/// Vertices along each side of the grid.
+pub const GRID: usize = 15;
 
 /// A 15 x 15 grid (cm) with a bump, 6 controls on it, and a layout whose points sit at
 /// `SRC_SCALE` times the rig's positions (a metre-scale performer of the same face).
-pub(super) fn rig_and_layout() -> (Rig, Layout) {
+pub fn rig_and_layout() -> (Rig, Layout) {
     let mut positions = Vec::new();
     for y in 0..GRID {
         for x in 0..GRID {
@@ -92,9 +97,11 @@ pub(super) fn rig_and_layout() -> (Rig, Layout) {
     (rig, layout)
 }
 
-const SRC_SCALE: f32 = 0.01;
+/// Source (performer, metres) units per rig unit (cm).
+pub const SRC_SCALE: f32 = 0.01;
 
-pub(super) fn neutral_points(rig: &Rig, layout: &Layout) -> Vec<Vec3> {
+/// The layout's points on the rest face, in source units.
+pub fn neutral_points(rig: &Rig, layout: &Layout) -> Vec<Vec3> {
     let stable = [(0, 14), (14, 14), (0, 7), (14, 7), (0, 0), (14, 0)];
     rig.controls
         .iter()
