@@ -174,8 +174,14 @@ impl FrameLoop {
         if !self.out.positions.iter().all(|p| p.is_finite()) {
             self.non_finite_frames += 1;
         }
+        // The head's translation is for the outputs: none is computed on a frame no output takes
+        // (a viewer's loop has none).
+        let due = self
+            .outputs
+            .iter()
+            .any(|o| self.index.is_multiple_of(o.every));
         let head = match r.source_to_target() {
-            Some(map) if status == FrameStatus::Tracked => {
+            Some(map) if due && status == FrameStatus::Tracked => {
                 let points = (0..frame.points.len())
                     .filter(|i| frame.is_valid(*i))
                     .map(|i| frame.points[i]);

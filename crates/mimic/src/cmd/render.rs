@@ -1,7 +1,9 @@
 //! `mimic render`: frames of a recording retargeted onto a rig, rendered headless to PNG (the
 //! drawing is `mimic_view::stills`).
 
-use crate::cmd::setup::{PipelineArgs, RigArgs, parse_size, prepare_with, rig_look};
+use crate::cmd::setup::{
+    PipelineArgs, RigArgs, parse_size, prepare_with, quiet_headless_vulkan, rig_look,
+};
 use anyhow::{Context, bail};
 use mimic_capture::RecordingReader;
 use mimic_render::{Camera, Renderer, View};
@@ -55,21 +57,6 @@ pub struct Args {
     /// Skin colour everywhere instead of the mesh's material colours (teeth, gums, eyes, lashes).
     #[arg(long)]
     pub no_materials: bool,
-}
-
-/// Keeps Mesa's Vulkan device-select layer from looking for a Wayland display where there can be
-/// none (no absolute `XDG_RUNTIME_DIR`): its look asks libwayland, which prints
-/// `error: XDG_RUNTIME_DIR is invalid or not set in the environment.` once per device listing.
-/// The layer only orders the devices (a display's GPU first); without a display the renderer
-/// picks its adapter alone. Called by the headless commands first thing, before any thread.
-pub fn quiet_headless_vulkan() {
-    let runtime_dir = std::env::var_os("XDG_RUNTIME_DIR");
-    let no_display = runtime_dir.is_none_or(|d| !Path::new(&d).is_absolute());
-    if no_display && std::env::var_os("NODEVICE_SELECT").is_none() {
-        // SAFETY: the command has started no thread yet, so nothing reads the environment
-        // while it is written.
-        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
-    }
 }
 
 /// Runs `mimic render`.

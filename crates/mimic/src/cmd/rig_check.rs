@@ -28,7 +28,7 @@ pub struct Args {
 /// Runs `mimic rig check`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.output.is_some() {
-        crate::cmd::render::quiet_headless_vulkan();
+        crate::cmd::setup::quiet_headless_vulkan();
     }
     let path = ConfigDirs::locate(None).rig_path(&args.rig);
     let (rig, _) = load_rig_with_targets(&args.rig, None)?;

@@ -147,7 +147,7 @@ fn local_viewer(args: &Args, recording: &Path, options: Options) -> anyhow::Resu
 /// Runs `mimic view`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.headless_frames.is_some() {
-        crate::cmd::render::quiet_headless_vulkan();
+        crate::cmd::setup::quiet_headless_vulkan();
     }
     let (width, height) = parse_size(&args.size)?;
     let keys: Vec<Action> = args

@@ -57,20 +57,10 @@ pub(super) fn print(
     mut report: LoopReport,
 ) -> anyhow::Result<()> {
     let (stages, step) = report.samples.summary();
-    let frames_out = report
-        .outputs
-        .iter()
-        .find(|r| matches!(r.kind, "obj" | "bin" | "glb"));
+    let frames_out = frames_output(&report);
     let stats = &run.stats;
     let map = run.source_to_target;
-    let gltf = frames_out.filter(|r| r.kind == "glb").map(|r| {
-        json!({
-            "path": r.path.display().to_string(),
-            "summary": r.detail["summary"],
-            "skipped_frames": r.detail["skipped_frames"],
-            "write_s": r.detail["write_s"],
-        })
-    });
+    let gltf = frames_out.filter(|r| r.kind == "glb").map(glb_json);
     if args.json {
         let summary = json!({
             "recording": args.recording.display().to_string(),
@@ -147,6 +137,24 @@ pub(super) fn print(
         println!("  {}", wrote(r));
     }
     Ok(())
+}
+
+/// The output of the deformed frames (OBJ, `frames.bin` or GLB), if one was asked for.
+pub(super) fn frames_output(report: &LoopReport) -> Option<&SinkReport> {
+    report
+        .outputs
+        .iter()
+        .find(|r| matches!(r.kind, "obj" | "bin" | "glb"))
+}
+
+/// A GLB output's report as the summary's JSON gives it (path, summary, skipped frames, time).
+pub(super) fn glb_json(r: &SinkReport) -> Value {
+    json!({
+        "path": r.path.display().to_string(),
+        "summary": r.detail["summary"],
+        "skipped_frames": r.detail["skipped_frames"],
+        "write_s": r.detail["write_s"],
+    })
 }
 
 /// One line saying what an output wrote.

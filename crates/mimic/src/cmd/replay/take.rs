@@ -119,15 +119,9 @@ fn print_summary(
     report: &mimic_retarget::LoopReport,
 ) -> anyhow::Result<()> {
     let path = &args.recording;
-    let wrote = report
-        .outputs
-        .iter()
-        .find(|r| matches!(r.kind, "obj" | "bin" | "glb"));
-    let wrote_json = match wrote {
+    let wrote_json = match summary::frames_output(report) {
         None => json!(null),
-        Some(r) if r.kind == "glb" => json!({"path": r.path.display().to_string(),
-            "summary": r.detail["summary"], "skipped_frames": r.detail["skipped_frames"],
-            "write_s": r.detail["write_s"]}),
+        Some(r) if r.kind == "glb" => summary::glb_json(r),
         Some(r) => json!({"frames": r.frames, "bytes": r.bytes}),
     };
     let summary = json!({
