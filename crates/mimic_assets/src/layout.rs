@@ -141,6 +141,26 @@ impl ConfigDirs {
         load_layout(&path)
     }
 
+    /// Names of the layouts in `layouts/` (each `*.toml`'s stem), sorted.
+    pub fn layout_names(&self) -> Result<Vec<String>, AssetError> {
+        let dir = self.root.join("layouts");
+        let io = |cause| AssetError::Io {
+            path: dir.clone(),
+            cause,
+        };
+        let mut names = Vec::new();
+        for e in std::fs::read_dir(&dir).map_err(io)? {
+            let path = e.map_err(io)?.path();
+            if path.extension().is_some_and(|x| x == "toml")
+                && let Some(stem) = path.file_stem()
+            {
+                names.push(stem.to_string_lossy().into_owned());
+            }
+        }
+        names.sort();
+        Ok(names)
+    }
+
     /// Path of the rig file for `name`, or `name` itself when it is a path to a file.
     pub fn rig_path(&self, name: &str) -> PathBuf {
         let as_path = PathBuf::from(name);
@@ -154,6 +174,31 @@ impl ConfigDirs {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn layout_names_are_the_toml_stems_sorted_and_a_missing_folder_is_named() {
+        let dir = tempfile::tempdir().unwrap();
+        let layouts = dir.path().join("layouts");
+        std::fs::create_dir(&layouts).unwrap();
+        for f in [
+            "mediapipe478.toml",
+            "ibug68.toml",
+            "notes.md",
+            "kinect121.toml",
+        ] {
+            std::fs::write(layouts.join(f), "").unwrap();
+        }
+        let dirs = ConfigDirs::locate(Some(dir.path()));
+        assert_eq!(
+            dirs.layout_names().unwrap(),
+            ["ibug68", "kinect121", "mediapipe478"]
+        );
+        let empty = tempfile::tempdir().unwrap();
+        let e = ConfigDirs::locate(Some(empty.path()))
+            .layout_names()
+            .unwrap_err();
+        assert!(e.to_string().contains("layouts"), "{e}");
+    }
 
     const GOOD: &str = r#"
 name = "tiny"

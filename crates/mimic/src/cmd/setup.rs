@@ -456,26 +456,10 @@ pub(crate) fn build_catalog(
     let first = entries.next().context("no rig")?;
     let mut catalog = Catalog::new(first);
     entries.for_each(|e| catalog.add_rig(e));
-    for layout in layout_names(&dirs.root)? {
+    for layout in dirs.layout_names()? {
         catalog.add_layout(dirs.load_layout_named(&layout)?);
     }
     Ok((catalog, rig_paths))
-}
-
-/// Names of the layouts in `configs/layouts/`.
-fn layout_names(root: &std::path::Path) -> anyhow::Result<Vec<String>> {
-    let dir: PathBuf = root.join("layouts");
-    let mut names = Vec::new();
-    for e in std::fs::read_dir(&dir).with_context(|| dir.display().to_string())? {
-        let path = e?.path();
-        if path.extension().is_some_and(|x| x == "toml")
-            && let Some(stem) = path.file_stem()
-        {
-            names.push(stem.to_string_lossy().into_owned());
-        }
-    }
-    names.sort();
-    Ok(names)
 }
 
 /// Keeps Mesa's Vulkan device-select layer from looking for a Wayland display where there can be
