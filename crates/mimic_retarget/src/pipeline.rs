@@ -5,13 +5,14 @@ use crate::patch::MovingPatch;
 
 mod hold;
 mod neutral;
+mod output;
 mod pose;
 use crate::{Neutral, OneEuro, OneEuroStep, RetargetSettings, SourceToTarget};
 use glam::{Quat, Vec3};
 use mimic_solve::VectorKernel;
 use mimic_solve::{Basis, vertex_normals};
 use mimic_types::layout::mean_of_valid;
-use mimic_types::{ControlName, Fdp, FrameView, HeadPose, LandmarkFrame, Layout, Rig};
+use mimic_types::{ControlName, Fdp, HeadPose, LandmarkFrame, Layout, Rig};
 pub(crate) use neutral::Accumulator;
 use std::sync::Arc;
 use std::time::Instant;
@@ -99,6 +100,7 @@ impl StageTimes {
 }
 
 pub use mimic_types::FrameStatus;
+pub use output::FrameOutput;
 
 /// Counters over a retargeter's life.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -122,42 +124,6 @@ pub struct Stats {
     /// Tracked frames whose output moved some control more than `gate.jump_report` (IOD)
     /// since the previous frame.
     pub jumps: u64,
-}
-
-/// The result of one step; allocate it once with [`Retargeter::new_output`] and reuse it.
-#[derive(Clone, Debug, PartialEq)]
-pub struct FrameOutput {
-    /// Timestamp of the frame (microseconds).
-    pub timestamp_us: i64,
-    /// What happened.
-    pub status: FrameStatus,
-    /// Deformed vertex positions (rest + `B d`), target units.
-    pub positions: Vec<Vec3>,
-    /// Vertex normals of `positions` (empty when normals are off).
-    pub normals: Vec<Vec3>,
-    /// Control displacements `d` in target units: what a GPU morph needs per frame.
-    pub displacements: Vec<Vec3>,
-    /// Head pose of the performer: neutral -> this frame, in source space.
-    pub pose: HeadPose,
-    /// The head rotation expressed in target axes.
-    pub target_rotation: Quat,
-    /// Controls filled in this frame.
-    pub filled: u32,
-    /// Time spent per stage.
-    pub times: StageTimes,
-}
-
-impl FrameOutput {
-    /// The frame as encoders see it (time, status, pose, `d`), borrowed.
-    pub fn view(&self) -> FrameView<'_> {
-        FrameView {
-            timestamp_us: self.timestamp_us,
-            status: self.status,
-            pose: self.pose,
-            target_rotation: self.target_rotation,
-            displacements: &self.displacements,
-        }
-    }
 }
 
 /// Ties a layout to a rig and turns landmark frames into deformed meshes.
