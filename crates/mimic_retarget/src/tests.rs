@@ -22,7 +22,7 @@ fn setup(settings: RetargetSettings) -> (Retargeter, Vec<Vec3>) {
 }
 
 /// No jitter filter and no plausibility gate: one frame's `d` is that frame's alone.
-fn plain() -> RetargetSettings {
+pub(crate) fn plain() -> RetargetSettings {
     RetargetSettings {
         neutral: Neutral::FirstFrames(1),
         filter: None,

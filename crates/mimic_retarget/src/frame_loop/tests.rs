@@ -1,7 +1,7 @@
 //! The frame loop against the retargeter stepped by hand (the same frames, no loop), and its
 //! outputs' turns, mesh requests and errors, on the synthetic grid face of `crate::tests`.
 
-use crate::tests::{neutral_points, rig_and_layout};
+use crate::tests::{neutral_points, plain, rig_and_layout};
 use crate::*;
 use glam::{Quat, Vec3};
 use mimic_types::{
@@ -70,18 +70,6 @@ impl FrameSink for Recorder {
     }
 }
 
-fn settings() -> RetargetSettings {
-    RetargetSettings {
-        neutral: Neutral::FirstFrames(1),
-        filter: None,
-        gate: GateSettings {
-            enabled: false,
-            ..GateSettings::default()
-        },
-        ..Default::default()
-    }
-}
-
 /// A neutral frame, then frames whose first control rises by `k` mm and whose whole face moves
 /// by `shift` (metres, source space).
 fn frames(neutral: &[Vec3], shift: Vec3) -> Vec<LandmarkFrame> {
@@ -102,7 +90,7 @@ fn retargeter() -> (Retargeter, Vec<Vec3>) {
     let basis = mimic_solve::build_basis(&rig, &rig.solver).unwrap();
     let neutral = neutral_points(&rig, &layout);
     (
-        Retargeter::new(&rig, &layout, basis, settings()).unwrap(),
+        Retargeter::new(&rig, &layout, basis, plain()).unwrap(),
         neutral,
     )
 }
