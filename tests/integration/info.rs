@@ -103,3 +103,83 @@ fn info_warns_about_controls_that_share_a_rest_position() {
     assert_eq!(v["warnings"], serde_json::json!([]));
     assert!(!stderr.contains("warning:"), "{stderr}");
 }
+
+/// The shipped recording of the layout a rig file's name declares (`<rig>.<layout>.toml`).
+fn recording_for(rig: &str) -> &'static str {
+    if rig.ends_with(".kinect121.toml") {
+        "recordings/a_yn_question.kinect121.jsonl"
+    } else if rig.ends_with(".ibug68.toml") {
+        "recordings/openface_test.jsonl"
+    } else if rig.ends_with(".mediapipe478.toml") {
+        "recordings/megamind_mediapipe.jsonl"
+    } else {
+        "recordings/a_yn_question.jsonl"
+    }
+}
+
+#[test]
+fn every_shipped_rig_with_morph_targets_lists_them_and_replays_in_blendshapes_mode() {
+    let mut with_targets = 0;
+    for rig in shipped("configs/rigs") {
+        let declared = std::fs::read_to_string(repo().join(&rig))
+            .unwrap()
+            .matches("[[morph_targets]]")
+            .count();
+        let out = mimic(&["info", &rig, "--json"]);
+        let (stdout, stderr) = text(&out);
+        assert!(out.status.success(), "{rig}: {stderr}");
+        let v: serde_json::Value = serde_json::from_str(&stdout).unwrap();
+        let listed = v["morph_targets"].as_array().map_or(0, Vec::len);
+        assert_eq!(listed, declared, "{rig}: {v}");
+        if declared == 0 {
+            continue;
+        }
+        with_targets += 1;
+        let summary = crate::replay::replay_json(&[
+            recording_for(&rig),
+            "--rig",
+            &rig,
+            "--mode",
+            "blendshapes",
+        ]);
+        assert!(
+            summary["frames_in"].as_u64().unwrap() > 0,
+            "{rig}: {summary}"
+        );
+        assert_eq!(summary["frames_with_non_finite_vertices"], 0, "{rig}");
+    }
+    assert!(
+        with_targets >= 2,
+        "expected shipped rigs with morph targets"
+    );
+}
+
+#[test]
+fn info_refuses_a_rig_whose_morph_target_does_not_match_its_mesh() {
+    // The 3 000-vertex rig pointed at a full ICT expression mesh (26 719 vertices).
+    let dir = tempfile::tempdir().unwrap();
+    let rigs = repo().join("configs/rigs");
+    let text_3k = std::fs::read_to_string(rigs.join("ict-face-3k.toml")).unwrap();
+    let mesh = rigs.join("../meshes/ict-facekit-3k/face_3k.obj");
+    let wrong = rigs.join("../meshes/ict-facekit/jawOpen.obj");
+    let head = &text_3k[..text_3k.find("[[morph_targets]]").unwrap()];
+    let tail = &text_3k[text_3k.find("[regions]").unwrap()..];
+    let broken = format!(
+        "{}[[morph_targets]]\nname = \"jawOpen\"\nobj = {:?}\n\n{tail}",
+        head.replace(
+            "\"../meshes/ict-facekit-3k/face_3k.obj\"",
+            &format!("{:?}", mesh.to_str().unwrap())
+        ),
+        wrong.to_str().unwrap()
+    );
+    let rig = dir.path().join("r.toml");
+    std::fs::write(&rig, broken).unwrap();
+    let out = mimic(&["info", rig.to_str().unwrap()]);
+    let (_, stderr) = text(&out);
+    assert!(!out.status.success(), "{stderr}");
+    assert_eq!(stderr.lines().count(), 1, "{stderr}");
+    assert!(
+        stderr.contains("r.toml") && stderr.contains("jawOpen"),
+        "{stderr}"
+    );
+}

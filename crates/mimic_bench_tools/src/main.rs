@@ -1,7 +1,8 @@
 //! `cargo run -p mimic_bench_tools`: the ICT-FaceKit face area decimated to about 3 000 vertices by
 //! meshoptimizer's simplifier, written to `configs/meshes/ict-facekit-3k/`, and the rig
 //! `configs/rigs/ict-face-3k.toml` on it: the ICT rig's solver and regions, each control on the
-//! decimated vertex nearest the ICT control's position (docs/performance.md).
+//! decimated vertex nearest the ICT control's position (docs/performance.md), with the ICT rig's
+//! morph targets cut down to the same vertices (so the rig replays in `--mode blendshapes`).
 //!
 //! Run from the repository root; it overwrites both files. Not part of the per-frame code.
 
@@ -34,7 +35,8 @@ fn main() -> anyhow::Result<()> {
     mimic_assets::write_obj(&mut file, &header, &positions, None, &triangles)?;
     drop(file);
     let controls = nearest_distinct(&rig, &positions);
-    let text = rig_toml(&rig_path, &controls, &positions, &old_of_new)?;
+    let morphs = morph_targets(&rig_path, &dir, &old_of_new, &triangles)?;
+    let text = rig_toml(&rig_path, &controls, &positions, &old_of_new, &morphs)?;
     std::fs::write(root.join("configs/rigs/ict-face-3k.toml"), text)?;
     println!(
         "wrote {} ({} vertices, {} triangles) and configs/rigs/ict-face-3k.toml ({} controls)",
@@ -158,12 +160,55 @@ fn nearest_distinct(rig: &mimic_types::Rig, positions: &[Vec3]) -> Vec<(u32, f32
         .collect()
 }
 
-/// The ICT rig file with the new mesh, name and controls; no frozen ranges and no look.
+/// Each of the ICT rig's morph targets cut down to the decimated vertices (its positions at
+/// `old_of_new`, on the decimated triangles), written beside the mesh; returns, per target, its
+/// name and the OBJ's path relative to `configs/rigs/`.
+fn morph_targets(
+    ict: &Path,
+    dir: &Path,
+    old_of_new: &[u32],
+    triangles: &[[u32; 3]],
+) -> anyhow::Result<Vec<(String, String)>> {
+    let text = std::fs::read_to_string(ict)?;
+    let doc: toml::Table = toml::from_str(&text)?;
+    let Some(list) = doc.get("morph_targets").and_then(|m| m.as_array()) else {
+        return Ok(Vec::new());
+    };
+    let rigs = ict.parent().context("rig path has no folder")?;
+    let mut out = Vec::with_capacity(list.len());
+    for entry in list {
+        let name = entry.get("name").and_then(|n| n.as_str());
+        let obj = entry.get("obj").and_then(|o| o.as_str());
+        let (Some(name), Some(obj)) = (name, obj) else {
+            anyhow::bail!("ict-face.toml: a [[morph_targets]] entry lacks name or obj");
+        };
+        let shape = mimic_assets::load_obj(&rigs.join(obj))?;
+        let picked: Vec<Vec3> = old_of_new
+            .iter()
+            .map(|&v| shape.positions.get(v as usize).copied())
+            .collect::<Option<_>>()
+            .with_context(|| format!("{obj}: fewer vertices than the ICT mesh"))?;
+        let file = format!("{name}.obj");
+        let header = format!(
+            "ICT-FaceKit expression `{name}` ({obj}) on the decimated face area (face_3k.obj's vertices),\n\
+             by `cargo run -p mimic_bench_tools`. Derived from ICT-FaceKit: MIT licence, Copyright (c) 2020\n\
+             USC Institute for Creative Technologies (../ict-facekit/LICENSE)."
+        );
+        let mut w = std::io::BufWriter::new(std::fs::File::create(dir.join(&file))?);
+        mimic_assets::write_obj(&mut w, &header, &picked, None, triangles)?;
+        out.push((name.to_owned(), format!("../meshes/ict-facekit-3k/{file}")));
+    }
+    Ok(out)
+}
+
+/// The ICT rig file with the new mesh, name, controls and morph targets; no frozen ranges, no look
+/// and no thin shell.
 fn rig_toml(
     ict: &Path,
     controls: &[(u32, f32)],
     positions: &[Vec3],
     old_of_new: &[u32],
+    morphs: &[(String, String)],
 ) -> anyhow::Result<String> {
     let text = std::fs::read_to_string(ict)?;
     let mut doc: toml::Table = toml::from_str(&text)?;
@@ -182,6 +227,23 @@ fn rig_toml(
     doc.insert("mesh".into(), "../meshes/ict-facekit-3k/face_3k.obj".into());
     doc.remove("frozen");
     doc.remove("look");
+    // The thin shell's sockets name ICT vertex numbers; the benchmark rig keeps the plain solver.
+    if let Some(solver) = doc.get_mut("solver").and_then(|s| s.as_table_mut()) {
+        solver.remove("shell");
+        solver.remove("shell_blend");
+    }
+    let mut entries = toml::value::Array::new();
+    for (name, obj) in morphs {
+        let mut t = toml::Table::new();
+        t.insert("name".into(), name.clone().into());
+        t.insert("obj".into(), obj.clone().into());
+        entries.push(t.into());
+    }
+    if entries.is_empty() {
+        doc.remove("morph_targets");
+    } else {
+        doc.insert("morph_targets".into(), entries.into());
+    }
     let list = doc
         .get_mut("controls")
         .and_then(|c| c.as_array_mut())

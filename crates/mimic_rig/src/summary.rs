@@ -99,6 +99,8 @@ pub struct RigSummary {
     pub bounds_max: [f32; 3],
     /// The solver settings.
     pub solver: SolverSettings,
+    /// The names of the rig's morph targets (checked against its mesh), empty when none.
+    pub morph_targets: Vec<String>,
     /// Pairs of controls on one rest position, in words.
     pub warnings: Vec<String>,
 }
@@ -138,8 +140,15 @@ impl RigSummary {
             bounds_min: lo.to_array(),
             bounds_max: hi.to_array(),
             solver: r.solver,
+            morph_targets: Vec::new(),
             warnings,
         }
+    }
+
+    /// The summary with the names of the rig's morph targets (loaded, so checked, by the caller).
+    pub fn with_morph_targets(mut self, targets: &[mimic_types::MorphTarget]) -> Self {
+        self.morph_targets = targets.iter().map(|t| t.name.clone()).collect();
+        self
     }
 }
 

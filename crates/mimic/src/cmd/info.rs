@@ -54,7 +54,10 @@ fn summarise(args: Args) -> anyhow::Result<()> {
     let summary = match kind_of(&args.file)? {
         Kind::Layout => serde_json::to_value(LayoutSummary::of(&load_layout(&args.file)?))?,
         Kind::Rig => {
-            let summary = RigSummary::of(&load_rig(&args.file)?);
+            let rig = load_rig(&args.file)?;
+            // Each morph target must match the mesh, or `--mode blendshapes` fails later.
+            let targets = mimic_assets::load_morph_targets(&args.file, &rig)?;
+            let summary = RigSummary::of(&rig).with_morph_targets(&targets);
             for w in &summary.warnings {
                 eprintln!("warning: {w}");
             }
