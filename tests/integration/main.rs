@@ -18,6 +18,7 @@ mod fit;
 mod forward;
 mod gltf;
 mod gpu_bench;
+mod hostile_avatar;
 mod import;
 mod info;
 mod livelink;

@@ -17,6 +17,20 @@ pub fn obj(data: &[u8]) {
     }
 }
 
+/// The avatar file reader (glTF / GLB / VRM bytes, as `mimic rig new` and `mimic info` read them):
+/// an accepted mesh's triangles index its vertices, each triangle has its material.
+pub fn avatar(data: &[u8]) {
+    let read = mimic_rig::gltf_mesh::parse_gltf_look(Path::new("fuzz.glb"), data, None);
+    if let Ok((mesh, look)) = read {
+        let n = mesh.vertex_count();
+        assert!(
+            mesh.triangles.iter().flatten().all(|&i| (i as usize) < n),
+            "triangle index out of range"
+        );
+        assert_eq!(look.triangle_material.len(), mesh.triangles.len());
+    }
+}
+
 /// The landmark layout TOML loader.
 pub fn layout(data: &[u8]) {
     let Ok(text) = std::str::from_utf8(data) else {

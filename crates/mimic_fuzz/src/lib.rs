@@ -11,7 +11,7 @@ mod capture;
 mod trackers;
 mod wire;
 
-pub use assets::{layout, morph, obj, rig};
+pub use assets::{avatar, layout, morph, obj, rig};
 pub use capture::{gfe, mediapipe, openface, recording};
 pub use trackers::{livelink, openseeface};
 pub use wire::stream;
@@ -33,4 +33,5 @@ pub const TARGETS: &[(&str, Body)] = &[
     ("stream", stream),
     ("openseeface", openseeface),
     ("livelink", livelink),
+    ("avatar", avatar),
 ];

@@ -28,11 +28,27 @@ fn err(path: &Path, message: impl Into<String>) -> RigNewError {
     }
 }
 
-/// Whether `path` names a glTF or GLB file (by extension).
+/// Whether `path` names a glTF, GLB or VRM file (by extension; a VRM is a GLB).
 pub fn is_gltf(path: &Path) -> bool {
-    path.extension()
-        .and_then(|e| e.to_str())
-        .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"))
+    path.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+        ["gltf", "glb", "vrm"]
+            .iter()
+            .any(|x| e.eq_ignore_ascii_case(x))
+    })
+}
+
+/// Parses a glTF or GLB file's bytes into a document, its structure checked
+/// ([`crate::gltf_check`]) before the `gltf` crate's own validation; errors name `path`.
+pub fn parse_document(path: &Path, bytes: &[u8]) -> Result<gltf::Gltf, RigNewError> {
+    let raw =
+        gltf::Gltf::from_slice_without_validation(bytes).map_err(|e| err(path, e.to_string()))?;
+    crate::gltf_check::check(raw.document.as_json()).map_err(|f| err(path, f.to_string()))?;
+    let document = gltf::Document::from_json(raw.document.into_json())
+        .map_err(|e| err(path, e.to_string()))?;
+    Ok(gltf::Gltf {
+        document,
+        blob: raw.blob,
+    })
 }
 
 /// One material of a glTF mesh, as the rig's MTL will hold it.
@@ -62,17 +78,35 @@ pub fn load_gltf(path: &Path) -> Result<Mesh, RigNewError> {
     load_gltf_look(path).map(|(mesh, _)| mesh)
 }
 
+fn read(p: &Path) -> Result<Vec<u8>, RigNewError> {
+    mimic_types::limits::read_bytes_capped(p, &GLTF_FILE).map_err(|cause| RigNewError::Read {
+        path: p.to_path_buf(),
+        cause,
+    })
+}
+
 /// Reads a glTF or GLB file's triangles into one mesh with its texture coordinates, and its look.
 pub fn load_gltf_look(path: &Path) -> Result<(Mesh, GltfLook), RigNewError> {
-    let read = |p: &Path| {
-        mimic_types::limits::read_bytes_capped(p, &GLTF_FILE).map_err(|cause| RigNewError::Read {
-            path: p.to_path_buf(),
-            cause,
-        })
-    };
     let bytes = read(path)?;
-    let gltf = gltf::Gltf::from_slice(&bytes).map_err(|e| err(path, e.to_string()))?;
-    let base = path.parent().unwrap_or(Path::new("."));
+    parse_gltf_look(path, &bytes, Some(path.parent().unwrap_or(Path::new("."))))
+}
+
+/// [`load_gltf_look`] on a file's bytes; files it names (buffers, images) are read from `files`'
+/// folder, or refused when `files` is `None`. Errors name `path`.
+pub fn parse_gltf_look(
+    path: &Path,
+    bytes: &[u8],
+    files: Option<&Path>,
+) -> Result<(Mesh, GltfLook), RigNewError> {
+    let gltf = parse_document(path, bytes)?;
+    let base = files.unwrap_or(Path::new("."));
+    let external = |uri: &str| match files {
+        Some(dir) => read(&dir.join(uri)),
+        None => Err(err(
+            path,
+            format!("`{uri}` is a separate file, not read here"),
+        )),
+    };
     let mut buffers: Vec<Vec<u8>> = Vec::new();
     for buffer in gltf.buffers() {
         let data = match buffer.source() {
@@ -89,7 +123,7 @@ pub fn load_gltf_look(path: &Path) -> Result<(Mesh, GltfLook), RigNewError> {
                     ),
                 ));
             }
-            gltf::buffer::Source::Uri(uri) => read(&base.join(uri))?,
+            gltf::buffer::Source::Uri(uri) => external(uri)?,
         };
         if data.len() < buffer.length() {
             return Err(err(
@@ -104,22 +138,7 @@ pub fn load_gltf_look(path: &Path) -> Result<(Mesh, GltfLook), RigNewError> {
         }
         buffers.push(data);
     }
-    let mut nodes: Vec<(gltf::Node, Mat4)> = Vec::new();
-    fn walk<'a>(node: gltf::Node<'a>, parent: Mat4, out: &mut Vec<(gltf::Node<'a>, Mat4)>) {
-        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
-        out.push((node.clone(), world));
-        for child in node.children() {
-            walk(child, world, out);
-        }
-    }
-    match gltf.default_scene().or_else(|| gltf.scenes().next()) {
-        Some(scene) => scene
-            .nodes()
-            .for_each(|n| walk(n, Mat4::IDENTITY, &mut nodes)),
-        None => gltf.nodes().for_each(|n| {
-            nodes.push((n.clone(), Mat4::from_cols_array_2d(&n.transform().matrix())))
-        }),
-    }
+    let nodes = world_nodes(&gltf);
     let mut mesh = Mesh::default();
     let mut look = GltfLook::default();
     // glTF material index (None: no material) to look material; glTF image index to look image.
@@ -163,7 +182,8 @@ pub fn load_gltf_look(path: &Path) -> Result<(Mesh, GltfLook), RigNewError> {
                         Some(img) => match image_of.iter().find(|(k, _)| *k == img.index()) {
                             Some((_, i)) => Some(*i),
                             None => {
-                                let (ext, bytes) = image_bytes(path, base, &img, &buffers)?;
+                                let (ext, bytes) =
+                                    image_bytes(path, files.map(|_| base), &img, &buffers)?;
                                 look.images
                                     .push((format!("texture{}.{ext}", look.images.len()), bytes));
                                 image_of.push((img.index(), look.images.len() - 1));
@@ -232,10 +252,41 @@ pub fn load_gltf_look(path: &Path) -> Result<(Mesh, GltfLook), RigNewError> {
     Ok((mesh, look))
 }
 
-/// The encoded bytes of a glTF image and the file extension of its type (PNG or JPEG only).
+/// The scene's nodes with their world transforms, parents before children (the default scene,
+/// else the first, else every node as a root). The graph is a checked set of trees
+/// ([`crate::gltf_check`]), walked with a stack, not recursion.
+fn world_nodes(gltf: &gltf::Gltf) -> Vec<(gltf::Node<'_>, Mat4)> {
+    let mut stack: Vec<(gltf::Node, Mat4)> =
+        match gltf.default_scene().or_else(|| gltf.scenes().next()) {
+            Some(scene) => scene.nodes().map(|n| (n, Mat4::IDENTITY)).collect(),
+            // No scene: each node alone with its own transform (no children followed).
+            None => {
+                return gltf
+                    .nodes()
+                    .map(|n| {
+                        let m = Mat4::from_cols_array_2d(&n.transform().matrix());
+                        (n, m)
+                    })
+                    .collect();
+            }
+        };
+    stack.reverse();
+    let mut out = Vec::new();
+    while let Some((node, parent)) = stack.pop() {
+        let world = parent * Mat4::from_cols_array_2d(&node.transform().matrix());
+        let first = stack.len();
+        stack.extend(node.children().map(|c| (c, world)));
+        stack[first..].reverse();
+        out.push((node, world));
+    }
+    out
+}
+
+/// The encoded bytes of a glTF image and the file extension of its type (PNG or JPEG only);
+/// image files are read from `base` (refused when `None`).
 fn image_bytes(
     path: &Path,
-    base: &Path,
+    base: Option<&Path>,
     image: &gltf::Image<'_>,
     buffers: &[Vec<u8>],
 ) -> Result<(&'static str, Vec<u8>), RigNewError> {
@@ -262,6 +313,15 @@ fn image_bytes(
             ));
         }
         gltf::image::Source::Uri { uri, .. } => {
+            let Some(base) = base else {
+                return Err(err(
+                    path,
+                    format!(
+                        "image {}: `{uri}` is a separate file, not read here",
+                        image.index()
+                    ),
+                ));
+            };
             let p = base.join(uri);
             mimic_types::limits::read_bytes_capped(&p, &mimic_types::TEXTURE_FILE)
                 .map_err(|cause| RigNewError::Read { path: p, cause })?

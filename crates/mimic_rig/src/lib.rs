@@ -3,9 +3,11 @@
 //! in face units (`mimic rig new`), landmarks found by registering a template head when none are
 //! given, and the checks of `mimic rig check`.
 
+pub mod avatar_summary;
 pub mod check;
 pub mod eyes;
 pub mod frame;
+pub mod gltf_check;
 pub mod gltf_mesh;
 pub mod head_template;
 pub mod icp;

@@ -1,5 +1,5 @@
-//! `mimic info`: validate a recording, layout or rig and summarise it (the summaries are
-//! `mimic_rig::summary` and `mimic_capture::summarize_reader`).
+//! `mimic info`: validate a recording, layout, rig or avatar file and summarise it (the summaries
+//! are `mimic_rig::summary`, `mimic_rig::avatar_summary` and `mimic_capture::summarize_reader`).
 
 use anyhow::Context;
 use mimic_assets::{ConfigDirs, load_layout, load_rig};
@@ -11,7 +11,8 @@ use std::path::{Path, PathBuf};
 /// Arguments of `mimic info`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// A recording (.jsonl), layout (configs/layouts/*.toml) or rig (configs/rigs/*.toml).
+    /// A recording (.jsonl), layout (configs/layouts/*.toml), rig (configs/rigs/*.toml) or avatar
+    /// (.glb, .gltf, .vrm).
     pub file: PathBuf,
     /// Print the summary as JSON.
     #[arg(long)]
@@ -26,11 +27,13 @@ enum Kind {
     Recording,
     Layout,
     Rig,
+    Avatar,
 }
 
 fn kind_of(path: &Path) -> anyhow::Result<Kind> {
     match path.extension().and_then(|e| e.to_str()) {
         Some("jsonl") | Some("json") => Ok(Kind::Recording),
+        _ if mimic_rig::gltf_mesh::is_gltf(path) => Ok(Kind::Avatar),
         Some("toml") => {
             let text = mimic_types::limits::read_capped(path, &mimic_types::limits::RIG_FILE)
                 .with_context(|| path.display().to_string())?;
@@ -38,7 +41,7 @@ fn kind_of(path: &Path) -> anyhow::Result<Kind> {
             Ok(if is_rig { Kind::Rig } else { Kind::Layout })
         }
         _ => anyhow::bail!(
-            "{}: unknown kind of file (expected .jsonl recording, or .toml layout or rig)",
+            "{}: unknown kind of file (expected .jsonl recording, .toml layout or rig, or .glb, .gltf or .vrm avatar)",
             path.display()
         ),
     }
@@ -62,6 +65,9 @@ fn summarise(args: Args) -> anyhow::Result<()> {
                 eprintln!("warning: {w}");
             }
             serde_json::to_value(summary)?
+        }
+        Kind::Avatar => {
+            serde_json::to_value(mimic_rig::avatar_summary::AvatarSummary::of(&args.file)?)?
         }
         Kind::Recording => {
             let configs = ConfigDirs::locate(args.configs.as_deref());
