@@ -107,7 +107,9 @@ impl ForwardSettings {
     /// [`Self::targets`] or one in [`Self::allow`].
     pub fn check_session_target(&self, text: &str) -> Result<ForwardTarget, ForwardRefusal> {
         let t: ForwardTarget = text.parse()?;
-        let same = |a: &SocketAddr| a.ip().to_canonical() == t.addr.ip().to_canonical() && a.port() == t.addr.port();
+        let same = |a: &SocketAddr| {
+            a.ip().to_canonical() == t.addr.ip().to_canonical() && a.port() == t.addr.port()
+        };
         if self.allow.iter().any(same) || self.targets.iter().any(|x| same(&x.addr)) {
             Ok(t)
         } else {
@@ -301,12 +303,14 @@ mod tests {
         }
         let mut s = ForwardSettings::default();
         // Not even loopback without the operator's word: any local port is a local service.
-        for refused in ["vmc:127.0.0.1:39539", "vmc:127.0.0.2:53", "vmc:192.168.1.5:39539"] {
+        for refused in [
+            "vmc:127.0.0.1:39539",
+            "vmc:127.0.0.2:53",
+            "vmc:192.168.1.5:39539",
+        ] {
             assert_eq!(
                 s.check_session_target(refused),
-                Err(ForwardRefusal::NotAllowed(
-                    refused[4..].parse().unwrap()
-                ))
+                Err(ForwardRefusal::NotAllowed(refused[4..].parse().unwrap()))
             );
         }
         s.allow.push("192.168.1.5:39539".parse().unwrap());

@@ -12,10 +12,10 @@
 
 mod pending;
 
-use pending::{Pending, PendingKeys, RefusalLog, Slot, Why};
 use super::session::{Protocol, Session, open, teardown};
 use super::state::Shared;
 use crate::settings::ServerSettings;
+use pending::{Pending, PendingKeys, RefusalLog, Slot, Why};
 use std::collections::HashMap;
 use std::future::Future;
 use std::hash::Hash;
@@ -242,7 +242,8 @@ impl<P: UdpTracker> Intake<P> {
             }
             Err(why) => {
                 self.refuse(Why::NotOpened, run.len(), peer);
-                self.log.note(Why::NotOpened, 0, || format!("{what}: {why}"));
+                self.log
+                    .note(Why::NotOpened, 0, || format!("{what}: {why}"));
                 tracing::debug!("{what} session refused: {why}");
             }
         }
@@ -295,7 +296,9 @@ async fn intake_loop<P: UdpTracker>(
         }
     }
     end_all(&mut intake.sessions).await;
-    intake.log.flush(P::INTAKE, Instant::now() + Duration::from_secs(2));
+    intake
+        .log
+        .flush(P::INTAKE, Instant::now() + Duration::from_secs(2));
     drop(done);
 }
 /// Starts the intake of protocol `P` when the settings hold its socket (a socket tokio cannot

@@ -35,7 +35,11 @@ const MAX_HEAD_BYTES: usize = 64 * 1024;
 /// soft open-file limit `nofile` leaves once the TCP slots (sessions, viewers, the 16 before a
 /// hello, stats slots, refusals being answered), a recording per session and [`FD_SPARE`] are
 /// kept.
-pub(super) fn connection_budget(web: &HttpSettings, s: &ServerSettings, nofile: Option<u64>) -> usize {
+pub(super) fn connection_budget(
+    web: &HttpSettings,
+    s: &ServerSettings,
+    nofile: Option<u64>,
+) -> usize {
     let want = web.max_connections.max(1);
     let Some(nofile) = nofile else { return want };
     let reserve = crate::server::slots::general_slots(s)
@@ -43,7 +47,9 @@ pub(super) fn connection_budget(web: &HttpSettings, s: &ServerSettings, nofile: 
         .saturating_add(crate::server::slots::REFUSALS_IN_FLIGHT)
         .saturating_add(s.max_sessions)
         .saturating_add(FD_SPARE);
-    let room = usize::try_from(nofile).unwrap_or(usize::MAX).saturating_sub(reserve);
+    let room = usize::try_from(nofile)
+        .unwrap_or(usize::MAX)
+        .saturating_sub(reserve);
     want.min(room.max(1))
 }
 
@@ -323,7 +329,11 @@ fn host_ok(host: &str, local: SocketAddr, hosts: &[String]) -> bool {
     let name = match host.strip_prefix('[') {
         Some(rest) => rest.split(']').next().unwrap_or_default(),
         None => host.rsplit_once(':').map_or(host, |(n, port)| {
-            if port.bytes().all(|b| b.is_ascii_digit()) { n } else { host }
+            if port.bytes().all(|b| b.is_ascii_digit()) {
+                n
+            } else {
+                host
+            }
         }),
     };
     let name = name.trim_end_matches('.').to_ascii_lowercase();
@@ -361,7 +371,13 @@ mod tests {
         let ok = |h: Option<&str>, o: Option<&str>, web: &HttpSettings| {
             check_request(&headers(h, o), local, web).map(|(s, _)| s.as_u16())
         };
-        for host in ["127.0.0.1:8080", "localhost:8080", "[::1]:8080", "127.0.0.1", "LOCALHOST"] {
+        for host in [
+            "127.0.0.1:8080",
+            "localhost:8080",
+            "[::1]:8080",
+            "127.0.0.1",
+            "LOCALHOST",
+        ] {
             assert_eq!(ok(Some(host), None, &web), None, "{host}");
         }
         assert_eq!(ok(Some("attacker.example:8080"), None, &web), Some(421));
@@ -376,7 +392,10 @@ mod tests {
         assert_eq!(ok(Some("127.0.0.1:8080"), Some("null"), &web), Some(403));
         web.hosts.push("face.lan".into());
         web.origins.push("https://studio.example".into());
-        assert_eq!(ok(Some("face.lan:8080"), Some("http://face.lan:8080"), &web), None);
+        assert_eq!(
+            ok(Some("face.lan:8080"), Some("http://face.lan:8080"), &web),
+            None
+        );
         assert_eq!(
             ok(Some("127.0.0.1:8080"), Some("https://studio.example"), &web),
             None

@@ -66,7 +66,10 @@ pub(crate) async fn serve(
         .route("/rig/{file}", get(rig_glb))
         .route("/ws/{session}", get(ws_upgrade))
         .route("/static/{*path}", get(static_file))
-        .layer(axum::middleware::from_fn_with_state(app.clone(), host_and_origin))
+        .layer(axum::middleware::from_fn_with_state(
+            app.clone(),
+            host_and_origin,
+        ))
         .with_state(app);
     doors::serve(shared, listener, router, &web, shutdown).await
 }

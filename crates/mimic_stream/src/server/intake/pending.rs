@@ -189,7 +189,11 @@ impl RefusalLog {
     /// Logs (warn level) the counts since the last line, at most once a second.
     pub(crate) fn flush(&mut self, intake: &str, now: Instant) {
         let total: u64 = self.counts.iter().sum();
-        if total == 0 || self.last_log.is_some_and(|t| now.duration_since(t) < Duration::from_secs(1)) {
+        if total == 0
+            || self
+                .last_log
+                .is_some_and(|t| now.duration_since(t) < Duration::from_secs(1))
+        {
             return;
         }
         let parts: Vec<String> = self
