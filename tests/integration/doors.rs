@@ -251,7 +251,9 @@ fn a_second_source_cannot_inject_into_a_face_session() {
     let tracker = UdpSocket::bind("127.0.0.1:0").unwrap();
     let intruder = UdpSocket::bind("127.0.0.1:0").unwrap();
     for (k, f) in faces[..20].iter().enumerate() {
-        tracker.send_to(&encode_packet(&[f.clone()]), &osf).unwrap();
+        tracker
+            .send_to(&encode_packet(std::slice::from_ref(f)), &osf)
+            .unwrap();
         if k >= 5 && k % 3 == 0 {
             // The same face from another process, while the tracker is live.
             let mut fake = faces[100 + k].clone();

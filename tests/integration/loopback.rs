@@ -28,6 +28,10 @@ pub struct Serve {
     pub token: Option<String>,
     /// The browser endpoint's address, when started with `--http`.
     pub http: Option<String>,
+    /// The loopback address stats requests come from (`None`: the default, 127.0.0.1); a test
+    /// that fills one address's share polls from another, so its polls never take (nor are
+    /// refused for) the slots kept for stats.
+    pub stats_from: Option<String>,
 }
 
 impl Serve {
@@ -91,6 +95,7 @@ impl Serve {
             udp: words[5].to_string(),
             token,
             http,
+            stats_from: None,
         }
     }
 
@@ -123,7 +128,10 @@ impl Serve {
 
     /// The server's counters (a stats request).
     pub fn stats(&self) -> Value {
-        let mut s = connect(&self.tcp);
+        let mut s = match &self.stats_from {
+            Some(from) => connect_from(from, &self.tcp),
+            None => connect(&self.tcp),
+        };
         let mut hello = serde_json::json!({"type": "stats"});
         if let Some(t) = &self.token {
             hello["token"] = Value::from(t.as_str());

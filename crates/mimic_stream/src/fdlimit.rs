@@ -14,6 +14,10 @@ pub fn soft() -> Option<u64> {
 }
 
 #[cfg(unix)]
+#[allow(
+    clippy::unnecessary_cast,
+    reason = "rlim_t is u64 on Linux but not on every Unix"
+)]
 mod imp {
     /// Highest soft limit asked for (a hard limit of "unlimited" is not taken literally).
     const CEILING: u64 = 1 << 20;

@@ -148,21 +148,11 @@ pub(crate) enum Why {
 }
 
 /// Refusal counts since the last log line; logged at most once a second.
-#[derive(Debug)]
+#[derive(Debug, Default)]
 pub(crate) struct RefusalLog {
     counts: [u64; 5],
     last_log: Option<Instant>,
     example: Option<String>,
-}
-
-impl Default for RefusalLog {
-    fn default() -> Self {
-        Self {
-            counts: [0; 5],
-            last_log: None,
-            example: None,
-        }
-    }
 }
 
 /// Names of [`Why`] in the log line, in its order.
