@@ -300,7 +300,7 @@ pub(super) fn check_request(
     if !host_ok(host, local, &web.hosts) {
         let why = format!(
             "Host `{}` does not name this server: it answers its own address, loopback names and the names given with `mimic serve --http-host` (docs/browser.md)",
-            super::escape(host)
+            escape(host)
         );
         return Some((StatusCode::MISDIRECTED_REQUEST, why));
     }
@@ -317,9 +317,15 @@ pub(super) fn check_request(
     }
     let why = format!(
         "Origin `{}` is not this server's page ({own}) nor one given with `mimic serve --http-origin` (docs/browser.md)",
-        super::escape(origin)
+        escape(origin)
     );
     Some((StatusCode::FORBIDDEN, why))
+}
+
+/// A header value, safe to echo in a plain-text answer (at most 64 characters).
+fn escape(s: &str) -> String {
+    let s: String = s.chars().take(64).collect();
+    mimic_wire::escape_untrusted(&s).into_owned()
 }
 
 /// Whether a `Host` header names the listener at `local`: an IP address the listener answers
