@@ -217,7 +217,8 @@ fn live_link_packets_are_forwarded_to_vmc_with_vrm_names() {
 #[test]
 fn a_landmark_session_forwards_its_blendshape_fit_where_its_hello_asks() {
     let (ll, ll_addr) = receiver();
-    let server = Serve::start(&["--rig", "ict-face", "--no-udp"]);
+    // A tracker's own target must be allowed by address and port (docs/reliability.md).
+    let server = Serve::start(&["--rig", "ict-face", "--no-udp", "--forward-allow", &ll_addr]);
     let n = 100;
     let rx = mimic_testkit::spawn("livelink-receiver", move || {
         let mut buf = vec![0u8; 65_536];

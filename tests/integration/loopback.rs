@@ -26,21 +26,50 @@ pub struct Serve {
     pub udp: String,
     /// The `--token` it was started with (its stats requests present it).
     pub token: Option<String>,
+    /// The browser endpoint's address, when started with `--http`.
+    pub http: Option<String>,
+    /// The loopback address stats requests come from (`None`: the default, 127.0.0.1); a test
+    /// that fills one address's share polls from another, so its polls never take (nor are
+    /// refused for) the slots kept for stats.
+    pub stats_from: Option<String>,
 }
 
 impl Serve {
     /// Starts `mimic serve --listen 127.0.0.1:0 ARGS` and reads where it listens.
     pub fn start(args: &[&str]) -> Serve {
-        let mut child = Command::new(env!("CARGO_BIN_EXE_mimic"))
+        Self::start_with_file_limit(args, None)
+    }
+
+    /// [`Serve::start`] with the child's open-file limit (soft and hard) set to `nofile`.
+    pub fn start_with_file_limit(args: &[&str], nofile: Option<u64>) -> Serve {
+        let mut command = Command::new(env!("CARGO_BIN_EXE_mimic"));
+        command
             .args(["serve", "--listen", "127.0.0.1:0"])
             .args(args)
             .current_dir(repo())
             .env_remove("RUST_LOG")
             .env_remove("MIMIC_TOKEN")
             .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("spawn mimic serve");
+            .stderr(Stdio::null());
+        if let Some(n) = nofile {
+            use std::os::unix::process::CommandExt;
+            let limit = libc::rlimit {
+                rlim_cur: n as libc::rlim_t,
+                rlim_max: n as libc::rlim_t,
+            };
+            // SAFETY: setrlimit is async-signal-safe and reads only `limit`, a copy owned by
+            // the closure.
+            unsafe {
+                command.pre_exec(move || {
+                    if libc::setrlimit(libc::RLIMIT_NOFILE, &limit) == 0 {
+                        Ok(())
+                    } else {
+                        Err(std::io::Error::last_os_error())
+                    }
+                });
+            }
+        }
+        let mut child = command.spawn().expect("spawn mimic serve");
         let token = args
             .iter()
             .position(|a| *a == "--token")
@@ -54,12 +83,19 @@ impl Serve {
             words.len() >= 6 && words[2] == "tcp",
             "serve said: {first:?}"
         );
+        let http = words
+            .iter()
+            .position(|w| *w == "http")
+            .and_then(|k| words.get(k + 1))
+            .map(|s| s.to_string());
         Serve {
             child,
             stdout,
             tcp: words[3].to_string(),
             udp: words[5].to_string(),
             token,
+            http,
+            stats_from: None,
         }
     }
 
@@ -92,7 +128,10 @@ impl Serve {
 
     /// The server's counters (a stats request).
     pub fn stats(&self) -> Value {
-        let mut s = connect(&self.tcp);
+        let mut s = match &self.stats_from {
+            Some(from) => connect_from(from, &self.tcp),
+            None => connect(&self.tcp),
+        };
         let mut hello = serde_json::json!({"type": "stats"});
         if let Some(t) = &self.token {
             hello["token"] = Value::from(t.as_str());

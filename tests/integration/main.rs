@@ -12,6 +12,7 @@ mod config_limits;
 mod crash;
 mod dense;
 mod depth;
+mod doors;
 mod escape;
 mod faults;
 mod fit;

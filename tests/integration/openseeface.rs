@@ -226,3 +226,57 @@ fn the_capture_sent_over_udp_at_its_pace_is_counted_retargeted_viewed_and_record
     assert_eq!(r.frames.len() as u64, frames);
     server.stop();
 }
+
+#[test]
+fn two_captures_sent_one_after_the_other_into_one_port_are_both_retargeted() {
+    let Some(data) = osf_data() else { return };
+    let dir = tempfile::tempdir().unwrap();
+    let rec = import(&data, dir.path(), "mm.jsonl", &[]);
+    let osf_addr = {
+        let port = UdpSocket::bind("127.0.0.1:0")
+            .unwrap()
+            .local_addr()
+            .unwrap()
+            .port();
+        format!("127.0.0.1:{port}")
+    };
+    let server = Serve::start(&[
+        "--rig",
+        "ict-face",
+        "--no-udp",
+        "--openseeface",
+        &osf_addr,
+        "--idle-timeout",
+        "10",
+    ]);
+    // OpenSeeFace run twice: each `mimic send` is a new process (a new source port) whose
+    // clock starts again; a restarted tracker takes a second or more to send again.
+    for run in 0..2 {
+        if run == 1 {
+            std::thread::sleep(std::time::Duration::from_secs(1));
+        }
+        let o = mimic(&["send", &rec, "--openseeface", &osf_addr]);
+        let (stdout, stderr) = text(&o);
+        assert!(o.status.success(), "{stdout}{stderr}");
+    }
+    let x = server.wait_for_session("openseeface-0", "both runs counted", |x| {
+        let n = |k: &str| x[k].as_u64().unwrap_or(0);
+        n("frames") + n("late") + n("future") + n("malformed") == 2 * 231
+    });
+    // One session, both runs retargeted: none refused as late, the restart counted.
+    assert_eq!(x["late"], 0, "{x}");
+    assert_eq!(x["future"], 0, "{x}");
+    assert_eq!(x["restarts"], 1, "{x}");
+    assert!(x["frames"].as_u64().unwrap() >= 2 * 225, "{x}");
+    let s = server.stats();
+    assert_eq!(s["udp_wrong_source"], 0, "{s}");
+    assert_eq!(s["udp_refused"], 0, "{s}");
+    let ids: Vec<_> = s["sessions"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter(|x| x["name"] == "openseeface-0")
+        .collect();
+    assert_eq!(ids.len(), 1, "{s}");
+    server.stop();
+}

@@ -33,7 +33,7 @@ enum Command {
     #[command(subcommand)]
     Morph(cmd::morph::MorphCommand),
     /// Serve live sessions: trackers in over TCP/UDP, viewers out (docs/protocol.md).
-    Serve(cmd::serve::Args),
+    Serve(Box<cmd::serve::Args>),
     /// Replay a recording into `mimic serve` at its recorded pace, as a tracker would.
     Send(cmd::send::Args),
     /// Render frames of a recording on a rig to PNG (headless wgpu), or a contact sheet.
@@ -70,7 +70,7 @@ fn main() -> ExitCode {
         Command::Morph(c) => cmd::morph::run(c),
         Command::Eval(a) => cmd::eval::run(a),
         Command::Rig(c) => cmd::rig::run(c),
-        Command::Serve(a) => cmd::serve::run(a),
+        Command::Serve(a) => cmd::serve::run(*a),
         Command::Send(a) => cmd::send::run(a),
         Command::Render(a) => cmd::render::run(a),
         Command::View(a) => cmd::view::run(a),

@@ -33,6 +33,16 @@ pub enum LaunchError {
     /// A name map that cannot be read.
     #[error(transparent)]
     NameMap(#[from] mimic_trackers::TrackerError),
+    /// A tracker intake beyond loopback without a list of the sources it takes.
+    #[error(
+        "{flag}: refusing to receive on {addr} beyond loopback without --udp-allow: this tracker protocol carries no token, so name the addresses its trackers send from (--udp-allow ADDR[,ADDR])"
+    )]
+    NeedsUdpAllow {
+        /// The option.
+        flag: String,
+        /// The address asked for.
+        addr: SocketAddr,
+    },
 }
 
 /// `io`'s error with what was being done.
@@ -43,15 +53,23 @@ fn doing<T>(what: impl FnOnce() -> String, io: std::io::Result<T>) -> Result<T, 
     })
 }
 
-/// A tracker protocol's UDP socket bound at `addr` (warned about beyond loopback: these
-/// protocols carry no token); `flag` names the option in messages.
+/// A tracker protocol's UDP socket bound at `addr`; beyond loopback only with an `allow` list
+/// of source addresses (`--udp-allow`: these protocols carry no token); `flag` names the option
+/// in messages.
 pub fn bind_tracker_udp(
     addr: Option<SocketAddr>,
     flag: &str,
+    allow: &[IpAddr],
 ) -> Result<Option<Arc<std::net::UdpSocket>>, LaunchError> {
     let Some(addr) = addr else { return Ok(None) };
     if !addr.ip().is_loopback() {
-        tracing::warn!(%addr, "{flag}: receiving beyond loopback, as asked: this tracker protocol carries no token, so anyone who can reach it can open sessions");
+        if allow.is_empty() {
+            return Err(LaunchError::NeedsUdpAllow {
+                flag: flag.to_string(),
+                addr,
+            });
+        }
+        tracing::warn!(%addr, "{flag}: receiving beyond loopback, as asked, from the --udp-allow addresses only");
     }
     let socket = doing(
         || format!("{flag}: binding UDP {addr}"),
@@ -98,11 +116,11 @@ pub fn record_dir(dir: Option<&Path>) -> Result<Option<PathBuf>, LaunchError> {
 }
 
 /// Forwarding to `targets` (warned about beyond loopback), trackers' own targets allowed at
-/// `allow` besides loopback, the weights read back as ARKit curves through the name map at
+/// `allow` (address and port) besides those, the weights read back as ARKit curves through the name map at
 /// `namemap`, and VMC's names from `vmc_names` (ARKit's without one).
 pub fn forward_settings(
     targets: Vec<ForwardTarget>,
-    allow: Vec<IpAddr>,
+    allow: Vec<SocketAddr>,
     namemap: &Path,
     vmc_names: Option<&Path>,
 ) -> Result<ForwardSettings, LaunchError> {
@@ -208,6 +226,10 @@ pub async fn serve<F>(
 where
     F: Future<Output = ()> + Send + 'static,
 {
+    // Room for every slot, recording and the browser endpoint's budget (`HttpSettings`).
+    if let Some(n) = crate::fdlimit::raise() {
+        tracing::debug!("open-file limit {n}");
+    }
     let Listeners { tcp, udp, http } = listeners;
     let web_task = http.map(|listener| {
         let server = server.clone();

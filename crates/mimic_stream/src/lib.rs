@@ -24,6 +24,7 @@
 
 mod catalog;
 mod counter;
+mod fdlimit;
 pub mod forward;
 pub mod launch;
 mod lines;

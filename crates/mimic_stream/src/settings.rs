@@ -15,13 +15,45 @@ pub const DEFAULT_LISTEN: &str = "127.0.0.1:7878";
 pub const HELLO_MAX_BYTES: usize = 64 * 1024;
 
 /// What the browser viewer needs beyond the server's state: where each rig's file is (for its
-/// look and morph targets in the GLB) and the skin colour of the rig's look.
-#[derive(Clone, Debug, Default)]
+/// look and morph targets in the GLB), the skin colour of the rig's look, and the endpoint's
+/// doors (docs/reliability.md, "Doors"): which `Host` and `Origin` it answers, and its
+/// connection limits and timeouts.
+#[derive(Clone, Debug)]
 pub struct HttpSettings {
     /// Rig name -> its `.toml` file, for every rig of the catalog.
     pub rig_paths: BTreeMap<String, PathBuf>,
     /// Linear RGB of the look's skin materials (`mimic_render::SKIN_ALBEDO` in `mimic serve`).
     pub skin: [f32; 3],
+    /// Host names (besides loopback names and IP addresses of the listener) a request's `Host`
+    /// may give (`--http-host`): a name a DNS-rebinding page would use is refused.
+    pub hosts: Vec<String>,
+    /// Origins (`http://name:port`) besides the served page's own that a request's `Origin`
+    /// (a WebSocket's included) may give (`--http-origin`).
+    pub origins: Vec<String>,
+    /// Connections at once (also kept below the open-file limit, with room for the rest).
+    pub max_connections: usize,
+    /// Connections at once from one IP address.
+    pub max_connections_per_peer: usize,
+    /// A connection must send a whole request head within this long (also between requests
+    /// of a kept-alive connection), else it is closed.
+    pub header_timeout: Duration,
+    /// A connection whose peer takes longer than this to take one write is closed.
+    pub write_timeout: Duration,
+}
+
+impl Default for HttpSettings {
+    fn default() -> Self {
+        Self {
+            rig_paths: BTreeMap::new(),
+            skin: [0.0; 3],
+            hosts: Vec::new(),
+            origins: Vec::new(),
+            max_connections: 256,
+            max_connections_per_peer: 32,
+            header_timeout: Duration::from_secs(10),
+            write_timeout: Duration::from_secs(30),
+        }
+    }
 }
 
 /// Live Link Face's intake: its bound UDP socket and the name map its curves go through.
@@ -90,6 +122,15 @@ pub struct ServerSettings {
     /// Live Link Face's intake (`mimic serve --livelink`): one weights session per subject
     /// (`server/livelink.rs`); `None`, the default, for none.
     pub livelink: Option<LiveLinkIntake>,
+    /// UDP tracker intake sessions (OpenSeeFace faces, Live Link subjects) at once, a budget
+    /// of their own inside `max_sessions`: TCP trackers always have the rest.
+    pub max_udp_sessions: usize,
+    /// Valid packets in a row (decoded, from one source, time going forward) a face or subject
+    /// must send before its session opens; they are then taken as its first frames.
+    pub udp_open_packets: usize,
+    /// Source addresses the UDP tracker intakes take datagrams from (`--udp-allow`); empty:
+    /// any (only allowed on loopback).
+    pub udp_allow: Vec<std::net::IpAddr>,
     /// Live out: where sessions' frames are forwarded (VMC, Live Link Face), and what trackers
     /// may ask for (`crate::forward`); none by default.
     pub forward: crate::forward::ForwardSettings,
@@ -123,6 +164,9 @@ impl Default for ServerSettings {
             record_queue_frames: 128,
             openseeface: None,
             livelink: None,
+            max_udp_sessions: 16,
+            udp_open_packets: 3,
+            udp_allow: Vec::new(),
             forward: crate::forward::ForwardSettings::default(),
             retarget: RetargetSettings::default(),
         }

@@ -151,6 +151,10 @@ pub struct SessionSnapshot {
     pub replies_dropped: u64,
     /// Weights sessions: weight names that matched no morph target, summed over frames.
     pub unknown_weights: u64,
+    /// Times the tracker's clock started again (a new run of the tracker: a frame well behind
+    /// the last accepted one after a pause, or a UDP source taking over a silent session); the
+    /// session clock was re-anchored each time (`timing.rs`).
+    pub restarts: u64,
     /// The session's recording file, when the server records (`--record`).
     pub recording: Option<String>,
     /// Accepted frames written and flushed to the recording.
@@ -200,6 +204,15 @@ pub struct ServerStats {
     /// Of those, frame packets with the right key from another address than the tracker's
     /// (its TCP hello's address, then the source of its first accepted packet; dropped).
     pub udp_wrong_source: u64,
+    /// UDP tracker intakes (OpenSeeFace, Live Link): datagrams refused: from a source the
+    /// `--udp-allow` list lacks, for a face or subject bound to another source, or for one that
+    /// found no session (`--max-udp-sessions` reached, or the session refused).
+    pub udp_refused: u64,
+    /// Browser endpoint (`--http`): connections refused at accept (the per-address cap or the
+    /// connection budget) and requests refused for their `Host` or `Origin`.
+    pub http_refused: u64,
+    /// Browser endpoint: connections open now.
+    pub http_connections: u64,
     /// Latency over every session listed.
     pub latency: LatencySummary,
     /// Frames dropped from viewer queues, over every session listed.

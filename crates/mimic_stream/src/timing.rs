@@ -4,12 +4,25 @@
 //! Before a session's first accepted frame the clock stands at 0 with a range of
 //! ±[`MAX_ABS_TIMESTAMP_US`]: a first frame outside it (`i64::MAX`, `1e18`, `i64::MIN`) is refused
 //! and counted like any other and the clock stays unanchored, so the next sane frame anchors it.
+//!
+//! A restarted tracker starts its clock again: a frame more than [`RESTART_BACK`] behind the last
+//! accepted one that arrives after at least [`RESTART_PAUSE`] without an accepted frame is the
+//! first of a new run, so it re-anchors the clock (counted in [`FrameClock::restarts`]). The
+//! same frame within a running stream (a repeat, a flood of a recording sent twice) is late.
 
 use std::time::{Duration, Instant};
 
 /// The largest `t_us` magnitude taken: 2^53 µs (about 285 years), the largest integer a JSON
 /// double holds exactly. Unix time in µs (about 1.8e15 in 2026) is well inside.
 pub const MAX_ABS_TIMESTAMP_US: i64 = 1 << 53;
+
+/// How far behind the last accepted frame a new run of the tracker starts (more than a few
+/// frames at any tracker rate).
+pub const RESTART_BACK: Duration = Duration::from_millis(500);
+
+/// How long a tracker is silent, at least, before a frame far behind is a new run rather than a
+/// late frame (a tracker's restart takes longer; a stream's frames come tens of ms apart).
+pub const RESTART_PAUSE: Duration = Duration::from_millis(500);
 
 /// Why a frame's timestamp was not taken.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -31,6 +44,7 @@ pub enum TimeProblem {
 pub struct FrameClock {
     last: Option<(i64, Instant)>,
     max_jump: Duration,
+    restarts: u64,
 }
 
 impl FrameClock {
@@ -40,7 +54,13 @@ impl FrameClock {
         Self {
             last: None,
             max_jump,
+            restarts: 0,
         }
+    }
+
+    /// New runs of the tracker seen so far (each re-anchored the clock).
+    pub fn restarts(&self) -> u64 {
+        self.restarts
     }
 
     /// Takes `t_us` (arrived at `arrival`) as the new last timestamp, or says why not.
@@ -59,6 +79,13 @@ impl FrameClock {
         }
         if let Some((last, at)) = self.last {
             if t_us <= last {
+                let back = i128::from(last) - i128::from(t_us);
+                let pause = arrival.saturating_duration_since(at);
+                if back > RESTART_BACK.as_micros() as i128 && pause >= RESTART_PAUSE {
+                    self.restarts += 1;
+                    self.last = Some((t_us, arrival));
+                    return Ok(());
+                }
                 return Err(TimeProblem::Late);
             }
             // Both in i128: no overflow for any pair of i64 timestamps.
@@ -160,6 +187,28 @@ mod tests {
         ] {
             assert_eq!(FrameClock::new(Duration::ZERO).advance(first, t0), Ok(()));
         }
+    }
+
+    #[test]
+    fn a_clock_far_behind_after_a_pause_is_a_new_run_and_re_anchors() {
+        let t0 = Instant::now();
+        let mut c = FrameClock::new(Duration::from_secs(10));
+        assert_eq!(c.advance(5_000_000, t0), Ok(()));
+        // Far behind within the stream: late, the clock stays.
+        assert_eq!(c.advance(1_000_000, t0), Err(TimeProblem::Late));
+        // A little behind after a pause: late too (a frame, not a new run).
+        let paused = t0 + RESTART_PAUSE;
+        assert_eq!(c.advance(4_900_000, paused), Err(TimeProblem::Late));
+        assert_eq!(c.restarts(), 0);
+        // Far behind after the pause: a new run, the clock starts from it.
+        assert_eq!(c.advance(0, paused), Ok(()));
+        assert_eq!(c.restarts(), 1);
+        assert_eq!(c.advance(33_333, paused), Ok(()));
+        assert_eq!(c.advance(10_000, paused), Err(TimeProblem::Late));
+        // Wild timestamps never start a run.
+        let later = paused + Duration::from_secs(5);
+        assert_eq!(c.advance(i64::MIN, later), Err(TimeProblem::Late));
+        assert_eq!(c.restarts(), 1);
     }
 
     #[test]

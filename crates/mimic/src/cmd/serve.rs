@@ -45,6 +45,25 @@ pub struct Args {
     /// Off without this flag; beyond loopback it needs `--token` like every listener.
     #[arg(long, value_name = "ADDR", value_parser = parse_http_addr)]
     pub http: Option<SocketAddr>,
+    /// A host name (besides loopback names and the listener's addresses) the browser endpoint
+    /// answers in a request's `Host` (repeatable, or comma-separated); others get 421.
+    #[arg(long, value_name = "NAME", value_delimiter = ',')]
+    pub http_host: Vec<String>,
+    /// An origin (`http://name:port`) besides the served page's own whose pages may use the
+    /// browser endpoint, its WebSockets included (repeatable, or comma-separated); others get 403.
+    #[arg(long, value_name = "ORIGIN", value_delimiter = ',')]
+    pub http_origin: Vec<String>,
+    /// Browser endpoint connections at once (kept below the open-file limit, with room for the
+    /// TCP slots and recordings); more are answered 503 and closed.
+    #[arg(long, default_value_t = mimic_stream::HttpSettings::default().max_connections)]
+    pub http_max_connections: usize,
+    /// Browser endpoint connections at once from one IP address.
+    #[arg(long, default_value_t = mimic_stream::HttpSettings::default().max_connections_per_peer)]
+    pub http_max_connections_per_peer: usize,
+    /// Seconds a browser endpoint connection has for a whole request head (also between
+    /// requests of a kept-alive connection).
+    #[arg(long, default_value_t = mimic_stream::HttpSettings::default().header_timeout.as_secs_f64(), value_parser = parse_seconds)]
+    pub http_header_timeout: f64,
     /// Name map for Live Link curves (default: configs/namemaps/arkit.toml); its inverse also
     /// reads the rig's weights back as ARKit curves for `--forward`.
     #[arg(long, value_name = "TOML")]
@@ -55,10 +74,10 @@ pub struct Args {
     /// the operator names here is used (warned about beyond loopback); docs/protocol.md.
     #[arg(long, value_name = "KIND:ADDR")]
     pub forward: Vec<mimic_stream::forward::ForwardTarget>,
-    /// An address besides loopback that a tracker's own `"forward"` may name (repeatable);
-    /// without it trackers may forward only to loopback addresses.
-    #[arg(long, value_name = "IP")]
-    pub forward_allow: Vec<std::net::IpAddr>,
+    /// An address and port besides the `--forward` targets' that a tracker's own `"forward"`
+    /// may name (repeatable, or comma-separated); trackers may forward nowhere else.
+    #[arg(long, value_name = "ADDR:PORT", value_delimiter = ',')]
+    pub forward_allow: Vec<SocketAddr>,
     /// Name map from ARKit names to the names VMC receives (e.g.
     /// configs/namemaps/vrm.toml for VRM presets); default: ARKit's names.
     #[arg(long, value_name = "TOML")]
@@ -66,6 +85,14 @@ pub struct Args {
     /// Maximum tracker sessions at once.
     #[arg(long, default_value_t = ServerSettings::default().max_sessions)]
     pub max_sessions: usize,
+    /// Maximum sessions of the UDP tracker intakes (OpenSeeFace faces, Live Link subjects) at
+    /// once, within --max-sessions: TCP trackers always have the rest.
+    #[arg(long, default_value_t = ServerSettings::default().max_udp_sessions)]
+    pub max_udp_sessions: usize,
+    /// Source addresses the UDP tracker intakes (--openseeface, --livelink) take datagrams from
+    /// (repeatable, or comma-separated); required when one listens beyond loopback.
+    #[arg(long, value_name = "ADDR", value_delimiter = ',')]
+    pub udp_allow: Vec<std::net::IpAddr>,
     /// Maximum viewers at once.
     #[arg(long, default_value_t = ServerSettings::default().max_viewers)]
     pub max_viewers: usize,
@@ -167,6 +194,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let web = mimic_stream::HttpSettings {
         skin: mimic_render::SKIN_ALBEDO,
         rig_paths,
+        hosts: args.http_host.clone(),
+        origins: args.http_origin.clone(),
+        max_connections: args.http_max_connections,
+        max_connections_per_peer: args.http_max_connections_per_peer,
+        header_timeout: seconds(args.http_header_timeout, "--http-header-timeout")?,
+        ..Default::default()
     };
     let settings = settings(&args, token)?;
     if !args.listen.ip().is_loopback() {
@@ -254,9 +287,9 @@ fn settings(args: &Args, token: Option<String>) -> anyhow::Result<ServerSettings
         record_queue_frames: args.record_queue.max(1),
         record_sync: args.record_sync,
         retarget: args.pipeline.settings(),
-        openseeface: launch::bind_tracker_udp(args.openseeface, "--openseeface")?,
+        openseeface: launch::bind_tracker_udp(args.openseeface, "--openseeface", &args.udp_allow)?,
         livelink: launch::livelink_intake(
-            launch::bind_tracker_udp(args.livelink, "--livelink")?,
+            launch::bind_tracker_udp(args.livelink, "--livelink", &args.udp_allow)?,
             &namemap,
         )?,
         forward: launch::forward_settings(
@@ -265,6 +298,8 @@ fn settings(args: &Args, token: Option<String>) -> anyhow::Result<ServerSettings
             &namemap,
             args.forward_vmc_names.as_deref(),
         )?,
+        max_udp_sessions: args.max_udp_sessions,
+        udp_allow: args.udp_allow.clone(),
         ..ServerSettings::default()
     })
 }

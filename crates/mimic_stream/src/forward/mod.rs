@@ -9,8 +9,9 @@
 //! dropped and counted (`forward_dropped` in `/stats`), never waited for.
 //!
 //! Never an open relay: the operator's `--forward` targets may be any address (warned about
-//! beyond loopback), a tracker's own `"forward"` only a loopback address or one the operator
-//! allowed (`--forward-allow IP`).
+//! beyond loopback), a tracker's own `"forward"` only one of those addresses (address and port)
+//! or one the operator allowed (`--forward-allow ADDR:PORT`): not any loopback port, which would
+//! let a tracker reach a local-only service (a DNS resolver on 127.0.0.2:53, say).
 
 pub mod vmc;
 
@@ -20,7 +21,7 @@ use mimic_trackers::livelink::{
     BLENDSHAPES, CURVE_NAMES, CURVES, HEAD_YAW, LiveLinkPacket, encode_packet, head_angles,
 };
 use mimic_trackers::namemap::{Inverse, Mapping, NameMap};
-use std::net::{IpAddr, SocketAddr, UdpSocket};
+use std::net::{SocketAddr, UdpSocket};
 use std::str::FromStr;
 use std::sync::Arc;
 
@@ -78,9 +79,9 @@ pub enum ForwardRefusal {
     /// It does not parse.
     #[error(transparent)]
     Parse(#[from] ForwardTargetError),
-    /// Not loopback and not allowed by the operator.
+    /// Not an address (and port) the operator forwards to or allowed.
     #[error(
-        "forward to {0}: a tracker may forward only to loopback addresses or to those `mimic serve --forward-allow` lists"
+        "forward to {0}: a tracker may forward only to the addresses and ports `mimic serve --forward` or `--forward-allow` lists"
     )]
     NotAllowed(SocketAddr),
 }
@@ -90,8 +91,9 @@ pub enum ForwardRefusal {
 pub struct ForwardSettings {
     /// Where every session's frames go (`--forward`).
     pub targets: Vec<ForwardTarget>,
-    /// Addresses besides loopback a tracker's own `"forward"` may name (`--forward-allow`).
-    pub allow: Vec<IpAddr>,
+    /// Addresses (and ports) besides the `targets`' a tracker's own `"forward"` may name
+    /// (`--forward-allow`).
+    pub allow: Vec<SocketAddr>,
     /// ARKit curves <-> the rig's morph targets (`configs/namemaps/arkit.toml`): its inverse
     /// reads a rig's weights back as curves.
     pub namemap: Arc<NameMap>,
@@ -101,11 +103,14 @@ pub struct ForwardSettings {
 }
 
 impl ForwardSettings {
-    /// A tracker's `"forward"` value checked: a loopback address, or one in [`Self::allow`].
+    /// A tracker's `"forward"` value checked: the address and port of one of the operator's
+    /// [`Self::targets`] or one in [`Self::allow`].
     pub fn check_session_target(&self, text: &str) -> Result<ForwardTarget, ForwardRefusal> {
         let t: ForwardTarget = text.parse()?;
-        let ip = t.addr.ip();
-        if ip.is_loopback() || self.allow.contains(&ip) {
+        let same = |a: &SocketAddr| {
+            a.ip().to_canonical() == t.addr.ip().to_canonical() && a.port() == t.addr.port()
+        };
+        if self.allow.iter().any(same) || self.targets.iter().any(|x| same(&x.addr)) {
             Ok(t)
         } else {
             Err(ForwardRefusal::NotAllowed(t.addr))
@@ -297,14 +302,24 @@ mod tests {
             assert!(bad.parse::<ForwardTarget>().is_err(), "{bad}");
         }
         let mut s = ForwardSettings::default();
-        assert!(s.check_session_target("vmc:127.0.0.1:39539").is_ok());
-        assert_eq!(
-            s.check_session_target("vmc:192.168.1.5:39539"),
-            Err(ForwardRefusal::NotAllowed(
-                "192.168.1.5:39539".parse().unwrap()
-            ))
-        );
-        s.allow.push("192.168.1.5".parse().unwrap());
+        // Not even loopback without the operator's word: any local port is a local service.
+        for refused in [
+            "vmc:127.0.0.1:39539",
+            "vmc:127.0.0.2:53",
+            "vmc:192.168.1.5:39539",
+        ] {
+            assert_eq!(
+                s.check_session_target(refused),
+                Err(ForwardRefusal::NotAllowed(refused[4..].parse().unwrap()))
+            );
+        }
+        s.allow.push("192.168.1.5:39539".parse().unwrap());
         assert!(s.check_session_target("vmc:192.168.1.5:39539").is_ok());
+        assert!(s.check_session_target("livelink:192.168.1.5:39539").is_ok());
+        assert!(s.check_session_target("vmc:192.168.1.5:39540").is_err());
+        // The operator's own targets are allowed to trackers too.
+        s.targets.push("livelink:127.0.0.1:11111".parse().unwrap());
+        assert!(s.check_session_target("vmc:127.0.0.1:11111").is_ok());
+        assert!(s.check_session_target("vmc:127.0.0.2:11111").is_err());
     }
 }

@@ -219,6 +219,16 @@ impl UdpTracker for LiveLink {
         p.subject.clone()
     }
 
+    fn time(p: &LiveLinkPacket) -> Option<f64> {
+        p.time_us().map(|t| t as f64 / 1e6)
+    }
+
+    fn restart(&mut self, s: &Session) {
+        self.first_us = None;
+        self.clock = s.clock();
+        self.started = Instant::now();
+    }
+
     fn hello(p: &LiveLinkPacket, peer: SocketAddr) -> (LiveLinkHello, String) {
         let what = format!("livelink subject `{}` from {peer}", p.subject);
         let hello = LiveLinkHello {

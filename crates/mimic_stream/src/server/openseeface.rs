@@ -243,6 +243,15 @@ impl UdpTracker for OpenSeeFace {
         face.face_id
     }
 
+    fn time(face: &OsfFace) -> Option<f64> {
+        Some(face.timestamp)
+    }
+
+    fn restart(&mut self, s: &Session) {
+        self.first_timestamp = None;
+        self.clock = s.clock();
+    }
+
     fn hello(face: &OsfFace, peer: SocketAddr) -> (OsfHello, String) {
         let what = format!("openseeface face {} from {peer}", face.face_id);
         let hello = OsfHello {

@@ -149,10 +149,16 @@ impl Session {
         t_us: i64,
         arrival: Instant,
     ) -> Result<(), TimeProblem> {
-        clock.advance(t_us, arrival).inspect_err(|p| match p {
+        let restarts = clock.restarts();
+        let got = clock.advance(t_us, arrival).inspect_err(|p| match p {
             TimeProblem::Late => self.record.late.bump(),
             TimeProblem::Future { .. } => self.record.future.bump(),
-        })
+        });
+        if clock.restarts() > restarts {
+            self.record.restarts.bump();
+            tracing::info!(session = %self.name, t_us, "the tracker's clock started again (a new run): re-anchored");
+        }
+        got
     }
 
     /// Counts an accepted frame (`udp` when it came as a packet) and returns its sequence number.
@@ -480,7 +486,7 @@ pub(crate) async fn teardown<P: Protocol>(
         .go_offline(&s.name, Arc::new(encode_json(KIND_END, &end_json)));
     s.shared.sessions_active.fetch_sub(1, Ordering::AcqRel);
     let bye = json!({"type": "bye", "reason": reason, "frames": end.frames, "late": end.late,
-        "future": end.future, "malformed": end.malformed});
+        "future": end.future, "malformed": end.malformed, "restarts": end.restarts});
     s.reply(json_line(&with_fields(
         bye,
         P::summary(settings, &end, true),

@@ -14,7 +14,7 @@ use tokio::sync::{OwnedSemaphorePermit, Semaphore};
 
 /// Refused connections being answered at once; past this many, a refused connection is closed
 /// without an answer (so a flood of refusals holds a bounded number of tasks).
-const REFUSALS_IN_FLIGHT: usize = 256;
+pub(crate) const REFUSALS_IN_FLIGHT: usize = 256;
 
 /// One peer's connection, counted until it is dropped.
 #[derive(Debug)]

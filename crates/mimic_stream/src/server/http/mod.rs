@@ -4,9 +4,12 @@
 //! GLB, `glb.rs`, built once per rig and cached), `/ws/SESSION` (a WebSocket viewer of the
 //! session's hub, `ws.rs`), `/stats`, and `/static/...` (the page's scripts and the vendored
 //! three.js, embedded in the binary: `assets.rs`). With a server token every route but
-//! `/static/` wants `?token=T`, compared as the TCP hello's is.
+//! `/static/` wants `?token=T`, compared as the TCP hello's is. Every request must name this
+//! server in its `Host` and, with an `Origin`, come from its own page or an allowed origin;
+//! connections are admitted, timed and bounded by `doors.rs`.
 
 mod assets;
+mod doors;
 mod glb;
 mod ws;
 
@@ -18,8 +21,9 @@ use axum::Router;
 use axum::body::Bytes;
 use axum::extract::ws::WebSocketUpgrade;
 use axum::extract::ws::rejection::WebSocketUpgradeRejection;
-use axum::extract::{Path, RawQuery, State};
+use axum::extract::{Path, RawQuery, Request, State};
 use axum::http::{StatusCode, header};
+use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
 use serde_json::json;
@@ -32,6 +36,10 @@ use tokio::net::TcpListener;
 struct App {
     shared: Arc<Shared>,
     glbs: glb::GlbCache,
+    /// The listener's address (a `Host` naming it is this server).
+    local: std::net::SocketAddr,
+    /// The allowed hosts and origins, the limits.
+    web: HttpSettings,
 }
 
 type AppState = State<Arc<App>>;
@@ -43,9 +51,12 @@ pub(crate) async fn serve(
     web: HttpSettings,
     shutdown: impl Future<Output = ()> + Send + 'static,
 ) -> std::io::Result<()> {
+    let local = listener.local_addr()?;
     let app = Arc::new(App {
-        shared,
-        glbs: glb::GlbCache::new(web),
+        shared: shared.clone(),
+        glbs: glb::GlbCache::new(web.clone()),
+        local,
+        web: web.clone(),
     });
     let router = Router::new()
         .route("/", get(index))
@@ -55,10 +66,22 @@ pub(crate) async fn serve(
         .route("/rig/{file}", get(rig_glb))
         .route("/ws/{session}", get(ws_upgrade))
         .route("/static/{*path}", get(static_file))
+        .layer(axum::middleware::from_fn_with_state(
+            app.clone(),
+            host_and_origin,
+        ))
         .with_state(app);
-    axum::serve(listener, router)
-        .with_graceful_shutdown(shutdown)
-        .await
+    doors::serve(shared, listener, router, &web, shutdown).await
+}
+
+/// Refuses a request whose `Host` does not name this server (421) or whose `Origin` is not
+/// its own page's nor an allowed one (403), with the reason, before any route sees it.
+async fn host_and_origin(State(app): AppState, request: Request, next: Next) -> Response {
+    if let Some((status, why)) = doors::check_request(request.headers(), app.local, &app.web) {
+        app.shared.http_refused.bump();
+        return text(status, format!("{why}\n"));
+    }
+    next.run(request).await
 }
 
 /// The `token` parameter of a query string, percent-decoded (`+` as a space).
