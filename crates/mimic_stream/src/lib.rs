@@ -44,7 +44,7 @@ pub use mimic_wire as wire;
 pub use catalog::{Catalog, CatalogError, MorphSet, RigEntry};
 pub use server::Server;
 pub use settings::{
-    BindError, DEFAULT_LISTEN, HELLO_MAX_BYTES, HttpSettings, LiveLinkIntake, ServerSettings,
-    check_bind,
+    BindError, DEFAULT_LISTEN, HELLO_MAX_BYTES, HttpSettings, LiveLinkIntake, RecordMode,
+    ServerSettings, check_bind,
 };
 pub use stats::{LatencyHistogram, LatencySummary, ServerStats, SessionSnapshot, ViewerSnapshot};

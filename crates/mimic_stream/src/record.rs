@@ -151,7 +151,9 @@ impl FileWriter {
 }
 
 /// A frame for the writer, and where to say when it is on disk (`--record-sync`).
-type Item = (Entry, Option<oneshot::Sender<bool>>);
+/// A frame to write, and for a frame its sender waits on, the answer (true once written) and
+/// whether to sync it to the disk too.
+type Item = (Entry, Option<(oneshot::Sender<bool>, bool)>);
 
 /// The session's end of its recording.
 #[derive(Debug)]
@@ -217,10 +219,10 @@ impl Recorder {
         let task = tokio::task::spawn_blocking(move || {
             let _guard = guard;
             let mut writer = Some(writer);
-            while let Some((f, durable)) = rx.blocking_recv() {
+            while let Some((f, ack)) = rx.blocking_recv() {
                 let written = writer.as_mut().map(|w| {
                     w.write(&f)?;
-                    if durable.is_some() {
+                    if ack.as_ref().is_some_and(|(_, sync)| *sync) {
                         // Written and flushed to the OS per frame; now to the disk too.
                         w.file().sync_data().map_err(WriteError::from)?;
                     }
@@ -242,7 +244,7 @@ impl Recorder {
                         false
                     }
                 };
-                if let Some(done) = durable {
+                if let Some((done, _)) = ack {
                     let _ = done.send(ok);
                 }
             }
@@ -290,12 +292,12 @@ impl Recorder {
         }
     }
 
-    /// Writes an accepted frame, flushes it and syncs the file to the disk (`fdatasync`),
-    /// returning once that is done: true when the frame is on disk, false when it could not be
-    /// written (counted in `lost`).
-    pub async fn record_durable(&self, f: impl Into<Entry>) -> bool {
+    /// Writes an accepted frame and flushes it to the OS (it then survives a kill of the
+    /// process), with `sync` also to the disk (`fdatasync`: it survives a power loss), returning
+    /// once that is done: true when it is written, false when it could not be (counted in `lost`).
+    pub async fn record_acked(&self, f: impl Into<Entry>, sync: bool) -> bool {
         let (done, on_disk) = oneshot::channel();
-        if self.tx.send((f.into(), Some(done))).await.is_err() {
+        if self.tx.send((f.into(), Some((done, sync)))).await.is_err() {
             self.counters.lost.bump();
             return false;
         }

@@ -110,10 +110,8 @@ pub struct ServerSettings {
     pub token: Option<String>,
     /// Record every landmark session's accepted frames as a v1 recording in this folder.
     pub record_dir: Option<PathBuf>,
-    /// With a record folder: a frame is broadcast to viewers (and counted in `frames`) only
-    /// after it is written, flushed and synced to the disk (`fdatasync`), so a crash loses no
-    /// frame anyone saw.
-    pub record_sync: bool,
+    /// With a record folder: when a frame is written relative to its broadcast to viewers.
+    pub record_mode: RecordMode,
     /// Accepted frames queued per session for its recording before the session waits for the disk.
     pub record_queue_frames: usize,
     /// A bound UDP socket for OpenSeeFace's datagrams (`mimic serve --openseeface`): one
@@ -160,7 +158,7 @@ impl Default for ServerSettings {
             max_time_jump: Duration::from_secs(10),
             token: None,
             record_dir: None,
-            record_sync: false,
+            record_mode: RecordMode::Written,
             record_queue_frames: 128,
             openseeface: None,
             livelink: None,
@@ -169,6 +167,32 @@ impl Default for ServerSettings {
             udp_allow: Vec::new(),
             forward: crate::forward::ForwardSettings::default(),
             retarget: RetargetSettings::default(),
+        }
+    }
+}
+
+/// When a recorded frame is written, relative to its broadcast to viewers (docs/reliability.md,
+/// "Crash loss").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum RecordMode {
+    /// Broadcast (and counted in `frames`) only once written and flushed to the OS: a kill of
+    /// the server loses no frame a viewer saw (the default).
+    #[default]
+    Written,
+    /// As `Written`, and synced to the disk (`fdatasync`) first: a power loss loses none either.
+    Synced,
+    /// Broadcast at once, written behind through the queue (`--record-queued`): the fastest; a
+    /// kill loses the queued frames, up to the queue's length plus one.
+    Queued,
+}
+
+impl RecordMode {
+    /// Whether a frame waits for its write before its broadcast, and whether to sync it too.
+    pub fn waits(self) -> Option<bool> {
+        match self {
+            RecordMode::Written => Some(false),
+            RecordMode::Synced => Some(true),
+            RecordMode::Queued => None,
         }
     }
 }

@@ -3,7 +3,7 @@
 use crate::cmd::setup::{PipelineArgs, RigArgs, parse_seconds};
 use anyhow::Context;
 use mimic_stream::launch::{self, Listeners};
-use mimic_stream::{DEFAULT_LISTEN, Server, ServerSettings, check_bind};
+use mimic_stream::{DEFAULT_LISTEN, RecordMode, Server, ServerSettings, check_bind};
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -138,11 +138,17 @@ pub struct Args {
     /// Live Link sessions.
     #[arg(long, value_name = "DIR")]
     pub record: Option<PathBuf>,
-    /// With --record: a frame reaches viewers (and the `frames` count) only after it is
-    /// written, flushed and synced to disk, so a crash (kill -9, power loss) loses no frame a
-    /// viewer saw; costs one fdatasync per frame (docs/reliability.md).
-    #[arg(long, requires = "record")]
+    /// With --record: a frame reaches viewers only after it is also synced to disk (one
+    /// fdatasync per frame), so a power loss loses no frame a viewer saw either. By default a
+    /// frame reaches viewers once written to the OS, which a kill -9 of the server cannot undo
+    /// (docs/reliability.md, "Crash loss").
+    #[arg(long, requires = "record", conflicts_with = "record_queued")]
     pub record_sync: bool,
+    /// With --record: broadcast each frame at once and write it behind through the queue, the
+    /// fastest mode; a kill -9 loses the frames still queued (up to --record-queue + 1 a
+    /// session), which viewers may have seen.
+    #[arg(long, requires = "record")]
+    pub record_queued: bool,
     /// Accepted frames queued per session for its recording; when full the session waits for
     /// the disk (no frame is dropped).
     #[arg(long, default_value_t = ServerSettings::default().record_queue_frames)]
@@ -285,7 +291,13 @@ fn settings(args: &Args, token: Option<String>) -> anyhow::Result<ServerSettings
         record_dir: launch::record_dir(args.record.as_deref())?,
         token,
         record_queue_frames: args.record_queue.max(1),
-        record_sync: args.record_sync,
+        record_mode: if args.record_sync {
+            RecordMode::Synced
+        } else if args.record_queued {
+            RecordMode::Queued
+        } else {
+            RecordMode::Written
+        },
         retarget: args.pipeline.settings(),
         openseeface: launch::bind_tracker_udp(args.openseeface, "--openseeface", &args.udp_allow)?,
         livelink: launch::livelink_intake(

@@ -64,12 +64,12 @@ impl Recording {
         !matches!(self, Recording::Off)
     }
 
-    /// `--record-sync`: writes an accepted frame and syncs it to the disk before returning;
-    /// false when it could not be (then it is counted `record_lost` and must not be broadcast).
-    pub(crate) async fn frame_durable(&self, f: impl Into<Entry>) -> bool {
+    /// Writes an accepted frame (with `sync`, to the disk too) before returning; false when it
+    /// could not be (then it is counted `record_lost` and must not be broadcast).
+    pub(crate) async fn frame_acked(&self, f: impl Into<Entry>, sync: bool) -> bool {
         match self {
             Recording::Off => true,
-            Recording::On(r) => r.record_durable(f).await,
+            Recording::On(r) => r.record_acked(f, sync).await,
             Recording::Failed(c) => {
                 c.lost.bump();
                 false

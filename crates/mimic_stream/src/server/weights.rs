@@ -38,9 +38,9 @@ pub(crate) struct MorphFrame {
     out: FrameOutput,
     positions: Vec<Vec3>,
     recording: Recording,
-    /// `--record-sync` with a recording: a frame is broadcast (and counted) only once it is on
-    /// disk.
-    durable: bool,
+    /// With a recording, unless `--record-queued`: a frame is broadcast (and counted) only once
+    /// written (`Some(true)`: synced to the disk too, `--record-sync`).
+    waits: Option<bool>,
     /// Live out (`--forward`, a hello's `"forward"`).
     forward: Option<Forwarder>,
     /// The Live Link curves of this frame as they came (forwarded as they are), if any.
@@ -73,7 +73,7 @@ impl MorphFrame {
                 times: Default::default(),
             },
             positions: s.rig.rig.mesh.positions.clone(),
-            durable: s.settings().record_sync && recording.is_on(),
+            waits: s.settings().record_mode.waits().filter(|_| recording.is_on()),
             recording,
             forward,
             curves: None,
@@ -101,8 +101,8 @@ impl MorphFrame {
     }
 
     /// Keeps the current weights as an accepted frame at `t_us`: broadcast ([`Self::send`]) and
-    /// recorded; under `--record-sync` broadcast only once on disk (never, if it cannot be
-    /// written).
+    /// recorded; broadcast only once written (`--record-sync`: on disk; never, if it cannot be
+    /// written), unless `--record-queued`.
     pub(crate) async fn keep(
         &mut self,
         s: &Session,
@@ -120,8 +120,8 @@ impl MorphFrame {
             t_us,
             weights: self.weights.clone(),
         };
-        if self.durable {
-            if self.recording.frame_durable(entry).await {
+        if let Some(sync) = self.waits {
+            if self.recording.frame_acked(entry, sync).await {
                 self.publish(s, morph, t_us, rotation, udp, arrival);
             }
         } else {
