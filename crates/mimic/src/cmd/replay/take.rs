@@ -5,7 +5,7 @@
 //! key per row), OBJ frames or `frames.bin` of the blend `P0 + sum w dP`, and `--weights` as in
 //! blendshape mode.
 
-use super::{Args, outputs, summary};
+use super::{Args, outputs};
 use anyhow::{Context, bail};
 use mimic_assets::{load_morph_targets, load_rig};
 use mimic_retarget::{BlendshapeFitter, FrameLoop, WeightMap};
@@ -119,9 +119,9 @@ fn print_summary(
     report: &mimic_retarget::LoopReport,
 ) -> anyhow::Result<()> {
     let path = &args.recording;
-    let wrote_json = match summary::frames_output(report) {
+    let wrote_json = match report.frames_output() {
         None => json!(null),
-        Some(r) if r.kind == "glb" => summary::glb_json(r),
+        Some(r) if r.kind == "glb" => r.glb_json(),
         Some(r) => json!({"frames": r.frames, "bytes": r.bytes}),
     };
     let summary = json!({
@@ -152,7 +152,7 @@ fn print_summary(
             names.len()
         );
         for r in &report.outputs {
-            println!("  {}", summary::wrote(r));
+            println!("  {}", r.wrote());
         }
     }
     Ok(())
