@@ -62,9 +62,7 @@ pub struct LoopReport {
 impl LoopReport {
     /// The output of the deformed frames (OBJ, `frames.bin` or GLB), if the loop had one.
     pub fn frames_output(&self) -> Option<&SinkReport> {
-        self.outputs
-            .iter()
-            .find(|r| matches!(r.kind, "obj" | "bin" | "glb"))
+        SinkReport::frames_output(&self.outputs)
     }
 }
 

@@ -45,6 +45,13 @@ pub struct SinkReport {
 }
 
 impl SinkReport {
+    /// The output of the deformed frames (OBJ, `frames.bin` or GLB) among `outputs`, if any.
+    pub fn frames_output(outputs: &[SinkReport]) -> Option<&SinkReport> {
+        outputs
+            .iter()
+            .find(|r| matches!(r.kind, "obj" | "bin" | "glb"))
+    }
+
     /// A GLB output's report as a replay summary's JSON gives it (path, summary, skipped frames,
     /// time).
     pub fn glb_json(&self) -> serde_json::Value {

@@ -11,8 +11,8 @@ use mimic_assets::{load_morph_targets, load_rig};
 use mimic_retarget::{BlendshapeFitter, FrameLoop, WeightMap};
 use mimic_trackers::livelink::{HEAD_YAW, head_quat};
 use mimic_trackers::namemap::NameMap;
-use mimic_trackers::take::{Take, TakeWeights, read_take, take_weights};
-use serde_json::json;
+use mimic_trackers::take::{read_take, take_weights};
+use mimic_trackers::take_summary::TakeSummary;
 use std::time::{Duration, Instant};
 
 /// Replays the take `args.recording`.
@@ -33,13 +33,7 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let map = NameMap::load(&namemap_path)?;
     let tw = take_weights(&take, &map);
     let rig_map = WeightMap::new(&names);
-    let mut probe = vec![0.0f32; names.len()];
-    let lacking: Vec<&str> = tw
-        .targets
-        .iter()
-        .filter(|t| rig_map.apply([(t.as_str(), 1.0)], &mut probe) > 0)
-        .map(String::as_str)
-        .collect();
+    let lacking = tw.lacking(&rig_map, names.len());
     if !lacking.is_empty() && !args.json {
         println!(
             "rig `{}` has no morph target for {} of the take's {} names (ignored): {}",
@@ -82,9 +76,23 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let paced_s = started.elapsed().as_secs_f64();
     let count = frames.frames();
     let report = frames.finish()?;
-    print_summary(
-        args, &rig, &take, &tw, &names, &lacking, paced_s, count, &report,
-    )
+    let summary = TakeSummary {
+        path,
+        rig: &rig.name,
+        take: &take,
+        weights: &tw,
+        targets: &names,
+        lacking: &lacking,
+        wall_s: paced_s,
+        frames: count,
+        outputs: &report.outputs,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary.json())?);
+    } else {
+        print!("{}", summary.text());
+    }
+    Ok(())
 }
 
 /// The rig's morph targets and their blend (a take drives nothing else).
@@ -103,57 +111,4 @@ fn morph_fitter(
     let fitter = BlendshapeFitter::new(rig, &targets, &args.blend.settings())
         .with_context(|| format!("morph targets of rig `{}`", rig.name))?;
     Ok((fitter, targets))
-}
-
-/// Prints what the take replay did (JSON with `--json`).
-#[allow(clippy::too_many_arguments, reason = "the summary's parts, each named")]
-fn print_summary(
-    args: &Args,
-    rig: &mimic_types::Rig,
-    take: &Take,
-    tw: &TakeWeights,
-    names: &[String],
-    lacking: &[&str],
-    paced_s: f64,
-    count: usize,
-    report: &mimic_retarget::LoopReport,
-) -> anyhow::Result<()> {
-    let path = &args.recording;
-    let wrote_json = match report.frames_output() {
-        None => json!(null),
-        Some(r) if r.kind == "glb" => r.glb_json(),
-        Some(r) => json!({"frames": r.frames, "bytes": r.bytes}),
-    };
-    let summary = json!({
-        "take": path.display().to_string(),
-        "rig": rig.name,
-        "rows": take.rows.len(),
-        "untracked_rows": tw.untracked,
-        "frames": count,
-        "duration_s": take.duration_s(),
-        "timecode_rate": take.timecode_rate,
-        "targets": names,
-        "names_lacking": lacking,
-        "wall_s": paced_s,
-        "out": wrote_json,
-        "outputs": report.outputs,
-    });
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
-    } else {
-        println!(
-            "take {}: {} rows ({} with no face), {:.3} s at {} fps timecode; {count} frames onto rig {} ({} morph targets) in {paced_s:.3} s",
-            path.display(),
-            take.rows.len(),
-            tw.untracked,
-            take.duration_s(),
-            take.timecode_rate,
-            rig.name,
-            names.len()
-        );
-        for r in &report.outputs {
-            println!("  {}", r.wrote());
-        }
-    }
-    Ok(())
 }
