@@ -40,7 +40,7 @@ mod timing;
 /// The wire protocol (`docs/protocol.md`), from the `mimic_wire` crate.
 pub use mimic_wire as wire;
 
-pub use catalog::{Catalog, CatalogError, MorphSet, RigEntry};
+pub use catalog::{Catalog, CatalogError, CatalogLoadError, MorphSet, RigEntry, load_catalog};
 pub use server::Server;
 pub use settings::{
     BindError, DEFAULT_LISTEN, HELLO_MAX_BYTES, HttpSettings, LiveLinkIntake, ServerSettings,

@@ -7,7 +7,7 @@ use mimic_fit::Candide3;
 use mimic_fit::capture::{CaptureFit, CaptureFrame, fit_capture};
 use mimic_retarget::{BlendshapeSettings, Neutral, OneEuroSettings, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
-use mimic_stream::{Catalog, RigEntry};
+use mimic_stream::{Catalog, load_catalog};
 use mimic_types::{Layout, MorphTarget, Rig, SolverKind, SolverSettings};
 use std::collections::BTreeMap;
 use std::fs::File;
@@ -380,32 +380,14 @@ pub(crate) fn build_catalog(
     args_rig: &RigArgs,
     also_rig: &[String],
 ) -> anyhow::Result<(Catalog, BTreeMap<String, PathBuf>)> {
-    let dirs = args_rig.config_dirs();
-    let mut entries = Vec::new();
-    let mut rig_paths = BTreeMap::new();
-    for name in std::iter::once(&args_rig.rig).chain(also_rig) {
-        let rig_path = dirs.rig_path(name);
-        let rig = load_rig(&rig_path)?;
-        rig_paths.insert(rig.name.clone(), rig_path.clone());
-        let (basis, _, took) = args_rig.build_basis(&rig)?;
-        tracing::info!(rig = %rig.name, ms = took.as_secs_f64() * 1e3, "basis built");
-        // Morph targets (for weights sessions), when the rig lists `[[morph_targets]]`.
-        let started = std::time::Instant::now();
-        let targets = mimic_assets::load_morph_targets(&rig_path, &rig)?;
-        if !targets.is_empty() {
-            let ms = started.elapsed().as_secs_f64() * 1e3;
-            tracing::info!(rig = %rig.name, targets = targets.len(), ms, "morph targets loaded");
-        }
-        entries.push(RigEntry::new(rig, basis)?.with_morph_targets(targets)?);
+    if args_rig.solver == Some(SolverChoice::Blendshapes) {
+        bail!("--solver blendshapes is for `mimic eval`; replay with --mode blendshapes");
     }
-    let mut entries = entries.into_iter();
-    let first = entries.next().context("no rig")?;
-    let mut catalog = Catalog::new(first);
-    entries.for_each(|e| catalog.add_rig(e));
-    for layout in dirs.layout_names()? {
-        catalog.add_layout(dirs.load_layout_named(&layout)?);
-    }
-    Ok((catalog, rig_paths))
+    let rigs = std::iter::once(&args_rig.rig)
+        .chain(also_rig)
+        .map(String::as_str);
+    let settings = |rig: &Rig| args_rig.solver_settings(rig);
+    Ok(load_catalog(&args_rig.config_dirs(), rigs, settings)?)
 }
 
 /// Keeps Mesa's Vulkan device-select layer from looking for a Wayland display where there can be
