@@ -176,6 +176,29 @@ pub fn fit_capture(
 }
 
 impl CaptureFit {
+    /// The `kinect121` recording's header of this fit of a capture with header `source`
+    /// (`labelled` when its frames carry labels): its description and the header's `fit`.
+    pub fn recording_header(
+        &self,
+        source: &mimic_types::RecordingHeader,
+        labelled: bool,
+    ) -> mimic_types::RecordingHeader {
+        let mut header = mimic_types::RecordingHeader::new(
+            "kinect121",
+            &format!(
+                "{} -> CANDIDE-3 fit (mimic import --fit candide3)",
+                source.source
+            ),
+            source.rate_hz,
+            Some(KINECT121_POINTS),
+        );
+        header.description = Some(self.description(labelled));
+        header
+            .extra
+            .insert("fit".to_string(), self.header_fit.clone());
+        header
+    }
+
     /// The recording header's description of this fit; `labelled` when the frames carry labels.
     pub fn description(&self, labelled: bool) -> String {
         format!(
