@@ -3,8 +3,7 @@
 
 use anyhow::{Context, bail};
 use mimic_assets::{ConfigDirs, load_morph_targets, load_rig, write_obj};
-use mimic_fit::Candide3;
-use mimic_fit::capture::{CaptureFit, CaptureFrame, fit_capture};
+use mimic_fit::capture::{CaptureFit, CaptureFrame};
 use mimic_retarget::{BlendshapeSettings, Neutral, OneEuroSettings, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
 use mimic_stream::{Catalog, load_catalog};
@@ -344,26 +343,9 @@ pub fn fit_candide3(
     odd: mimic_fit::OddParts,
 ) -> anyhow::Result<CaptureFit> {
     let layout = configs.load_layout_named(layout_name)?;
-    if layout.candide_correspondences.is_empty() {
-        bail!(
-            "layout `{}` lists no candide_correspondences: it cannot be fitted",
-            layout.name
-        );
-    }
     let wfm = configs.root.join("models/candide3/candide3.wfm");
-    let bytes = mimic_types::limits::read_bytes_capped(&wfm, &mimic_types::limits::MODEL_FILE)
-        .with_context(|| format!("{}: cannot read", wfm.display()))?;
-    let candide = Candide3::parse(&String::from_utf8_lossy(&bytes))
-        .with_context(|| format!("{}: not a CANDIDE-3 model", wfm.display()))?;
-    Ok(fit_capture(
-        candide,
-        &layout,
-        mimic_fit::Camera::KINECT_V1_COLOUR,
-        mimic_fit::FitSettings {
-            odd,
-            ..mimic_fit::FitSettings::default()
-        },
-        frames,
+    Ok(mimic_fit::capture::fit_candide3(
+        &wfm, &layout, frames, odd,
     )?)
 }
 
