@@ -1,10 +1,10 @@
 //! `mimic morph`: a rig's morph targets to the morph data file and back (docs/morph-format.md;
 //! the checks are `mimic_rig::morph`).
 
-use crate::cmd::setup::{load_rig_with_targets, write_obj_frame};
+use crate::cmd::setup::load_rig_with_targets;
 use anyhow::{Context, bail};
 use clap::Subcommand;
-use mimic_assets::{MORPH_FILE_DECIMALS, load_morph_file, save_morph_file};
+use mimic_assets::{MORPH_FILE_DECIMALS, load_morph_file, save_morph_file, write_obj_frame};
 use mimic_retarget::{BlendshapeFitter, BlendshapeSettings, WeightMap};
 use mimic_rig::morph::{MorphCheck, MorphImport, WeightColumns};
 use std::path::{Path, PathBuf};

@@ -2,15 +2,13 @@
 //! rig's look, output naming, the CANDIDE-3 model.
 
 use anyhow::{Context, bail};
-use mimic_assets::{ConfigDirs, load_morph_targets, load_rig, write_obj};
+use mimic_assets::{ConfigDirs, load_morph_targets, load_rig};
 use mimic_fit::capture::{CaptureFit, CaptureFrame};
 use mimic_retarget::{BlendshapeSettings, Neutral, OneEuroSettings, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
 use mimic_stream::{Catalog, load_catalog};
 use mimic_types::{Layout, MorphTarget, Rig, SolverKind, SolverSettings};
 use std::collections::BTreeMap;
-use std::fs::File;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -314,24 +312,6 @@ pub fn rig_look(
             .map_err(|e| anyhow::anyhow!("--hide {e}"))?,
         textures,
     })
-}
-
-pub use mimic_assets::obj_frame_path;
-
-/// Writes frame `index` as an OBJ in `dir` with a one-line `header` comment.
-pub fn write_obj_frame(
-    dir: &Path,
-    index: usize,
-    header: &str,
-    positions: &[glam::Vec3],
-    triangles: &[[u32; 3]],
-) -> anyhow::Result<()> {
-    let path = obj_frame_path(dir, index);
-    let file = File::create(&path).with_context(|| path.display().to_string())?;
-    let mut w = BufWriter::new(file);
-    write_obj(&mut w, header, positions, None, triangles)?;
-    w.flush().with_context(|| path.display().to_string())?;
-    Ok(())
 }
 
 /// Fits CANDIDE-3 (`configs/models/candide3/candide3.wfm`) to a capture in the layout named
