@@ -2,21 +2,9 @@
 //! put onto the rig, the names the rig lacks and what each output wrote, plain or as JSON.
 
 use crate::take::{Take, TakeWeights};
-use mimic_types::{SinkReport, WeightMap};
+use mimic_types::SinkReport;
 use serde_json::{Value, json};
 use std::path::Path;
-
-impl TakeWeights {
-    /// The take's target names that `rig_map` (a rig's morph targets) has no target for.
-    pub fn lacking(&self, rig_map: &WeightMap, target_count: usize) -> Vec<&str> {
-        let mut probe = vec![0.0f32; target_count];
-        self.targets
-            .iter()
-            .filter(|t| rig_map.apply([(t.as_str(), 1.0)], &mut probe) > 0)
-            .map(String::as_str)
-            .collect()
-    }
-}
 
 /// A take replayed onto a rig's morph targets.
 #[derive(Clone, Debug)]

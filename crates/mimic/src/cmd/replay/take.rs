@@ -8,10 +8,10 @@
 use super::{Args, outputs};
 use anyhow::{Context, bail};
 use mimic_assets::{load_morph_targets, load_rig};
-use mimic_retarget::{BlendshapeFitter, FrameLoop, WeightMap};
-use mimic_trackers::livelink::{HEAD_YAW, head_quat};
+use mimic_retarget::{BlendshapeFitter, FrameLoop};
 use mimic_trackers::namemap::NameMap;
 use mimic_trackers::take::{read_take, take_weights};
+use mimic_trackers::take_rig::TakeOntoRig;
 use mimic_trackers::take_summary::TakeSummary;
 use std::time::{Duration, Instant};
 
@@ -32,8 +32,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let namemap_path = args.namemap_path();
     let map = NameMap::load(&namemap_path)?;
     let tw = take_weights(&take, &map);
-    let rig_map = WeightMap::new(&names);
-    let lacking = tw.lacking(&rig_map, names.len());
+    let mut onto = TakeOntoRig::new(&take, &tw, &names);
+    let lacking = onto.lacking();
     if !lacking.is_empty() && !args.json {
         println!(
             "rig `{}` has no morph target for {} of the take's {} names (ignored): {}",
@@ -46,32 +46,22 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let header = format!("mimic replay of a Live Link take onto rig {}", rig.name);
     let mut frames = FrameLoop::weights(&rig.mesh.positions, fitter);
     outputs::add(args, &rig, &targets, &header, &mut frames)?;
-    let mut w = vec![0.0f32; names.len()];
-    let mut pairs: Vec<(&str, f32)> = Vec::with_capacity(tw.targets.len());
-    let rows = take.rows.iter().filter(|r| r.tracked);
     let started = Instant::now();
-    for (row, (_, t_us, mapped)) in rows.zip(&tw.frames) {
+    for k in 0..onto.len() {
         if args.max_frames.is_some_and(|m| frames.frames() >= m) {
             break;
         }
+        let Some((t_us, w, head)) = onto.frame(k) else {
+            break;
+        };
         if args.realtime {
-            let due = *t_us as f64 / 1e6 / args.speed.max(1e-3);
+            let due = t_us as f64 / 1e6 / args.speed.max(1e-3);
             let now = started.elapsed().as_secs_f64();
             if due > now {
                 std::thread::sleep(Duration::from_secs_f64(due - now));
             }
         }
-        pairs.clear();
-        pairs.extend(
-            tw.targets
-                .iter()
-                .map(String::as_str)
-                .zip(mapped.iter().copied()),
-        );
-        rig_map.apply(pairs.iter().copied(), &mut w);
-        let mut head = [0.0f32; 3];
-        head.copy_from_slice(&row.curves[HEAD_YAW..HEAD_YAW + 3]);
-        frames.push_weights(*t_us, &w, head_quat(head))?;
+        frames.push_weights(t_us, w, head)?;
     }
     let paced_s = started.elapsed().as_secs_f64();
     let count = frames.frames();
