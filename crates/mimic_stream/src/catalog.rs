@@ -1,9 +1,5 @@
 //! The rigs and layouts a server offers; each rig's basis is built once and shared by its sessions.
 
-mod load;
-
-pub use load::{CatalogLoadError, load_catalog};
-
 use crate::queue::Message;
 use glam::Vec3;
 use mimic_retarget::WeightMap;

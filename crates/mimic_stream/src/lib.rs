@@ -23,6 +23,7 @@
 //! renderer.
 
 mod catalog;
+mod catalog_load;
 mod counter;
 pub mod forward;
 pub mod launch;
@@ -40,7 +41,8 @@ mod timing;
 /// The wire protocol (`docs/protocol.md`), from the `mimic_wire` crate.
 pub use mimic_wire as wire;
 
-pub use catalog::{Catalog, CatalogError, CatalogLoadError, MorphSet, RigEntry, load_catalog};
+pub use catalog::{Catalog, CatalogError, MorphSet, RigEntry};
+pub use catalog_load::{CatalogLoadError, load_catalog};
 pub use server::Server;
 pub use settings::{
     BindError, DEFAULT_LISTEN, HELLO_MAX_BYTES, HttpSettings, LiveLinkIntake, ServerSettings,

@@ -1,7 +1,7 @@
 //! A server's catalog read from a config folder ([`load_catalog`]): the named rigs, each with
 //! its basis and morph targets, and every layout of the folder.
 
-use super::{Catalog, CatalogError, RigEntry};
+use crate::catalog::{Catalog, CatalogError, RigEntry};
 use mimic_assets::{AssetError, ConfigDirs, load_morph_targets, load_rig};
 use mimic_solve::{SolveError, build_basis};
 use mimic_types::{Rig, SolverSettings};
