@@ -32,5 +32,5 @@ pub use morph::{
 pub use obj::{load_obj, parse_obj, write_obj};
 pub use obj_write::{ObjExtras, ObjFrames, write_mtl, write_obj_with};
 pub use rig::{RigFile, load_rig, parse_rig};
-pub use sinks::{BinSink, ControlsCsv, MetricsCsv, ObjSink, obj_frame_path};
+pub use sinks::{BinSink, ControlsCsv, MetricsCsv, ObjSink, obj_frame_path, write_obj_frame};
 pub use texture::{decode_texture, load_rig_textures, load_texture};

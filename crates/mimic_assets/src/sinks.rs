@@ -17,6 +17,25 @@ pub fn obj_frame_path(dir: &Path, index: usize) -> PathBuf {
     dir.join(format!("frame_{index:06}.obj"))
 }
 
+/// Writes frame `index` as an OBJ in `dir` (at [`obj_frame_path`]) with a one-line `header`
+/// comment.
+pub fn write_obj_frame(
+    dir: &Path,
+    index: usize,
+    header: &str,
+    positions: &[Vec3],
+    triangles: &[[u32; 3]],
+) -> Result<(), AssetError> {
+    let path = obj_frame_path(dir, index);
+    let io = |cause| AssetError::Io {
+        path: path.clone(),
+        cause,
+    };
+    let mut w = File::create(&path).map(BufWriter::new).map_err(io)?;
+    crate::write_obj(&mut w, header, positions, None, triangles).map_err(io)?;
+    w.flush().map_err(io)
+}
+
 /// Creates `path` for writing, buffered; the error names the file.
 fn create(path: &Path) -> Result<BufWriter<File>, SinkError> {
     File::create(path)

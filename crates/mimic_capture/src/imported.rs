@@ -34,6 +34,25 @@ impl Imported {
         self.frames.iter().filter(|f| !f.frame.tracked).count()
     }
 
+    /// The line `mimic import` prints for the recording written to `output`: frames, lost
+    /// frames, invalid points, duration and layout.
+    pub fn summary(&self, output: &std::path::Path) -> String {
+        let frames = &self.frames;
+        let duration_s = match (frames.first(), frames.last()) {
+            (Some(a), Some(b)) => (b.frame.timestamp_us - a.frame.timestamp_us) as f64 * 1e-6,
+            _ => 0.0,
+        };
+        format!(
+            "{}: {} frames ({} lost tracking), {} invalid points, {:.1} s, layout {}",
+            output.display(),
+            frames.len(),
+            self.lost_frames(),
+            self.invalid_points(),
+            duration_s,
+            self.header.layout
+        )
+    }
+
     /// Invalid points summed over all frames.
     pub fn invalid_points(&self) -> usize {
         self.frames

@@ -1,7 +1,8 @@
 //! A whole capture fitted with CANDIDE-3, in memory: shape units from the first neutral frames,
 //! then every frame in order (warm start), giving the 121-point `kinect121` frames that
 //! `mimic import --fit candide3` writes (points 0-112 the fitted vertices, 113-120 invalid) and
-//! each frame's fit. The caller reads the files and writes the recording.
+//! each frame's fit ([`fit_capture`]; [`fit_candide3`] with the model read from its file). The
+//! caller reads the capture and writes the recording.
 
 use crate::{
     Camera, Candide3, FitError, FitResult, FitSettings, Fitter, OddParts, PointObservation,
@@ -175,7 +176,92 @@ pub fn fit_capture(
     })
 }
 
+/// Why a capture cannot be fitted with the CANDIDE-3 model file.
+#[derive(Debug, thiserror::Error)]
+pub enum Candide3FitError {
+    /// The layout names no CANDIDE-3 vertex for its points.
+    #[error("layout `{0}` lists no candide_correspondences: it cannot be fitted")]
+    NoCorrespondences(String),
+    /// The model file could not be read.
+    #[error("{}: cannot read", path.display())]
+    Read {
+        /// The model file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: mimic_types::ReadError,
+    },
+    /// The model file is not a CANDIDE-3 model.
+    #[error("{}: not a CANDIDE-3 model", path.display())]
+    Model {
+        /// The model file.
+        path: std::path::PathBuf,
+        /// Why.
+        #[source]
+        source: crate::ModelError,
+    },
+    /// The fit failed.
+    #[error(transparent)]
+    Fit(#[from] FitError),
+}
+
+/// Fits the CANDIDE-3 model in `wfm` to a capture in `layout` (which must list
+/// `candide_correspondences`), seen by a Kinect v1's colour camera, its AUs' odd parts as `odd`
+/// says.
+pub fn fit_candide3(
+    wfm: &std::path::Path,
+    layout: &Layout,
+    frames: &[CaptureFrame<'_>],
+    odd: OddParts,
+) -> Result<CaptureFit, Candide3FitError> {
+    if layout.candide_correspondences.is_empty() {
+        return Err(Candide3FitError::NoCorrespondences(layout.name.clone()));
+    }
+    let limit = &mimic_types::limits::MODEL_FILE;
+    let bytes = mimic_types::limits::read_bytes_capped(wfm, limit).map_err(|source| {
+        Candide3FitError::Read {
+            path: wfm.to_path_buf(),
+            source,
+        }
+    })?;
+    let candide = Candide3::parse(&String::from_utf8_lossy(&bytes)).map_err(|source| {
+        Candide3FitError::Model {
+            path: wfm.to_path_buf(),
+            source,
+        }
+    })?;
+    let settings = FitSettings {
+        odd,
+        ..FitSettings::default()
+    };
+    let camera = Camera::KINECT_V1_COLOUR;
+    Ok(fit_capture(candide, layout, camera, settings, frames)?)
+}
+
 impl CaptureFit {
+    /// The `kinect121` recording's header of this fit of a capture with header `source`
+    /// (`labelled` when its frames carry labels): its description and the header's `fit`.
+    pub fn recording_header(
+        &self,
+        source: &mimic_types::RecordingHeader,
+        labelled: bool,
+    ) -> mimic_types::RecordingHeader {
+        let mut header = mimic_types::RecordingHeader::new(
+            "kinect121",
+            &format!(
+                "{} -> CANDIDE-3 fit (mimic import --fit candide3)",
+                source.source
+            ),
+            source.rate_hz,
+            Some(KINECT121_POINTS),
+        );
+        header.description = Some(self.description(labelled));
+        header
+            .extra
+            .insert("fit".to_string(), self.header_fit.clone());
+        header
+    }
+
     /// The recording header's description of this fit; `labelled` when the frames carry labels.
     pub fn description(&self, labelled: bool) -> String {
         format!(

@@ -24,11 +24,11 @@ mod units;
 mod vertices;
 
 pub use glb::{GlbSummary, GltfMaterial, GltfMesh, Scene, write_glb};
-pub use morphs::{Morph, basis_morphs, basis_weights, target_morphs};
+pub use morphs::{Morph, basis_morphs, basis_weights, control_morphs, target_morphs};
 pub use rig::{RigLookParts, rig_look_parts, write_rig_glb};
 pub use sink::{GlbKeys, GlbSink};
 pub use take::{Interpolation, Take, head_translation};
-pub use units::{MODEL_UNIT_METRES, metres_per_unit};
+pub use units::{MODEL_UNIT_METRES, UnitsError, metres_per_unit, rig_metres_per_unit};
 pub use vertices::{SplitVertices, split_vertices};
 
 /// Why a GLB could not be written.

@@ -19,6 +19,12 @@ pub struct Morph {
 
 const AXES: [(&str, Vec3); 3] = [("x", Vec3::X), ("y", Vec3::Y), ("z", Vec3::Z)];
 
+/// [`basis_morphs`] named by the rig's controls (its FDPs or layout points).
+pub fn control_morphs(basis: &Basis, rig: &mimic_types::Rig) -> Vec<Morph> {
+    let names: Vec<String> = rig.controls.iter().map(|c| c.fdp.to_string()).collect();
+    basis_morphs(basis, &names)
+}
+
 /// The columns of `B` as morph targets: target `3 j + a` (named `"{control}.{x|y|z}"`) moves
 /// vertex `i` by `B[i, j]` along axis `a`, so with weight `d_j[a]` (metres, [`basis_weights`])
 /// the targets add up to `u = B d` exactly. Positions only: the basis has no normal columns.

@@ -15,6 +15,24 @@ pub fn metres_per_unit(units: &str) -> Option<f32> {
     }
 }
 
+/// A rig whose units have no length in metres.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[error("rig `{rig}`: units `{units}` have no length in metres for glTF")]
+pub struct UnitsError {
+    /// The rig's name.
+    pub rig: String,
+    /// Its units.
+    pub units: String,
+}
+
+/// [`metres_per_unit`] of a rig's units, or an error naming the rig.
+pub fn rig_metres_per_unit(rig: &mimic_types::Rig) -> Result<f32, UnitsError> {
+    metres_per_unit(&rig.units).ok_or_else(|| UnitsError {
+        rig: rig.name.clone(),
+        units: rig.units.clone(),
+    })
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -59,6 +59,13 @@ pub struct LoopReport {
     pub weights: Option<WeightSummary>,
 }
 
+impl LoopReport {
+    /// The output of the deformed frames (OBJ, `frames.bin` or GLB), if the loop had one.
+    pub fn frames_output(&self) -> Option<&SinkReport> {
+        SinkReport::frames_output(&self.outputs)
+    }
+}
+
 impl FrameLoop {
     /// A loop of landmark frames through `retargeter`; with `fitter`, blend-shape mode (the
     /// mesh is the fitted blend of the rig's morph targets).

@@ -30,6 +30,7 @@ pub mod quality;
 mod scale;
 mod settings;
 mod stage_stats;
+pub mod summary;
 mod weight_stats;
 
 pub use blendshape::{BlendshapeError, BlendshapeFitter, BlendshapeSettings, WeightMap};

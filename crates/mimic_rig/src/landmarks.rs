@@ -52,6 +52,19 @@ impl LandmarkBase {
     }
 }
 
+impl std::str::FromStr for LandmarkBase {
+    type Err = String;
+
+    /// `0` or `1`.
+    fn from_str(s: &str) -> Result<Self, String> {
+        match s {
+            "0" => Ok(LandmarkBase::Zero),
+            "1" => Ok(LandmarkBase::One),
+            _ => Err(format!("`{s}`: the landmark base is 0 or 1")),
+        }
+    }
+}
+
 /// The mesh vertex of each iBUG point, where the file gives one.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Landmarks {

@@ -48,6 +48,69 @@ pub struct MadeRig {
     pub loaded: Rig,
 }
 
+impl NewRig<'_> {
+    /// The `mimic rig new` command line that makes this rig again (the options that differ from
+    /// the defaults), as written into the rig's header.
+    pub fn repeat_command(&self) -> String {
+        let mut words = vec![
+            "mimic rig new".to_string(),
+            self.mesh.display().to_string(),
+            format!("-o {}", self.output.display()),
+        ];
+        if let Some((l, numbering)) = &self.landmarks {
+            words.push(format!("--landmarks {}", l.display()));
+            if let Some(b) = numbering.point {
+                words.push(format!("--landmark-base {}", b.offset()));
+            }
+            if numbering.vertex == crate::LandmarkBase::One {
+                words.push("--vertex-base 1".into());
+            }
+            if self.keep_missing {
+                words.push("--keep-missing".into());
+            }
+        }
+        if let Some(u) = self.units {
+            words.push(format!("--units {u}"));
+        }
+        if let Some(n) = &self.name {
+            words.push(format!("--name {n}"));
+        }
+        if self.controls != "mpeg4" {
+            words.push(format!("--controls {}", self.controls));
+        }
+        if self.defaults.back_of_head != Defaults::default().back_of_head {
+            words.push(format!("--frozen-beyond {}", self.defaults.back_of_head));
+        }
+        if let Some(k) = self.defaults.solver {
+            words.push(format!("--solver {}", k.name()));
+        }
+        for o in self.overrides {
+            words.push(format!("--overrides {}", o.display()));
+        }
+        words.join(" ")
+    }
+}
+
+impl MadeRig {
+    /// The line `mimic rig new` prints: controls, frozen vertices and why, units, IOD.
+    pub fn summary(&self, output: &Path) -> String {
+        let (c, loaded) = (self.generated.frozen_counts, &self.loaded);
+        format!(
+            "wrote {}: {} controls, {} of {} vertices frozen ({} unused, {} in {} pieces with no control, {} far from the face), units {}, IOD {:.4}",
+            output.display(),
+            loaded.controls.len(),
+            loaded.frozen.iter().filter(|f| **f).count(),
+            loaded.mesh.vertex_count(),
+            c.unused,
+            c.uncontrolled,
+            c.uncontrolled_pieces,
+            c.far,
+            loaded.units,
+            self.generated.frame.iod
+        )
+    }
+}
+
 /// A context line in front of an error of the rig code.
 fn context(what: impl Into<String>) -> impl FnOnce(RigNewError) -> RigNewError {
     let context = what.into();

@@ -1,9 +1,12 @@
-//! A rig's morph targets against a morph data file ([`MorphCheck`], `mimic morph import`), and
+//! A rig's morph targets against a morph data file ([`MorphCheck`], reported by [`MorphImport`],
+//! `mimic morph import`), and
 //! the columns of a named-weights table that drive them ([`WeightColumns`], `mimic morph apply`).
 
-use mimic_assets::compare_deltas;
+use mimic_assets::{MORPH_FILE_DECIMALS, compare_deltas};
 use mimic_types::{MorphTarget, WeightMap};
 use serde::Serialize;
+use serde_json::{Value, json};
+use std::path::Path;
 
 /// One target of a morph data file compared with the rig's target of that name.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -30,6 +33,61 @@ pub struct MorphCheck {
     pub rows: Vec<TargetCheck>,
     /// Whether the file has exactly the rig's targets, each within the printed precision.
     pub round_trip_ok: bool,
+}
+
+/// A morph data file checked against a rig, as `mimic morph import` reports it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MorphImport<'a> {
+    /// The morph data file.
+    pub file: &'a Path,
+    /// The rig's name.
+    pub rig: &'a str,
+    /// Targets in the file.
+    pub targets_in_file: usize,
+    /// Targets of the rig.
+    pub targets_in_rig: usize,
+    /// Vertices per target.
+    pub vertices: usize,
+    /// The comparison.
+    pub check: MorphCheck,
+}
+
+impl MorphImport<'_> {
+    /// Every figure as JSON.
+    pub fn json(&self) -> Result<Value, serde_json::Error> {
+        Ok(json!({
+            "file": self.file.display().to_string(),
+            "rig": self.rig,
+            "targets_in_file": self.targets_in_file,
+            "targets_in_rig": self.targets_in_rig,
+            "vertices": self.vertices,
+            "decimals": MORPH_FILE_DECIMALS,
+            "targets": serde_json::to_value(&self.check.rows)?,
+            "round_trip_ok": self.check.round_trip_ok,
+        }))
+    }
+
+    /// A line for the file, then one per target with its largest differences; each line ended
+    /// by a newline.
+    pub fn text(&self) -> String {
+        let mut out = format!(
+            "{}: {} targets x {} vertices; rig {} has {} targets\n",
+            self.file.display(),
+            self.targets_in_file,
+            self.vertices,
+            self.rig,
+            self.targets_in_rig
+        );
+        for r in &self.check.rows {
+            out.push_str(&format!(
+                "  {:<16} max |position diff| {:>10.3e}   max |normal diff| {:>10.3e}\n",
+                r.target,
+                r.max_position_difference.map_or(f64::NAN, f64::from),
+                r.max_normal_difference.map_or(f64::NAN, f64::from)
+            ));
+        }
+        out
+    }
 }
 
 impl MorphCheck {

@@ -23,6 +23,7 @@
 //! renderer.
 
 mod catalog;
+mod catalog_load;
 mod counter;
 mod fdlimit;
 pub mod forward;
@@ -42,6 +43,7 @@ mod timing;
 pub use mimic_wire as wire;
 
 pub use catalog::{Catalog, CatalogError, MorphSet, RigEntry};
+pub use catalog_load::{CatalogLoadError, load_catalog};
 pub use server::Server;
 pub use settings::{
     BindError, DEFAULT_LISTEN, HELLO_MAX_BYTES, HttpSettings, LiveLinkIntake, RecordMode,

@@ -35,6 +35,8 @@ pub mod openseeface;
 pub mod osf_frames;
 pub mod osf_pose;
 pub mod take;
+pub mod take_rig;
+pub mod take_summary;
 pub mod weights_csv;
 
 pub use error::{PacketError, TrackerError};

@@ -15,6 +15,8 @@ pub mod limits;
 pub mod look;
 pub mod mesh;
 pub mod morph;
+pub mod overrides;
+pub mod parse;
 pub mod pose;
 pub mod recording;
 pub mod region;

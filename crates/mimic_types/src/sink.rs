@@ -44,6 +44,68 @@ pub struct SinkReport {
     pub detail: serde_json::Value,
 }
 
+impl SinkReport {
+    /// The output of the deformed frames (OBJ, `frames.bin` or GLB) among `outputs`, if any.
+    pub fn frames_output(outputs: &[SinkReport]) -> Option<&SinkReport> {
+        outputs
+            .iter()
+            .find(|r| matches!(r.kind, "obj" | "bin" | "glb"))
+    }
+
+    /// A GLB output's report as a replay summary's JSON gives it (path, summary, skipped frames,
+    /// time).
+    pub fn glb_json(&self) -> serde_json::Value {
+        serde_json::json!({
+            "path": self.path.display().to_string(),
+            "summary": self.detail["summary"],
+            "skipped_frames": self.detail["skipped_frames"],
+            "write_s": self.detail["write_s"],
+        })
+    }
+
+    /// One line saying what the output wrote.
+    pub fn wrote(&self) -> String {
+        let mb = self.bytes as f64 / 1e6;
+        let path = self.path.display();
+        match self.kind {
+            "glb" => {
+                let s = &self.detail["summary"];
+                let n = |k: &str| s[k].as_u64().unwrap_or(0);
+                let skipped = self.detail["skipped_frames"].as_u64().unwrap_or(0);
+                format!(
+                    "wrote {path}: {} keys over {:.2} s, {} vertices, {} morph targets ({} sparse), {mb:.1} MB in {:.2} s{}",
+                    n("keys"),
+                    s["duration_s"].as_f64().unwrap_or(0.0),
+                    n("vertices"),
+                    n("targets"),
+                    n("sparse_targets"),
+                    self.detail["write_s"].as_f64().unwrap_or(0.0),
+                    if skipped > 0 {
+                        format!("; {skipped} frames skipped (time not after the previous key)")
+                    } else {
+                        String::new()
+                    }
+                )
+            }
+            "obj" | "bin" => format!("wrote {} frames ({mb:.1} MB) to {path}", self.frames),
+            kind => {
+                let lacking = self
+                    .detail
+                    .get("lacking")
+                    .and_then(serde_json::Value::as_array);
+                format!(
+                    "wrote {path}: {kind}, {} rows{}",
+                    self.frames,
+                    lacking
+                        .filter(|l| !l.is_empty())
+                        .map(|l| format!(" ({} ARKit curves the rig lacks, written 0)", l.len()))
+                        .unwrap_or_default()
+                )
+            }
+        }
+    }
+}
+
 /// An output failed: the file it writes and what went wrong.
 #[derive(Debug, thiserror::Error)]
 #[error("{}: {source}", path.display())]

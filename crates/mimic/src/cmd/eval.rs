@@ -5,13 +5,13 @@ use crate::cmd::setup::{RigArgs, SolverChoice, SolverTuningArgs, parse_ranges, t
 use anyhow::{Context, bail};
 use mimic_assets::{load_morph_targets, load_obj};
 use mimic_retarget::quality::{
-    MorphEval, ShapeError, error_csv, evaluate, jitter, jitter_text, median_and_max, noise_gain,
-    region_table, summary_text,
+    JitterReport, MorphEval, RigUnder, ShapeError, ShapesReport, error_csv, evaluate, jitter,
+    noise_gain,
 };
 use mimic_solve::Basis;
-use mimic_types::{Region, Rig};
+use mimic_types::Rig;
 use serde_json::json;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Arguments of `mimic eval`.
 #[derive(clap::Args, Debug)]
@@ -80,14 +80,6 @@ impl Ranges {
 /// Parses `0-9408,11248-14061` (a single index is a range of one; backwards is an error).
 fn parse_vertices(text: &str) -> Result<Ranges, String> {
     parse_ranges(text, false).map(Ranges)
-}
-
-/// The file name of `path`, as the reports name shapes and recordings.
-fn file_name(path: &Path) -> String {
-    path.file_name().map_or_else(
-        || path.display().to_string(),
-        |n| n.to_string_lossy().into_owned(),
-    )
 }
 
 /// Puts the `--controls` set on the rig (registered from its template), and writes the rig with
@@ -184,67 +176,24 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         None
     };
     let (shapes, weights) = score_shapes(&args, &rig, &basis, blend.as_ref())?;
-    let errors: Vec<ShapeError> = shapes.iter().map(|s| s.1).collect();
-    let (median, max) = median_and_max(&errors);
-    let setup_ms = took.as_secs_f64() * 1e3;
-    let settings_json = serde_json::to_value(settings)?;
-    if args.json {
-        let report = json!({
-            "rig": args.rig.rig,
-            "controls": args.controls,
-            "control_count": rig.controls.len(),
-            "units": rig.units,
-            "settings": settings_json,
-            "band": rig.regions.band,
-            "vertices": args.vertices.as_ref().map(|r| r.0.iter().map(|(a, b)| json!([a, b])).collect::<Vec<_>>()),
-            "setup_ms": setup_ms,
-            "noise_gain": noise_gain,
-            "blendshape_weights": blend.is_some().then_some(&weights),
-            "median_ratio": median,
-            "max_ratio": max,
-            "shapes": shapes.iter().map(|(p, e)| json!({
-                "shape": p,
-                "all": e.all,
-                "regions": Region::ALL.iter().zip(&e.regions).map(|(r, s)| (r.name().to_string(), json!(s))).collect::<serde_json::Map<_, _>>(),
-            })).collect::<Vec<_>>(),
-        });
-        println!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(());
-    }
-    let solver = match blend {
-        Some(_) => "the rig's morph targets (weights fitted to the controls)".to_string(),
-        None => format!(
-            "the {} solver (basis built in {setup_ms:.0} ms)",
-            settings.kind.name()
-        ),
+    let report = ShapesReport {
+        under: RigUnder {
+            name: &args.rig.rig,
+            controls: &args.controls,
+            rig: &rig,
+        },
+        settings,
+        vertices: args.vertices.as_ref().map(|r| r.0.as_slice()),
+        setup_ms: took.as_secs_f64() * 1e3,
+        noise_gain,
+        blend: blend.is_some(),
+        weights: &weights,
+        shapes: &shapes,
     };
-    println!(
-        "Evaluated rig {} ({} controls: {}; units {}) with {solver} on {} expression meshes.",
-        args.rig.rig,
-        rig.controls.len(),
-        args.controls,
-        rig.units,
-        shapes.len()
-    );
-    let named: Vec<(String, ShapeError)> = shapes
-        .iter()
-        .map(|(p, e)| (file_name(Path::new(p)), *e))
-        .collect();
-    print!("{}", summary_text(&named, &rig.units, noise_gain));
-    if !args.detail {
-        println!(
-            "(--detail adds the solver's settings and each region's errors; --json prints everything)"
-        );
-        return Ok(());
-    }
-    println!("\nSolver settings:");
-    if let serde_json::Value::Object(map) = settings_json {
-        map.iter()
-            .for_each(|(key, value)| println!("  {key}: {value}"));
-    }
-    print!("  band: {}\n\n{}", rig.regions.band, region_table(&named));
-    for (shape, w) in &weights {
-        println!("weights for {shape}: {w}");
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report.json()?)?);
+    } else {
+        print!("{}", report.text(args.detail)?);
     }
     Ok(())
 }
@@ -273,33 +222,20 @@ fn run_jitter(args: &Args, rig: &Rig, basis: Basis, noise_gain: f64) -> anyhow::
         let j = jitter(&mut r, rec.frames.iter().map(|f| &f.frame), &measured);
         rows.push((path.clone(), j, r.stats()));
     }
+    let report = JitterReport {
+        under: RigUnder {
+            name: &args.rig.rig,
+            controls: &args.controls,
+            rig,
+        },
+        filter: !args.no_filter,
+        noise_gain,
+        rows: &rows,
+    };
     if args.json {
-        let report = json!({
-            "rig": args.rig.rig,
-            "controls": args.controls,
-            "control_count": rig.controls.len(),
-            "filter": !args.no_filter,
-            "noise_gain": noise_gain,
-            "recordings": rows.iter().map(|(p, j, s)| json!({
-                "recording": p.display().to_string(), "jitter": j, "stats": s,
-            })).collect::<Vec<_>>(),
-        });
-        println!("{}", serde_json::to_string_pretty(&report)?);
-        return Ok(());
+        println!("{}", serde_json::to_string_pretty(&report.json())?);
+    } else {
+        print!("{}", report.text());
     }
-    println!(
-        "Jitter of rig {} ({} controls: {}; units {}) replaying {} recordings, the One Euro filter {}; noise gain {noise_gain:.2}.",
-        args.rig.rig,
-        rig.controls.len(),
-        args.controls,
-        rig.units,
-        rows.len(),
-        if args.no_filter { "off" } else { "on" }
-    );
-    let named: Vec<_> = rows
-        .iter()
-        .map(|(p, j, s)| (file_name(p), *j, s.gated))
-        .collect();
-    print!("{}", jitter_text(&named, &rig.units));
     Ok(())
 }

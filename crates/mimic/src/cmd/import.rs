@@ -7,9 +7,9 @@ use crate::cmd::setup::fit_candide3;
 use anyhow::Context;
 use clap::Subcommand;
 use mimic_assets::ConfigDirs;
-use mimic_capture::{Imported, RecordingHeader, RecordingWriter};
+use mimic_capture::{Imported, RecordingWriter};
 use mimic_fit::OddParts;
-use mimic_fit::capture::{CaptureFrame, KINECT121_POINTS, frame_fields};
+use mimic_fit::capture::{CaptureFrame, frame_fields};
 use mimic_trackers::gfe::FramePixels;
 use mimic_trackers::importer::{ImportOptions, importer};
 use std::io::BufWriter;
@@ -184,7 +184,7 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
         return write_fitted(&import.imported, import.pixels.as_deref(), odd, output);
     }
     write(&import.imported, output)?;
-    println!("{}", summary_line(&import.imported, output));
+    println!("{}", import.imported.summary(output));
     Ok(())
 }
 
@@ -221,19 +221,8 @@ fn write_fitted(
         &frames,
         odd,
     )?;
-    let mut header = RecordingHeader::new(
-        "kinect121",
-        &format!(
-            "{} -> CANDIDE-3 fit (mimic import --fit candide3)",
-            imported.header.source
-        ),
-        imported.header.rate_hz,
-        Some(KINECT121_POINTS),
-    );
-    header.description = Some(fit.description(imported.frames.iter().any(|f| f.label.is_some())));
-    header
-        .extra
-        .insert("fit".to_string(), fit.header_fit.clone());
+    let labelled = imported.frames.iter().any(|f| f.label.is_some());
+    let header = fit.recording_header(&imported.header, labelled);
     let cannot_write = || format!("{}: cannot write", output.display());
     let mut w = RecordingWriter::create(output, &header)
         .with_context(|| format!("{}: cannot create", output.display()))?;
@@ -252,21 +241,4 @@ fn write_fitted(
         s.frames_per_s
     );
     Ok(())
-}
-
-fn summary_line(imported: &Imported, output: &Path) -> String {
-    let frames = &imported.frames;
-    let duration_s = match (frames.first(), frames.last()) {
-        (Some(a), Some(b)) => (b.frame.timestamp_us - a.frame.timestamp_us) as f64 * 1e-6,
-        _ => 0.0,
-    };
-    format!(
-        "{}: {} frames ({} lost tracking), {} invalid points, {:.1} s, layout {}",
-        output.display(),
-        frames.len(),
-        imported.lost_frames(),
-        imported.invalid_points(),
-        duration_s,
-        imported.header.layout
-    )
 }

@@ -1,13 +1,12 @@
 //! `mimic morph`: a rig's morph targets to the morph data file and back (docs/morph-format.md;
 //! the checks are `mimic_rig::morph`).
 
-use crate::cmd::setup::{load_rig_with_targets, write_obj_frame};
+use crate::cmd::setup::load_rig_with_targets;
 use anyhow::{Context, bail};
 use clap::Subcommand;
-use mimic_assets::{MORPH_FILE_DECIMALS, load_morph_file, save_morph_file};
+use mimic_assets::{MORPH_FILE_DECIMALS, load_morph_file, save_morph_file, write_obj_frame};
 use mimic_retarget::{BlendshapeFitter, BlendshapeSettings, WeightMap};
-use mimic_rig::morph::{MorphCheck, WeightColumns};
-use serde_json::json;
+use mimic_rig::morph::{MorphCheck, MorphImport, WeightColumns};
 use std::path::{Path, PathBuf};
 
 /// Export and import of morph data files.
@@ -121,37 +120,20 @@ fn import(file: &Path, rig: &str, configs: Option<&Path>, as_json: bool) -> anyh
             rig.name
         );
     }
-    let check = MorphCheck::compare(&read, &targets);
+    let report = MorphImport {
+        file,
+        rig: &rig.name,
+        targets_in_file: read.len(),
+        targets_in_rig: targets.len(),
+        vertices: n,
+        check: MorphCheck::compare(&read, &targets),
+    };
     if as_json {
-        let report = json!({
-            "file": file.display().to_string(),
-            "rig": rig.name,
-            "targets_in_file": read.len(),
-            "targets_in_rig": targets.len(),
-            "vertices": n,
-            "decimals": MORPH_FILE_DECIMALS,
-            "targets": serde_json::to_value(&check.rows)?,
-            "round_trip_ok": check.round_trip_ok,
-        });
-        println!("{}", serde_json::to_string_pretty(&report)?);
+        println!("{}", serde_json::to_string_pretty(&report.json()?)?);
     } else {
-        println!(
-            "{}: {} targets x {n} vertices; rig {} has {} targets",
-            file.display(),
-            read.len(),
-            rig.name,
-            targets.len()
-        );
-        for r in &check.rows {
-            println!(
-                "  {:<16} max |position diff| {:>10.3e}   max |normal diff| {:>10.3e}",
-                r.target,
-                r.max_position_difference.map_or(f64::NAN, f64::from),
-                r.max_normal_difference.map_or(f64::NAN, f64::from)
-            );
-        }
+        print!("{}", report.text());
     }
-    if !check.round_trip_ok {
+    if !report.check.round_trip_ok {
         bail!(
             "{}: does not match rig `{}`'s targets to {MORPH_FILE_DECIMALS} decimals",
             file.display(),

@@ -40,7 +40,7 @@ pub enum OutFormat {
 
 /// Arguments of `mimic replay`.
 #[derive(clap::Args, Debug)]
-#[command(after_long_help = summary::TERMS)]
+#[command(after_long_help = mimic_retarget::summary::TERMS)]
 pub struct Args {
     /// Recording (v1 JSON Lines) to replay, or a Live Link Face CSV take (its weights drive the
     /// rig's morph targets through `--namemap`, at its `Timecode` pace).
@@ -178,7 +178,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let report = frames.finish()?;
     bar.finish_and_clear();
-    summary::print(&args, &rig, &run, report)
+    summary::print(&args, &rig, run, report)
 }
 
 /// The blend-shape fit of `--mode blendshapes` for `rig` and the rig's morph targets, or

@@ -3,7 +3,7 @@
 use crate::cmd::setup::{Mode, RigArgs, SolverChoice};
 use anyhow::Context;
 use mimic_assets::load_morph_targets;
-use mimic_gltf::{basis_morphs, target_morphs, write_rig_glb};
+use mimic_gltf::{control_morphs, rig_metres_per_unit, target_morphs, write_rig_glb};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
@@ -45,17 +45,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let path = rig_args.rig_path();
     let rig = rig_args.load_rig()?;
-    let scale = mimic_gltf::metres_per_unit(&rig.units).with_context(|| {
-        format!(
-            "rig `{}`: units `{}` have no length in metres for glTF",
-            rig.name, rig.units
-        )
-    })?;
+    let scale = rig_metres_per_unit(&rig)?;
     let morphs = match args.mode {
         Mode::Freeform => {
             let (basis, _, _) = rig_args.build_basis(&rig)?;
-            let names: Vec<String> = rig.controls.iter().map(|c| c.fdp.to_string()).collect();
-            basis_morphs(&basis, &names)
+            control_morphs(&basis, &rig)
         }
         Mode::Blendshapes => target_morphs(&load_morph_targets(&path, &rig)?, scale),
     };

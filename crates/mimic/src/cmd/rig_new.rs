@@ -1,9 +1,10 @@
 //! `mimic rig new`: a rig from a face mesh and its iBUG landmarks (the work is
 //! `mimic_rig::make_rig_file`).
 
-use mimic_rig::{Defaults, LandmarkBase, MadeRig, NewRig, Numbering, make_rig_file};
+use mimic_rig::{Defaults, LandmarkBase, NewRig, Numbering, make_rig_file};
 use mimic_types::SolverKind;
 use std::path::PathBuf;
+use std::str::FromStr;
 
 /// Arguments of `mimic rig new`.
 #[derive(clap::Args, Debug)]
@@ -25,11 +26,11 @@ pub struct Args {
     pub landmarks_out: Option<PathBuf>,
     /// Where the iBUG numbers N of an `N = V` landmark file count from (default: seen from the
     /// file, a point 68 and no point 0 meaning 1).
-    #[arg(long, value_parser = parse_base)]
+    #[arg(long, value_parser = LandmarkBase::from_str)]
     pub landmark_base: Option<LandmarkBase>,
     /// Where the vertex indices V of an `N = V` landmark file count from (eos's files for the
     /// Surrey and Basel models: 0; OBJ numbering: 1).
-    #[arg(long, default_value = "0", value_parser = parse_base)]
+    #[arg(long, default_value = "0", value_parser = LandmarkBase::from_str)]
     pub vertex_base: LandmarkBase,
     /// Length unit of the mesh (default: guessed from the distance between the eyes).
     #[arg(long, value_parser = ["m", "cm", "mm", "in", "model"])]
@@ -61,56 +62,6 @@ pub struct Args {
     /// a registration of the ICT head (which the given points check).
     #[arg(long)]
     pub keep_missing: bool,
-}
-
-impl Args {
-    /// The command line that makes this rig again, as written into its header.
-    fn command_line(&self) -> String {
-        let mut words = vec![
-            "mimic rig new".to_string(),
-            self.mesh.display().to_string(),
-            format!("-o {}", self.output.display()),
-        ];
-        if let Some(l) = &self.landmarks {
-            words.push(format!("--landmarks {}", l.display()));
-            if let Some(b) = self.landmark_base {
-                words.push(format!("--landmark-base {}", b.offset()));
-            }
-            if self.vertex_base == LandmarkBase::One {
-                words.push("--vertex-base 1".into());
-            }
-            if self.keep_missing {
-                words.push("--keep-missing".into());
-            }
-        }
-        if let Some(u) = &self.units {
-            words.push(format!("--units {u}"));
-        }
-        if let Some(n) = &self.name {
-            words.push(format!("--name {n}"));
-        }
-        if self.controls != "mpeg4" {
-            words.push(format!("--controls {}", self.controls));
-        }
-        if self.frozen_beyond != Defaults::default().back_of_head {
-            words.push(format!("--frozen-beyond {}", self.frozen_beyond));
-        }
-        if self.solver != "auto" {
-            words.push(format!("--solver {}", self.solver));
-        }
-        for o in &self.overrides {
-            words.push(format!("--overrides {}", o.display()));
-        }
-        words.join(" ")
-    }
-}
-
-fn parse_base(s: &str) -> Result<LandmarkBase, String> {
-    match s {
-        "0" => Ok(LandmarkBase::Zero),
-        "1" => Ok(LandmarkBase::One),
-        _ => Err(format!("`{s}`: the landmark base is 0 or 1")),
-    }
 }
 
 /// Runs `mimic rig new`: the output folder is made and checked before the work.
@@ -147,27 +98,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ..Defaults::default()
         },
         configs: &configs,
-        command_line: args.command_line(),
+        command_line: String::new(),
     };
-    let MadeRig { generated, loaded } = make_rig_file(&job, &mut |line| eprintln!("{line}"))?;
-    let c = generated.frozen_counts;
-    println!(
-        "wrote {}: {} controls, {} of {} vertices frozen ({} unused, {} in {} pieces with no control, {} far from the face), units {}, IOD {:.4}",
-        args.output.display(),
-        loaded.controls.len(),
-        loaded.frozen.iter().filter(|f| **f).count(),
-        loaded.mesh.vertex_count(),
-        c.unused,
-        c.uncontrolled,
-        c.uncontrolled_pieces,
-        c.far,
-        loaded.units,
-        generated.frame.iod
-    );
-    for w in &generated.warnings {
+    let job = NewRig {
+        command_line: job.repeat_command(),
+        ..job
+    };
+    let made = make_rig_file(&job, &mut |line| eprintln!("{line}"))?;
+    println!("{}", made.summary(&args.output));
+    for w in &made.generated.warnings {
         eprintln!("warning: {w}");
     }
-    for w in mimic_rig::check_rig(&loaded) {
+    for w in mimic_rig::check_rig(&made.loaded) {
         eprintln!("warning: {w}");
     }
     Ok(())

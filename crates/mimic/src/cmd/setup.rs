@@ -2,16 +2,13 @@
 //! rig's look, output naming, the CANDIDE-3 model.
 
 use anyhow::{Context, bail};
-use mimic_assets::{ConfigDirs, load_morph_targets, load_rig, write_obj};
-use mimic_fit::Candide3;
-use mimic_fit::capture::{CaptureFit, CaptureFrame, fit_capture};
+use mimic_assets::{ConfigDirs, load_morph_targets, load_rig};
+use mimic_fit::capture::{CaptureFit, CaptureFrame};
 use mimic_retarget::{BlendshapeSettings, Neutral, OneEuroSettings, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
-use mimic_stream::{Catalog, RigEntry};
+use mimic_stream::{Catalog, load_catalog};
 use mimic_types::{Layout, MorphTarget, Rig, SolverKind, SolverSettings};
 use std::collections::BTreeMap;
-use std::fs::File;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
@@ -133,30 +130,7 @@ pub fn timed_basis(rig: &Rig, settings: &SolverSettings) -> anyhow::Result<(Basi
     Ok((basis, t.elapsed()))
 }
 
-/// The longest duration an option takes: 10^6 s (about 11.6 days). Longer ones would overflow
-/// instants advanced by them (`Instant + Duration` panics) and mean nothing anyway.
-pub const MAX_OPTION_SECONDS: f64 = 1e6;
-
-/// Parses a duration option in seconds: a finite number in [0, [`MAX_OPTION_SECONDS`]].
-pub fn parse_seconds(text: &str) -> Result<f64, String> {
-    let s: f64 = text
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{text}` is not a number of seconds"))?;
-    if !(0.0..=MAX_OPTION_SECONDS).contains(&s) {
-        return Err(format!(
-            "{text} s is out of range: 0 to {MAX_OPTION_SECONDS} s (about 11.6 days)"
-        ));
-    }
-    Ok(s)
-}
-
-/// [`parse_seconds`] for an `f32` option.
-pub fn parse_seconds_f32(text: &str) -> Result<f32, String> {
-    // In range, so the narrowing only rounds.
-    parse_seconds(text).map(|s| s as f32)
-}
-
+pub use mimic_types::parse::{parse_ranges, parse_seconds, parse_seconds_f32};
 pub use tuning::SolverTuningArgs;
 
 /// Command-line options of the per-frame pipeline.
@@ -313,38 +287,6 @@ pub fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
     ))
 }
 
-/// Parses inclusive index ranges `0-9408,11248-14061` (a single index is a range of one); a
-/// range written backwards is an error, or with `swap_backwards` read the other way round.
-pub fn parse_ranges(text: &str, swap_backwards: bool) -> Result<Vec<(u32, u32)>, String> {
-    text.split(',')
-        .map(|part| {
-            let (a, b) = part.split_once('-').unwrap_or((part, part));
-            let parse = |s: &str| {
-                s.trim()
-                    .parse::<u32>()
-                    .map_err(|e| format!("`{part}`: {e}"))
-            };
-            let (a, b) = (parse(a)?, parse(b)?);
-            if a > b && !swap_backwards {
-                return Err(format!("`{part}`: range runs backwards"));
-            }
-            Ok((a.min(b), a.max(b)))
-        })
-        .collect()
-}
-
-/// The `--hide` ranges: as given, none for `none`, or the rig look's when not given.
-pub fn parse_hidden(
-    arg: Option<&str>,
-    look: &mimic_types::RigLook,
-) -> anyhow::Result<Vec<(u32, u32)>> {
-    match arg {
-        None => Ok(look.hidden.iter().map(|[a, b]| (*a, *b)).collect()),
-        Some(s) if s.trim() == "none" => Ok(Vec::new()),
-        Some(s) => parse_ranges(s, true).map_err(|e| anyhow::anyhow!("--hide {e}")),
-    }
-}
-
 /// Colours, textures and hidden parts of the rig `rig_args` names, as its `[look]` says (`hide` and
 /// `materials` as `--hide` and not `--no-materials` give them).
 pub fn rig_look(
@@ -366,27 +308,10 @@ pub fn rig_look(
     };
     Ok(mimic_view::Look {
         colors,
-        hidden: parse_hidden(hide, &look)?,
+        hidden: mimic_types::parse::parse_hidden(hide, &look)
+            .map_err(|e| anyhow::anyhow!("--hide {e}"))?,
         textures,
     })
-}
-
-pub use mimic_assets::obj_frame_path;
-
-/// Writes frame `index` as an OBJ in `dir` with a one-line `header` comment.
-pub fn write_obj_frame(
-    dir: &Path,
-    index: usize,
-    header: &str,
-    positions: &[glam::Vec3],
-    triangles: &[[u32; 3]],
-) -> anyhow::Result<()> {
-    let path = obj_frame_path(dir, index);
-    let file = File::create(&path).with_context(|| path.display().to_string())?;
-    let mut w = BufWriter::new(file);
-    write_obj(&mut w, header, positions, None, triangles)?;
-    w.flush().with_context(|| path.display().to_string())?;
-    Ok(())
 }
 
 /// Fits CANDIDE-3 (`configs/models/candide3/candide3.wfm`) to a capture in the layout named
@@ -398,26 +323,9 @@ pub fn fit_candide3(
     odd: mimic_fit::OddParts,
 ) -> anyhow::Result<CaptureFit> {
     let layout = configs.load_layout_named(layout_name)?;
-    if layout.candide_correspondences.is_empty() {
-        bail!(
-            "layout `{}` lists no candide_correspondences: it cannot be fitted",
-            layout.name
-        );
-    }
     let wfm = configs.root.join("models/candide3/candide3.wfm");
-    let bytes = mimic_types::limits::read_bytes_capped(&wfm, &mimic_types::limits::MODEL_FILE)
-        .with_context(|| format!("{}: cannot read", wfm.display()))?;
-    let candide = Candide3::parse(&String::from_utf8_lossy(&bytes))
-        .with_context(|| format!("{}: not a CANDIDE-3 model", wfm.display()))?;
-    Ok(fit_capture(
-        candide,
-        &layout,
-        mimic_fit::Camera::KINECT_V1_COLOUR,
-        mimic_fit::FitSettings {
-            odd,
-            ..mimic_fit::FitSettings::default()
-        },
-        frames,
+    Ok(mimic_fit::capture::fit_candide3(
+        &wfm, &layout, frames, odd,
     )?)
 }
 
@@ -434,32 +342,14 @@ pub(crate) fn build_catalog(
     args_rig: &RigArgs,
     also_rig: &[String],
 ) -> anyhow::Result<(Catalog, BTreeMap<String, PathBuf>)> {
-    let dirs = args_rig.config_dirs();
-    let mut entries = Vec::new();
-    let mut rig_paths = BTreeMap::new();
-    for name in std::iter::once(&args_rig.rig).chain(also_rig) {
-        let rig_path = dirs.rig_path(name);
-        let rig = load_rig(&rig_path)?;
-        rig_paths.insert(rig.name.clone(), rig_path.clone());
-        let (basis, _, took) = args_rig.build_basis(&rig)?;
-        tracing::info!(rig = %rig.name, ms = took.as_secs_f64() * 1e3, "basis built");
-        // Morph targets (for weights sessions), when the rig lists `[[morph_targets]]`.
-        let started = std::time::Instant::now();
-        let targets = mimic_assets::load_morph_targets(&rig_path, &rig)?;
-        if !targets.is_empty() {
-            let ms = started.elapsed().as_secs_f64() * 1e3;
-            tracing::info!(rig = %rig.name, targets = targets.len(), ms, "morph targets loaded");
-        }
-        entries.push(RigEntry::new(rig, basis)?.with_morph_targets(targets)?);
+    if args_rig.solver == Some(SolverChoice::Blendshapes) {
+        bail!("--solver blendshapes is for `mimic eval`; replay with --mode blendshapes");
     }
-    let mut entries = entries.into_iter();
-    let first = entries.next().context("no rig")?;
-    let mut catalog = Catalog::new(first);
-    entries.for_each(|e| catalog.add_rig(e));
-    for layout in dirs.layout_names()? {
-        catalog.add_layout(dirs.load_layout_named(&layout)?);
-    }
-    Ok((catalog, rig_paths))
+    let rigs = std::iter::once(&args_rig.rig)
+        .chain(also_rig)
+        .map(String::as_str);
+    let settings = |rig: &Rig| args_rig.solver_settings(rig);
+    Ok(load_catalog(&args_rig.config_dirs(), rigs, settings)?)
 }
 
 /// Keeps Mesa's Vulkan device-select layer from looking for a Wayland display where there can be
@@ -482,36 +372,8 @@ mod tests {
     use super::*;
 
     #[test]
-    fn ranges_parse_and_backwards_is_an_error_or_swapped() {
-        let r = parse_ranges("0-9408,11248-14061,20000", false).unwrap();
-        assert_eq!(r, vec![(0, 9408), (11248, 14061), (20000, 20000)]);
-        assert!(parse_ranges("5-1", false).is_err() && parse_ranges("a-3", false).is_err());
-        assert_eq!(parse_ranges("5-3,7", true).unwrap(), vec![(3, 5), (7, 7)]);
-    }
-
-    #[test]
-    fn hidden_ranges_default_to_the_look() {
-        let look = mimic_types::RigLook {
-            hidden: vec![[1, 4]],
-            ..Default::default()
-        };
-        assert_eq!(parse_hidden(None, &look).unwrap(), vec![(1, 4)]);
-        assert!(parse_hidden(Some("none"), &look).unwrap().is_empty());
-        assert_eq!(parse_hidden(Some("9"), &look).unwrap(), vec![(9, 9)]);
-        assert!(parse_hidden(Some("1-x"), &look).is_err());
+    fn sizes_parse() {
         assert_eq!(parse_size("640x480").unwrap(), (640, 480));
         assert!(parse_size("640").is_err());
-    }
-
-    #[test]
-    fn duration_options_are_range_checked() {
-        assert_eq!(parse_seconds("0"), Ok(0.0));
-        assert_eq!(parse_seconds("2.5"), Ok(2.5));
-        assert_eq!(parse_seconds("1e6"), Ok(1e6));
-        for bad in ["1e19", "1000001", "-1", "nan", "inf", "soon", ""] {
-            assert!(parse_seconds(bad).is_err(), "{bad}");
-        }
-        assert_eq!(parse_seconds_f32("0.25"), Ok(0.25));
-        assert!(parse_seconds_f32("1e39").is_err());
     }
 }

@@ -6,7 +6,9 @@
 use super::{Args, OutFormat, WeightsFormat};
 use anyhow::Context;
 use mimic_assets::{BinSink, ControlsCsv, MetricsCsv, ObjSink};
-use mimic_gltf::{GlbKeys, GlbSink, Interpolation, basis_morphs, target_morphs};
+use mimic_gltf::{
+    GlbKeys, GlbSink, Interpolation, control_morphs, rig_metres_per_unit, target_morphs,
+};
 use mimic_retarget::FrameLoop;
 use mimic_trackers::weights_csv::{WeightsCsv, WeightsLayout};
 use mimic_types::{MorphTarget, Rig};
@@ -27,18 +29,12 @@ pub(super) fn add(
     match (&args.out, args.format) {
         (None, _) => {}
         (Some(out), OutFormat::Glb) => {
-            let scale = mimic_gltf::metres_per_unit(&rig.units).with_context(|| {
-                format!(
-                    "rig `{}`: units `{}` have no length in metres for glTF",
-                    rig.name, rig.units
-                )
-            })?;
+            let scale = rig_metres_per_unit(rig)?;
             let morphs = if targets.is_empty() {
-                let names: Vec<String> = rig.controls.iter().map(|c| c.fdp.to_string()).collect();
                 let r = frames
                     .retargeter()
                     .context("free-form GLB without a retargeter")?;
-                basis_morphs(r.basis(), &names)
+                control_morphs(r.basis(), rig)
             } else {
                 target_morphs(targets, scale)
             };

@@ -5,14 +5,14 @@
 //! key per row), OBJ frames or `frames.bin` of the blend `P0 + sum w dP`, and `--weights` as in
 //! blendshape mode.
 
-use super::{Args, outputs, summary};
+use super::{Args, outputs};
 use anyhow::{Context, bail};
 use mimic_assets::{load_morph_targets, load_rig};
-use mimic_retarget::{BlendshapeFitter, FrameLoop, WeightMap};
-use mimic_trackers::livelink::{HEAD_YAW, head_quat};
+use mimic_retarget::{BlendshapeFitter, FrameLoop};
 use mimic_trackers::namemap::NameMap;
-use mimic_trackers::take::{Take, TakeWeights, read_take, take_weights};
-use serde_json::json;
+use mimic_trackers::take::{read_take, take_weights};
+use mimic_trackers::take_rig::TakeOntoRig;
+use mimic_trackers::take_summary::TakeSummary;
 use std::time::{Duration, Instant};
 
 /// Replays the take `args.recording`.
@@ -32,14 +32,8 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let namemap_path = args.namemap_path();
     let map = NameMap::load(&namemap_path)?;
     let tw = take_weights(&take, &map);
-    let rig_map = WeightMap::new(&names);
-    let mut probe = vec![0.0f32; names.len()];
-    let lacking: Vec<&str> = tw
-        .targets
-        .iter()
-        .filter(|t| rig_map.apply([(t.as_str(), 1.0)], &mut probe) > 0)
-        .map(String::as_str)
-        .collect();
+    let mut onto = TakeOntoRig::new(&take, &tw, &names);
+    let lacking = onto.lacking();
     if !lacking.is_empty() && !args.json {
         println!(
             "rig `{}` has no morph target for {} of the take's {} names (ignored): {}",
@@ -52,39 +46,43 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let header = format!("mimic replay of a Live Link take onto rig {}", rig.name);
     let mut frames = FrameLoop::weights(&rig.mesh.positions, fitter);
     outputs::add(args, &rig, &targets, &header, &mut frames)?;
-    let mut w = vec![0.0f32; names.len()];
-    let mut pairs: Vec<(&str, f32)> = Vec::with_capacity(tw.targets.len());
-    let rows = take.rows.iter().filter(|r| r.tracked);
     let started = Instant::now();
-    for (row, (_, t_us, mapped)) in rows.zip(&tw.frames) {
+    for k in 0..onto.len() {
         if args.max_frames.is_some_and(|m| frames.frames() >= m) {
             break;
         }
+        let Some((t_us, w, head)) = onto.frame(k) else {
+            break;
+        };
         if args.realtime {
-            let due = *t_us as f64 / 1e6 / args.speed.max(1e-3);
+            let due = t_us as f64 / 1e6 / args.speed.max(1e-3);
             let now = started.elapsed().as_secs_f64();
             if due > now {
                 std::thread::sleep(Duration::from_secs_f64(due - now));
             }
         }
-        pairs.clear();
-        pairs.extend(
-            tw.targets
-                .iter()
-                .map(String::as_str)
-                .zip(mapped.iter().copied()),
-        );
-        rig_map.apply(pairs.iter().copied(), &mut w);
-        let mut head = [0.0f32; 3];
-        head.copy_from_slice(&row.curves[HEAD_YAW..HEAD_YAW + 3]);
-        frames.push_weights(*t_us, &w, head_quat(head))?;
+        frames.push_weights(t_us, w, head)?;
     }
     let paced_s = started.elapsed().as_secs_f64();
     let count = frames.frames();
     let report = frames.finish()?;
-    print_summary(
-        args, &rig, &take, &tw, &names, &lacking, paced_s, count, &report,
-    )
+    let summary = TakeSummary {
+        path,
+        rig: &rig.name,
+        take: &take,
+        weights: &tw,
+        targets: &names,
+        lacking: &lacking,
+        wall_s: paced_s,
+        frames: count,
+        outputs: &report.outputs,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary.json())?);
+    } else {
+        print!("{}", summary.text());
+    }
+    Ok(())
 }
 
 /// The rig's morph targets and their blend (a take drives nothing else).
@@ -103,57 +101,4 @@ fn morph_fitter(
     let fitter = BlendshapeFitter::new(rig, &targets, &args.blend.settings())
         .with_context(|| format!("morph targets of rig `{}`", rig.name))?;
     Ok((fitter, targets))
-}
-
-/// Prints what the take replay did (JSON with `--json`).
-#[allow(clippy::too_many_arguments, reason = "the summary's parts, each named")]
-fn print_summary(
-    args: &Args,
-    rig: &mimic_types::Rig,
-    take: &Take,
-    tw: &TakeWeights,
-    names: &[String],
-    lacking: &[&str],
-    paced_s: f64,
-    count: usize,
-    report: &mimic_retarget::LoopReport,
-) -> anyhow::Result<()> {
-    let path = &args.recording;
-    let wrote_json = match summary::frames_output(report) {
-        None => json!(null),
-        Some(r) if r.kind == "glb" => summary::glb_json(r),
-        Some(r) => json!({"frames": r.frames, "bytes": r.bytes}),
-    };
-    let summary = json!({
-        "take": path.display().to_string(),
-        "rig": rig.name,
-        "rows": take.rows.len(),
-        "untracked_rows": tw.untracked,
-        "frames": count,
-        "duration_s": take.duration_s(),
-        "timecode_rate": take.timecode_rate,
-        "targets": names,
-        "names_lacking": lacking,
-        "wall_s": paced_s,
-        "out": wrote_json,
-        "outputs": report.outputs,
-    });
-    if args.json {
-        println!("{}", serde_json::to_string_pretty(&summary)?);
-    } else {
-        println!(
-            "take {}: {} rows ({} with no face), {:.3} s at {} fps timecode; {count} frames onto rig {} ({} morph targets) in {paced_s:.3} s",
-            path.display(),
-            take.rows.len(),
-            tw.untracked,
-            take.duration_s(),
-            take.timecode_rate,
-            rig.name,
-            names.len()
-        );
-        for r in &report.outputs {
-            println!("  {}", summary::wrote(r));
-        }
-    }
-    Ok(())
 }
