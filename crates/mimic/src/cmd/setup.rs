@@ -159,6 +159,9 @@ pub fn parse_seconds_f32(text: &str) -> Result<f32, String> {
 
 pub use tuning::SolverTuningArgs;
 
+/// The warning `--f16-weights` prints (once): the f16 weights are gone from the deform.
+const F16_REMOVED: &str = "warning: --f16-weights is ignored: f16 weights were removed, as they were no faster than f32 on the CI machine class (the step took 0.96-0.99x as long, `mimic bench`, 2026-12-07); f32 weights are used";
+
 /// Command-line options of the per-frame pipeline.
 #[derive(clap::Args, Debug, Clone)]
 pub struct PipelineArgs {
@@ -186,16 +189,18 @@ pub struct PipelineArgs {
     /// Seconds over which a lost face eases to neutral.
     #[arg(long, default_value_t = 0.5, value_parser = parse_seconds_f32)]
     pub lost_ease: f32,
-    /// Read the deform's weights as binary16: half the bytes per frame, faster where they do not
-    /// fit in the core's cache (the ICT head: about 12 % a step); each coordinate moves by at most
-    /// 2^-11 of its displacement terms (docs/performance.md).
-    #[arg(long)]
+    /// Removed (f32 weights are used): accepted, hidden, and warned about (`F16_REMOVED`).
+    #[arg(long, hide = true)]
     pub f16_weights: bool,
 }
 
 impl PipelineArgs {
     /// The pipeline settings these options describe.
     pub fn settings(&self) -> RetargetSettings {
+        static WARNED: std::sync::Once = std::sync::Once::new();
+        if self.f16_weights {
+            WARNED.call_once(|| eprintln!("{F16_REMOVED}"));
+        }
         let mut gate = RetargetSettings::default().gate;
         gate.enabled = !self.no_gate;
         RetargetSettings {
@@ -209,7 +214,6 @@ impl PipelineArgs {
             per_axis_scale: self.per_axis_scale,
             lost_hold_secs: self.lost_hold,
             lost_ease_secs: self.lost_ease,
-            f16_weights: self.f16_weights,
             ..RetargetSettings::default()
         }
     }
