@@ -20,7 +20,8 @@
 //! Two kernels: AVX2 + FMA ([`VectorKernel::Avx2`], `deform/x86.rs`) and portable (any CPU).
 //! The AVX2 one is kept because it is most of the step's speed: `mimic bench` on the CI machine
 //! class (AMD EPYC Zen 2, 2 vCPUs, AVX2), 2026-12-07, the step with the portable deform ran
-//! 17.2-18.0x the default's on `ict-face-3k` (turns of 1 and 200 frames; docs/performance.md).
+//! 17.5-18.3x the default's on `ict-face-3k` and 21.0-21.7x on `ict-face` (medians of 3 runs,
+//! turns of 1 and 200 frames; docs/performance.md, "Kernel variants").
 
 use crate::Basis;
 use crate::kernel::VectorKernel;

@@ -160,7 +160,7 @@ pub fn parse_seconds_f32(text: &str) -> Result<f32, String> {
 pub use tuning::SolverTuningArgs;
 
 /// The warning `--f16-weights` prints (once): the f16 weights are gone from the deform.
-const F16_REMOVED: &str = "warning: --f16-weights is ignored: f16 weights were removed, as they were no faster than f32 on the CI machine class (the step took 0.96-0.99x as long, `mimic bench`, 2026-12-07); f32 weights are used";
+const F16_REMOVED: &str = "warning: --f16-weights is ignored: f16 weights were removed, as they were no faster than f32 on the CI machine class (the step took 0.94-0.98x as long, under the 10 % a kernel variant must buy; `mimic bench`, 2026-12-07); f32 weights are used";
 
 /// Command-line options of the per-frame pipeline.
 #[derive(clap::Args, Debug, Clone)]

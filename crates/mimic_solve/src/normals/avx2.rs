@@ -10,9 +10,10 @@ impl VertexFans {
     /// 8 cross products; per half one Newton-refined reciprocal square root, run (with the
     /// half's write-out) after the next half's steps.
     ///
-    /// The kernel keeps the kept variant's figure: on the CI machine class (AMD EPYC Zen 2, 2
-    /// vCPUs, AVX2), 2026-12-07, `mimic bench` ran the step with the portable normals 9.7-10.0x
-    /// as long as with this kernel (`ict-face-3k`; docs/performance.md).
+    /// Kept for its figure: on the CI machine class (AMD EPYC Zen 2, 2 vCPUs, AVX2), 2026-12-07,
+    /// `mimic bench` ran the step with the portable normals 9.8-10.3x as long as with this kernel
+    /// on `ict-face-3k` and 9.4-9.8x on `ict-face` (medians of 3 runs; docs/performance.md,
+    /// "Kernel variants").
     ///
     /// # Safety
     /// The CPU must support AVX2 and FMA, and `base` must be valid for reading 4 floats at
