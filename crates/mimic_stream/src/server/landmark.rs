@@ -4,7 +4,7 @@
 //! when the server records, written to the session's recording (both async, so done here).
 
 use super::admission::{Admission, Refusal, find_rig};
-use super::hub::{Route, SessionRecord};
+use super::hub::Route;
 use super::outputs::{Recording, count_forward, own_forward, start_forwarder};
 use super::session::{LineOutcome, Protocol, Session, TrackerLine, future_line, is_blank};
 use super::state::Shared;
@@ -16,11 +16,9 @@ use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
 use crate::sync::lock;
 use crate::timing::{FrameClock, TimeProblem};
-use glam::Vec3;
 use mimic_capture::{FrameProblem, RecordedFrame, RecordingHeader, parse_frame_line};
 use mimic_retarget::{
-    BlendshapeFitter, BlendshapeSettings, FrameLoop, FrameOutput, FrameStatus, RetargetSettings,
-    Retargeter,
+    BlendshapeFitter, BlendshapeSettings, FrameLoop, FrameStatus, RetargetSettings, Retargeter,
 };
 use mimic_types::LandmarkFrame;
 use mimic_wire::{ErrorCode, SessionRequest};
@@ -74,7 +72,7 @@ pub(crate) enum LandmarkEvent {
 }
 
 mod placed;
-use placed::Remote;
+use placed::{Remote, Viewers, count_status};
 
 /// A landmark session's frame path.
 pub(crate) struct Landmark {
@@ -179,36 +177,6 @@ impl Landmark {
         };
         let f = RecordedFrame::unlabelled(frame);
         self.keep(s, outcome, f, arrival, true).await;
-    }
-}
-
-/// Counts a retargeted frame by its status; false for a rejected one (counted malformed).
-fn count_status(r: &SessionRecord, status: FrameStatus) -> bool {
-    match status {
-        FrameStatus::Tracked => r.tracked.bump(),
-        FrameStatus::Calibrating => r.calibrating.bump(),
-        FrameStatus::Lost => r.lost.bump(),
-        FrameStatus::Rejected => {
-            r.malformed.bump();
-            return false;
-        }
-    }
-    true
-}
-
-/// What a broadcast fills the full positions in (for viewers that want them) from `d`.
-#[derive(Debug)]
-struct Viewers {
-    positions: Vec<Vec3>,
-    scratch: Vec<Vec3>,
-}
-
-impl Viewers {
-    /// Broadcasts `out` as frame `seq` to the session's viewers.
-    fn broadcast(&mut self, s: &Session, seq: u64, out: &FrameOutput, arrival: Instant) {
-        let (rig, scratch) = (&s.rig, &mut self.scratch);
-        let fill = |d: &[Vec3], positions: &mut [Vec3]| rig.deform(d, scratch, positions);
-        s.broadcast(seq, out, &mut self.positions, fill, arrival);
     }
 }
 
@@ -334,7 +302,11 @@ impl Protocol for Landmark {
         });
         tracing::info!(session = %s.name, id = s.id, rig = s.rig.name(), layout = %a.layout, "session started");
         let remote = match &s.shared.placement {
-            Some(placement) => Some(Remote::place(placement.as_ref(), s, &a).await),
+            Some(placement) => {
+                let description = Self::describe(&a, &s.rig, &s.name, s.id);
+                let out = a.retargeter.new_output();
+                Some(Remote::place(placement.as_ref(), s, &a.layout, description, out).await)
+            }
             None => None,
         };
         let forward = landmark_forward(s, a.own_forward);

@@ -1,14 +1,16 @@
 //! A landmark session stepped by the server's placement (`mimic serve --nats`): accepted frames
 //! go out numbered ([`Remote::hand_over`]), answers come back in order ([`Remote::answer`]) and
-//! are counted and broadcast as a local step's would be.
+//! are counted ([`count_status`]) and broadcast ([`Viewers`]) as a local step's are.
 
-use super::{Admitted, Landmark, Viewers, count_status};
 use crate::placement::{PlaceRequest, PlacedFrame, Placement, PlacementStatus, StepResult};
 use crate::server::follow::read_result;
-use crate::server::session::{Protocol, Session};
+use crate::server::hub::SessionRecord;
+use crate::server::session::Session;
 use crate::sync::lock;
-use mimic_retarget::FrameOutput;
+use glam::Vec3;
+use mimic_retarget::{FrameOutput, FrameStatus};
 use mimic_types::LandmarkFrame;
+use serde_json::Value;
 use std::collections::VecDeque;
 use std::sync::Arc;
 use std::time::{Duration, Instant};
@@ -44,14 +46,21 @@ pub(super) struct Remote {
 }
 
 impl Remote {
-    /// Places the admitted session `a` and waits (a while) for a worker to take it.
-    pub(super) async fn place(placement: &dyn Placement, s: &Session, a: &Admitted) -> Self {
+    /// Places session `s` (of `layout`, described by `description`) and waits (a while) for a
+    /// worker to take it; `out` is the frame its answers are read into.
+    pub(super) async fn place(
+        placement: &dyn Placement,
+        s: &Session,
+        layout: &str,
+        description: Value,
+        out: FrameOutput,
+    ) -> Self {
         let placed = placement.place(PlaceRequest {
             session: s.name.clone(),
             id: s.id,
             rig: s.rig.name().to_string(),
-            layout: a.layout.clone(),
-            description: Landmark::describe(a, &s.rig, &s.name, s.id),
+            layout: layout.to_string(),
+            description,
         });
         *lock(&s.record.placement) = Some(placed.status.clone());
         if !matches!(
@@ -67,7 +76,7 @@ impl Remote {
             next_n: 0,
             expected: 0,
             pending: VecDeque::new(),
-            out: a.retargeter.new_output(),
+            out,
         }
     }
 
@@ -144,5 +153,35 @@ impl Remote {
         }
         self.status.lost.add(self.next_n - self.expected);
         self.status.end();
+    }
+}
+
+/// Counts a retargeted frame by its status; false for a rejected one (counted malformed).
+pub(super) fn count_status(r: &SessionRecord, status: FrameStatus) -> bool {
+    match status {
+        FrameStatus::Tracked => r.tracked.bump(),
+        FrameStatus::Calibrating => r.calibrating.bump(),
+        FrameStatus::Lost => r.lost.bump(),
+        FrameStatus::Rejected => {
+            r.malformed.bump();
+            return false;
+        }
+    }
+    true
+}
+
+/// What a broadcast fills the full positions in (for viewers that want them) from `d`.
+#[derive(Debug)]
+pub(super) struct Viewers {
+    pub(super) positions: Vec<Vec3>,
+    pub(super) scratch: Vec<Vec3>,
+}
+
+impl Viewers {
+    /// Broadcasts `out` as frame `seq` to the session's viewers.
+    pub(super) fn broadcast(&mut self, s: &Session, seq: u64, out: &FrameOutput, arrival: Instant) {
+        let (rig, scratch) = (&s.rig, &mut self.scratch);
+        let fill = |d: &[Vec3], positions: &mut [Vec3]| rig.deform(d, scratch, positions);
+        s.broadcast(seq, out, &mut self.positions, fill, arrival);
     }
 }
