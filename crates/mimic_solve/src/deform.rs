@@ -34,7 +34,7 @@ const BLOCK: usize = 24;
 const SCATTERED: u32 = u32::MAX;
 
 /// The moving rows of a basis, ordered by support and stored column-blocked with their rest
-/// positions, for [`MovingDeform::deform`].
+/// positions, for [`MovingDeform::deform_packed`].
 #[derive(Clone, Debug, PartialEq)]
 pub struct MovingDeform {
     /// Mesh vertex of each row, in kernel order.
@@ -113,7 +113,7 @@ impl MovingDeform {
         }
     }
 
-    /// Mesh vertex of each moving row, in the order of [`MovingDeform::deform`]'s compact output.
+    /// Mesh vertex of each moving row, in the order of [`MovingDeform::deform_packed`]'s compact output.
     pub fn rows(&self) -> &[u32] {
         &self.rows
     }
