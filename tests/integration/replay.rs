@@ -330,20 +330,19 @@ fn no_gate_lets_the_fit_failure_through() {
 }
 
 #[test]
-fn f16_weights_flag_reaches_the_deform_and_stays_close() {
-    // The same replay with f32 and binary16 weights: the flag changes the positions (it reached
-    // the deform), and only slightly. Each coordinate's exact bound, 2^-11 sum_j |B_ij| |d_j|, is
-    // checked in mimic_retarget's tests, where B and d are at hand; here, with only the OBJs, a
-    // sanity bound: 2^-11 of the largest vertex motion for each of the 38 controls.
+fn removed_f16_weights_flag_is_accepted_warns_once_and_changes_nothing() {
+    // The f16 weights were removed (no faster on the CI machine class): the flag still parses,
+    // is hidden from --help, says so once on stderr, and the replay is the f32 one.
     let dir = tempfile::tempdir().unwrap();
     let run = |name: &str, extra: &[&str]| {
         let out = dir.path().join(name);
         let mut args = vec![
+            "replay",
             "recordings/a_yn_question.kinect121.jsonl",
             "--rig",
             "ict-face-3k",
             "--max-frames",
-            "90",
+            "50",
             "--every",
             "45",
             "--format",
@@ -352,28 +351,20 @@ fn f16_weights_flag_reaches_the_deform_and_stays_close() {
             out.to_str().unwrap(),
         ];
         args.extend_from_slice(extra);
-        replay_json(&args);
-        out
+        let o = mimic(&args);
+        let (_, stderr) = text(&o);
+        assert!(o.status.success(), "{stderr}");
+        (out, stderr)
     };
-    let (a, b) = (run("f32", &[]), run("f16", &["--f16-weights"]));
-    let positions = |dir: &Path, f: &str| mimic_assets::load_obj(&dir.join(f)).unwrap().positions;
-    let rest = positions(&a, "frame_000000.obj");
-    let (pa, pb) = (
-        positions(&a, "frame_000045.obj"),
-        positions(&b, "frame_000045.obj"),
+    let ((a, quiet), (b, warned)) = (run("f32", &[]), run("f16", &["--f16-weights"]));
+    assert!(!quiet.contains("f16"), "{quiet}");
+    assert_eq!(
+        warned.matches("f16 weights were removed").count(),
+        1,
+        "{warned}"
     );
-    assert_eq!(pa.len(), pb.len());
-    let motion = pa
-        .iter()
-        .zip(&rest)
-        .map(|(p, r)| (*p - *r).abs().max_element())
-        .fold(0f32, f32::max);
-    assert!(motion > 0.0, "the face moved");
-    let tol = 38.0 * motion / 2048.0;
-    let mut differs = false;
-    for (p, q) in pa.iter().zip(&pb) {
-        assert!((*p - *q).abs().max_element() <= tol, "{p} vs {q}");
-        differs |= p != q;
-    }
-    assert!(differs, "--f16-weights changed nothing");
+    let obj = |dir: &Path| std::fs::read(dir.join("frame_000045.obj")).unwrap();
+    assert_eq!(obj(&a), obj(&b));
+    let (help, _) = text(&mimic(&["replay", "--help"]));
+    assert!(!help.contains("f16"), "{help}");
 }

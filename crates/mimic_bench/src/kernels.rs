@@ -17,9 +17,8 @@ struct Variant {
     set: fn(&mut RetargetSettings),
 }
 
-/// The variants, the default first: each vector kernel replaced by the portable one, and the
-/// deform's weights as binary16.
-const VARIANTS: [Variant; 4] = [
+/// The variants, the default first: each vector kernel replaced by the portable one.
+const VARIANTS: [Variant; 3] = [
     Variant {
         name: "Default",
         what: "the kernels the step picks on this CPU",
@@ -34,11 +33,6 @@ const VARIANTS: [Variant; 4] = [
         name: "PortableNormals",
         what: "the normals by the portable kernel",
         set: |s| s.normals_kernel = Some(VectorKernel::Portable),
-    },
-    Variant {
-        name: "F16Weights",
-        what: "the deform's weights as binary16",
-        set: |s| s.f16_weights = true,
     },
 ];
 

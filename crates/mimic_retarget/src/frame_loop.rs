@@ -178,7 +178,9 @@ impl FrameLoop {
         if self.timing && status == FrameStatus::Tracked {
             self.samples.push(elapsed, &self.out.times);
         }
-        if !self.out.positions.iter().all(|p| p.is_finite()) {
+        // A retargeter that computes no positions (a server session's) leaves the rest mesh:
+        // nothing to check, and no pass over every vertex a frame.
+        if r.moving_vertex_count() > 0 && !self.out.positions.iter().all(|p| p.is_finite()) {
             self.non_finite_frames += 1;
         }
         // The head's translation is for the outputs: none is computed on a frame no output takes

@@ -97,15 +97,6 @@ impl MovingPatch {
         self
     }
 
-    /// The same patch with the deform's weights stored as binary16 when `on`
-    /// ([`MovingDeform::with_f16_weights`]: half the bytes, positions within its stated bound).
-    pub(crate) fn with_f16_weights(mut self, on: bool) -> Result<Self, mimic_solve::SolveError> {
-        if on {
-            self.deform = self.deform.with_f16_weights()?;
-        }
-        Ok(self)
-    }
-
     /// Number of moving vertices.
     pub(crate) fn moving_count(&self) -> usize {
         self.deform.rows().len()
@@ -188,28 +179,6 @@ mod tests {
         patch.deform(&d, &mut pos);
         patch.normals(&mut nrm);
         assert_eq!(pos, full);
-        // The f16 weights: every moving vertex within the rounding bound of its weights,
-        // sum_j (2^-11 |B_ij| + 2^-25) |d_j|, plus the f32 rounding of both sums.
-        let mut half = MovingPatch::new(&basis, &mesh.triangles, &mesh.positions)
-            .with_f16_weights(true)
-            .unwrap();
-        let mut pos_half = mesh.positions.clone();
-        half.deform(&d, &mut pos_half);
-        let eps = f32::EPSILON;
-        for i in 0..n {
-            let row = basis.row(i);
-            let dj = |j: usize| d[j].abs().max_element();
-            let bound: f32 = (0..m)
-                .map(|j| (row[j].abs() * 2f32.powi(-11) + 2f32.powi(-25)) * dj(j))
-                .sum::<f32>()
-                + 2.0
-                    * (m + 2) as f32
-                    * eps
-                    * ((0..m).map(|j| row[j].abs() * dj(j)).sum::<f32>()
-                        + mesh.positions[i].abs().max_element());
-            let err = (pos_half[i] - full[i]).abs().max_element();
-            assert!(err <= bound, "f16 v={i}: {err:e} > {bound:e}");
-        }
         // Tolerance per vertex: both are f32 area-weighted sums of the same k cross products,
         // taken at different corners; each is within (6 + k) eps sum_t L_t^2 of the exact sum (L_t
         // the triangle's longest edge), so after normalising the two differ by at most

@@ -46,9 +46,6 @@ pub enum RetargetError {
     /// A given neutral frame does not fit the layout or lacks controls.
     #[error("neutral frame: {0}")]
     BadNeutral(String),
-    /// f16 weights were asked for ([`RetargetSettings::f16_weights`]) and the basis does not fit them.
-    #[error("f16 weights: {0}")]
-    F16Weights(mimic_solve::SolveError),
 }
 
 /// Stages of a step, in order, for per-stage timing.
@@ -231,17 +228,14 @@ impl Retargeter {
         let mut r = Retargeter {
             layout: layout.clone(),
             patch: if settings.positions {
-                MovingPatch::new(&basis, &rig.mesh.triangles, &rig.mesh.positions)
-                    .with_f16_weights(settings.f16_weights)
-                    .map_err(RetargetError::F16Weights)?
-                    .with_kernels(
-                        settings
-                            .deform_kernel
-                            .unwrap_or_else(VectorKernel::best_for_deform),
-                        settings
-                            .normals_kernel
-                            .unwrap_or_else(VectorKernel::best_for_normals),
-                    )
+                MovingPatch::new(&basis, &rig.mesh.triangles, &rig.mesh.positions).with_kernels(
+                    settings
+                        .deform_kernel
+                        .unwrap_or_else(VectorKernel::best_for_deform),
+                    settings
+                        .normals_kernel
+                        .unwrap_or_else(VectorKernel::best_for_normals),
+                )
             } else {
                 // No positions: an empty patch, so no per-retargeter copy of the moving rows.
                 let empty = Basis::from_row_major(0, m, Vec::new())

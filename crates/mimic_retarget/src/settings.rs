@@ -34,16 +34,11 @@ pub struct RetargetSettings {
     /// control displacements `d` (for viewers that evaluate the morph themselves); `positions`
     /// keep the rest mesh and normals are not updated.
     pub positions: bool,
-    /// Store the deform's weights as binary16 (half the bytes read per frame; F16C converts them
-    /// in registers): each coordinate then moves by at most `sum_j (2^-11 |B_ij| + 2^-25) |d_j|`
-    /// from the f32 weights' (`docs/performance.md`, issue #21). Off by default.
-    pub f16_weights: bool,
     /// The deform's kernel; `None`: [`VectorKernel::best_for_deform`]. One the CPU lacks runs
-    /// the widest narrower one it has. Every kernel's positions are the same bit for bit.
+    /// the portable one. Every kernel's positions are the same bit for bit.
     pub deform_kernel: Option<VectorKernel>,
     /// The normal pass's kernel; `None`: [`VectorKernel::best_for_normals`]. One the CPU lacks
-    /// runs the widest narrower one it has. The vector kernels' normals differ by at most 9 eps
-    /// per component.
+    /// runs the portable one. The kernels' normals differ by at most 9 eps per component.
     pub normals_kernel: Option<VectorKernel>,
     /// A control whose displacement, scaled to the target, exceeds this fraction of the RMS radius
     /// of the rig's controls is an outlier (e.g. a depth sample that hit the background): it is
@@ -68,7 +63,6 @@ impl Default for RetargetSettings {
             lost_ease_secs: 0.5,
             normals: true,
             positions: true,
-            f16_weights: false,
             deform_kernel: None,
             normals_kernel: None,
             outlier_fraction: 0.8,

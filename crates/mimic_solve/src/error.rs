@@ -40,16 +40,4 @@ pub enum SolveError {
         /// Offending control.
         control: usize,
     },
-    /// A weight of the basis does not fit binary16 (f16 weights asked for).
-    #[error(
-        "weight {weight} of control {control} on vertex {vertex} exceeds f16's range (65 504): keep the f32 weights"
-    )]
-    F16Range {
-        /// Mesh vertex (row of `B`).
-        vertex: u32,
-        /// Control (column of `B`).
-        control: u32,
-        /// The weight.
-        weight: f32,
-    },
 }

@@ -37,11 +37,8 @@ pub fn vertex_normals(positions: &[Vec3], triangles: &[[u32; 3]], out: &mut [Vec
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
-#[cfg(target_arch = "x86_64")]
-mod avx512;
 
-/// Vertices gathered together by [`VertexFans`]: one AVX-512 register of f32 lanes (two AVX
-/// registers on the AVX2 path).
+/// Vertices gathered together by [`VertexFans`]: two AVX registers of f32 lanes.
 const GROUP: usize = 16;
 
 /// Lanes of one AVX register of f32: the AVX2 path runs a group as two halves of this many.
@@ -65,8 +62,8 @@ const HALF: usize = 8;
 /// triangles reads `k` neighbours for `k - 2` cross products, and no sum is scattered to memory.
 ///
 /// Fans are stored in groups of 16 vertices of (nearly) equal fan length, step-major (entry `l`
-/// of the 16 fans side by side), so that [`VertexFans::normals`] can run the 16 fans in the lanes
-/// of one AVX-512 register (or of two AVX registers), with no data-dependent branch inside a group.
+/// of the 16 fans side by side), so that [`VertexFans::normals_packed`] can run the 16 fans in
+/// the lanes of two AVX registers, with no data-dependent branch inside a group.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct VertexFans {
     /// Per group: first entry in `entries`, steps (entries per lane), lanes in use (1..=16).
@@ -163,7 +160,7 @@ impl VertexFans {
         self.count
     }
 
-    /// Number of positions [`VertexFans::normals`] reads.
+    /// Number of positions [`VertexFans::normals_packed`] reads.
     pub fn position_count(&self) -> usize {
         self.position_count
     }
@@ -176,46 +173,11 @@ impl VertexFans {
     /// Calls `write(v, normal)` once for every vertex `v < count()` (in no particular order) with
     /// its normalised area-weighted normal, zero where the sum has no finite, non-zero length
     /// (as `normalize_or_zero`; the vectorised path also gives zero for sums whose squared length
-    /// is subnormal, below 1.2e-38); allocates nothing. By [`VectorKernel::best_for_normals`]'s
-    /// kernel: 16 fans at a time with AVX-512F, 8 with AVX2 + FMA (the same sums bit for bit; each
+    /// is subnormal, below 1.2e-38), on positions packed 3 floats a vertex (`positions[3 v..3 v +
+    /// 3]`, one float of padding after the last), as
+    /// [`crate::deform::MovingDeform::deform_packed`] writes them; allocates nothing. By
+    /// [`VectorKernel::best_for_normals`]'s kernel: 8 fans at a time with AVX2 + FMA (each
     /// normalised by a Newton-refined reciprocal square root, within 4 eps), else one by one.
-    ///
-    /// # Panics
-    /// If `positions.len() < position_count()`.
-    pub fn normals(&self, positions: &[Vec3A], mut write: impl FnMut(usize, Vec3)) {
-        assert!(
-            positions.len() >= self.position_count,
-            "VertexFans::normals: {} positions, fans name {}",
-            positions.len(),
-            self.position_count
-        );
-        #[cfg(target_arch = "x86_64")]
-        {
-            let p = positions.as_ptr().cast::<f32>();
-            // SAFETY: the kernel's CPU features are checked by `best_for_normals`; every centre
-            // and entry is below position_count <= positions.len() (asserted), each a 16-byte
-            // Vec3A at 4 floats a vertex, and each group's entries lie in `entries` by
-            // construction.
-            match VectorKernel::best_for_normals() {
-                VectorKernel::Avx512 => {
-                    return unsafe { self.normals_avx512::<4, _>(&self.entries, p, &mut write) };
-                }
-                VectorKernel::Avx2 => {
-                    return unsafe {
-                        self.normals_avx2::<false, 4, _>(&self.entries, p, &mut write)
-                    };
-                }
-                VectorKernel::Portable => {}
-            }
-        }
-        self.normals_portable(positions, &mut write);
-    }
-
-    /// [`VertexFans::normals`] on positions packed 3 floats a vertex (`positions[3 v..3 v + 3]`,
-    /// one float of padding after the last), as [`crate::deform::MovingDeform::deform_packed`]
-    /// writes them: the same loads (the fourth float of each, the next vertex's x, is dropped by
-    /// the transpose) on a quarter less memory, so the same normals bit for bit as
-    /// [`VertexFans::normals`] on the same positions.
     ///
     /// # Panics
     /// If `positions.len() < 3 * position_count() + 1`.
@@ -223,8 +185,8 @@ impl VertexFans {
         self.normals_packed_by(VectorKernel::best_for_normals(), positions, write);
     }
 
-    /// [`VertexFans::normals_packed`] by a given kernel ([`VectorKernel::available`]: the widest
-    /// narrower one the CPU runs where it lacks `kernel`), for A/B comparisons and tests.
+    /// [`VertexFans::normals_packed`] by a given kernel ([`VectorKernel::available`]: the
+    /// portable one where the CPU lacks `kernel`), for A/B comparisons and tests.
     ///
     /// # Panics
     /// As [`VertexFans::normals_packed`].
@@ -278,8 +240,7 @@ impl VertexFans {
         // SAFETY: as this function's contract.
         unsafe {
             match kernel {
-                VectorKernel::Avx512 => self.normals_avx512::<3, _>(offsets, p, write),
-                VectorKernel::Avx2 => self.normals_avx2::<false, 3, _>(offsets, p, write),
+                VectorKernel::Avx2 => self.normals_avx2(offsets, p, write),
                 VectorKernel::Portable => return false,
             }
         }
@@ -294,47 +255,6 @@ impl VertexFans {
             for k in 0..lanes as usize {
                 let v = self.centres[g * GROUP + k] as usize;
                 let acc = fan_sum(entries.iter().skip(k).step_by(GROUP), at);
-                write(v, Vec3::from(acc.normalize_or_zero()));
-            }
-        }
-    }
-
-    /// [`VertexFans::normals`] with the neighbours fetched by AVX2 gathers (one per axis and
-    /// step) instead of 8 loads and a transpose: kept for the benchmarks' A/B comparison. Same
-    /// sums in the same order, so the same normals bit for bit.
-    ///
-    /// # Panics
-    /// As [`VertexFans::normals`].
-    pub fn normals_gather(&self, positions: &[Vec3A], mut write: impl FnMut(usize, Vec3)) {
-        assert!(
-            positions.len() >= self.position_count,
-            "VertexFans::normals_gather: {} positions, fans name {}",
-            positions.len(),
-            self.position_count
-        );
-        #[cfg(target_arch = "x86_64")]
-        if crate::basis::avx2_fma() {
-            // SAFETY: as in `normals`.
-            unsafe {
-                self.normals_avx2::<true, 4, _>(
-                    &self.entries,
-                    positions.as_ptr().cast(),
-                    &mut write,
-                )
-            };
-            return;
-        }
-        self.normals_portable(positions, &mut write);
-    }
-
-    /// [`VertexFans::normals`] one fan at a time, on any CPU.
-    fn normals_portable(&self, positions: &[Vec3A], write: &mut impl FnMut(usize, Vec3)) {
-        for (g, &[first, steps, lanes]) in self.groups.iter().enumerate() {
-            let entries = &self.entries[first as usize..][..steps as usize * GROUP];
-            for k in 0..lanes as usize {
-                let v = self.centres[g * GROUP + k] as usize;
-                let fan = entries.iter().skip(k).step_by(GROUP);
-                let acc = fan_sum(fan, |w| positions[w]);
                 write(v, Vec3::from(acc.normalize_or_zero()));
             }
         }
@@ -359,8 +279,8 @@ impl Default for PackedOffsets {
     }
 }
 
-/// A stored fan entry as the vector kernels read it: a vertex index (`u32`) or a packed
-/// position's float offset (`u32`, or `u16` where every offset fits).
+/// A stored fan entry as the vector kernels read it: a packed position's float offset (`u32`,
+/// or `u16` where every offset fits).
 trait Entry: Copy {
     /// The entry as an index.
     fn index(self) -> usize;
@@ -377,17 +297,6 @@ impl Entry for u16 {
     #[inline(always)]
     fn index(self) -> usize {
         self as usize
-    }
-}
-
-/// The float offset of a stored entry `e`: `e` itself for packed positions (the kernels read
-/// offsets there), else `STRIDE` floats per vertex index.
-#[inline(always)]
-fn float_offset<const STRIDE: usize>(e: impl Entry) -> usize {
-    if STRIDE == 3 {
-        e.index()
-    } else {
-        e.index() * STRIDE
     }
 }
 

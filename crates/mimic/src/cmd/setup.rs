@@ -133,6 +133,9 @@ pub fn timed_basis(rig: &Rig, settings: &SolverSettings) -> anyhow::Result<(Basi
 pub use mimic_types::parse::{parse_ranges, parse_seconds, parse_seconds_f32};
 pub use tuning::SolverTuningArgs;
 
+/// The warning `--f16-weights` prints (once): the f16 weights are gone from the deform.
+const F16_REMOVED: &str = "warning: --f16-weights is ignored: f16 weights were removed, as they were no faster than f32 on the CI machine class (the step took 0.94-0.98x as long, under the 10 % a kernel variant must buy; `mimic bench`, 2026-12-07); f32 weights are used";
+
 /// Command-line options of the per-frame pipeline.
 #[derive(clap::Args, Debug, Clone)]
 pub struct PipelineArgs {
@@ -160,16 +163,18 @@ pub struct PipelineArgs {
     /// Seconds over which a lost face eases to neutral.
     #[arg(long, default_value_t = 0.5, value_parser = parse_seconds_f32)]
     pub lost_ease: f32,
-    /// Read the deform's weights as binary16: half the bytes per frame, faster where they do not
-    /// fit in the core's cache (the ICT head: about 12 % a step); each coordinate moves by at most
-    /// 2^-11 of its displacement terms (docs/performance.md).
-    #[arg(long)]
+    /// Removed (f32 weights are used): accepted, hidden, and warned about (`F16_REMOVED`).
+    #[arg(long, hide = true)]
     pub f16_weights: bool,
 }
 
 impl PipelineArgs {
     /// The pipeline settings these options describe.
     pub fn settings(&self) -> RetargetSettings {
+        static WARNED: std::sync::Once = std::sync::Once::new();
+        if self.f16_weights {
+            WARNED.call_once(|| eprintln!("{F16_REMOVED}"));
+        }
         let mut gate = RetargetSettings::default().gate;
         gate.enabled = !self.no_gate;
         RetargetSettings {
@@ -183,7 +188,6 @@ impl PipelineArgs {
             per_axis_scale: self.per_axis_scale,
             lost_hold_secs: self.lost_hold,
             lost_ease_secs: self.lost_ease,
-            f16_weights: self.f16_weights,
             ..RetargetSettings::default()
         }
     }

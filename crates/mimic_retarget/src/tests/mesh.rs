@@ -37,11 +37,7 @@ fn each_vector_kernel_gives_the_same_positions_and_normals_within_the_kernels_bo
     // the deform kernels sum the same fused chains, so positions are identical, and the fan
     // kernels the same terms, so the normals differ only by their normalisations, at most 9 eps
     // per component (mimic_solve's fan tests).
-    let kernels = [
-        VectorKernel::Portable,
-        VectorKernel::Avx2,
-        VectorKernel::Avx512,
-    ];
+    let kernels = [VectorKernel::Portable, VectorKernel::Avx2];
     let mut runs = kernels.map(|k| {
         let (r, neutral) = setup(RetargetSettings {
             deform_kernel: Some(k),
@@ -73,53 +69,4 @@ fn each_vector_kernel_gives_the_same_positions_and_normals_within_the_kernels_bo
         }
     }
     assert!(runs[0].1.normals.iter().any(|n| n.z.abs() < 0.999));
-}
-
-#[test]
-fn f16_weights_move_positions_within_their_bound() {
-    // The same frames through f32 and binary16 weights: each coordinate of each moving vertex
-    // within sum_j (2^-11 |B_ij| + 2^-25) |d_j| (the weights' rounding) plus both sums' f32
-    // rounding, (m + 2) eps (sum_j |B_ij| |d_j| + |rest_i|) each.
-    let (mut a, neutral) = setup(plain());
-    let (mut b, _) = setup(RetargetSettings {
-        f16_weights: true,
-        ..plain()
-    });
-    let (mut oa, mut ob) = (a.new_output(), b.new_output());
-    let basis = a.basis().clone();
-    let m = basis.control_count();
-    let eps = f32::EPSILON;
-    let mut moved = false;
-    for k in 0..6i64 {
-        let mut pts = neutral.clone();
-        for (i, p) in pts.iter_mut().enumerate() {
-            *p += Vec3::new(
-                0.0,
-                -0.0013 * (k * (i as i64 % 3)) as f32,
-                0.0007 * k as f32,
-            );
-        }
-        a.step(&frame(k * 33_000, pts.clone()), &mut oa);
-        b.step(&frame(k * 33_000, pts), &mut ob);
-        assert_eq!(oa.displacements, ob.displacements, "frame {k}: same d");
-        let d = &oa.displacements;
-        for (i, (p, q)) in oa.positions.iter().zip(&ob.positions).enumerate() {
-            let row = basis.row(i);
-            let terms: f32 = (0..m)
-                .map(|j| row[j].abs() * d[j].abs().max_element())
-                .sum();
-            let weights: f32 = (0..m)
-                .map(|j| (row[j].abs() / 2048.0 + 2f32.powi(-25)) * d[j].abs().max_element())
-                .sum();
-            // |rest_i| <= |p_i| + sum_j |B_ij| |d_j|.
-            let rest = p.abs().max_element() + terms;
-            let tol = weights + 2.0 * (m + 2) as f32 * eps * (terms + rest);
-            assert!(
-                (*p - *q).abs().max_element() <= tol,
-                "frame {k} vertex {i}: {p} vs {q} (tol {tol:e})"
-            );
-            moved |= p != q;
-        }
-    }
-    assert!(moved, "binary16 weights changed no position");
 }

@@ -1,24 +1,26 @@
 //! [`VertexFans`]' 8-lane kernel (AVX2 + FMA): each group of 16 fans as two halves of 8, in the
-//! lanes of AVX registers; the AVX-512 kernel (`avx512.rs`) sums the same terms lane for lane.
+//! lanes of AVX registers.
 
-use super::{Entry, GROUP, HALF, VertexFans, float_offset};
+use super::{Entry, GROUP, HALF, VertexFans};
 use glam::{Vec3, Vec3A};
 
 impl VertexFans {
-    /// [`VertexFans::normals`] with the fans of a group, 8 at a time (each half of the group), in
+    /// [`VertexFans::normals_packed`] with the fans of a group, 8 at a time (each half of the group), in
     /// the lanes of AVX registers: per step, 8 neighbour loads transposed to x, y, z registers and
     /// 8 cross products; per half one Newton-refined reciprocal square root, run (with the
     /// half's write-out) after the next half's steps.
     ///
-    /// `STRIDE` floats a vertex (4: `Vec3A`, 3: packed), x, y, z first; `GATHER` fetches by AVX2
-    /// gathers (`STRIDE` 4 only).
+    /// Kept for its figure: on the CI machine class (AMD EPYC Zen 2, 2 vCPUs, AVX2), 2026-12-07,
+    /// `mimic bench` ran the step with the portable normals 9.8-10.3x as long as with this kernel
+    /// on `ict-face-3k` and 9.4-9.8x on `ict-face` (medians of 3 runs; docs/performance.md,
+    /// "Kernel variants").
     ///
     /// # Safety
     /// The CPU must support AVX2 and FMA, and `base` must be valid for reading 4 floats at
-    /// `STRIDE * v` for every `v < self.position_count`; `stored` must be `self.entries` (vertex
-    /// indices) for `STRIDE` 4, the packed offsets (either width) for 3.
+    /// `3 v` for every `v < self.position_count`; `stored` must be the packed offsets (either
+    /// width).
     #[target_feature(enable = "avx2,fma")]
-    pub(super) unsafe fn normals_avx2<const GATHER: bool, const STRIDE: usize, E: Entry>(
+    pub(super) unsafe fn normals_avx2<E: Entry>(
         &self,
         stored: &[E],
         base: *const f32,
@@ -30,20 +32,10 @@ impl VertexFans {
         // inlined with the AVX2 features: an adaptor's closure is compiled without them and
         // called once per step, with every live register spilled around the call.
         let load8 = |idx: *const E| -> (__m256, __m256, __m256) {
-            // SAFETY: idx points at 8 stored entries (offsets of packed positions, or vertex
-            // indices) of vertices below position_count (the caller's range); 4 floats are
-            // readable at each vertex's offset.
+            // SAFETY: idx points at 8 stored entries (offsets of packed positions) of vertices
+            // below position_count (the caller's range); 4 floats are readable at each offset.
             unsafe {
-                if GATHER && STRIDE == 4 && size_of::<E>() == 4 {
-                    // The gathers read f32 4 * idx[k] + axis of `positions`.
-                    let i = _mm256_slli_epi32::<2>(_mm256_loadu_si256(idx.cast()));
-                    return (
-                        _mm256_i32gather_ps::<4>(base, i),
-                        _mm256_i32gather_ps::<4>(base.add(1), i),
-                        _mm256_i32gather_ps::<4>(base.add(2), i),
-                    );
-                }
-                let at = |k: usize| base.add(float_offset::<STRIDE>(*idx.add(k)));
+                let at = |k: usize| base.add((*idx.add(k)).index());
                 let r0 = _mm256_loadu2_m128(at(4), at(0));
                 let r1 = _mm256_loadu2_m128(at(5), at(1));
                 let r2 = _mm256_loadu2_m128(at(6), at(2));
@@ -59,8 +51,6 @@ impl VertexFans {
                 )
             }
         };
-        // `stored`: vertex indices for `STRIDE` 4 (the gathers scale them themselves), offsets
-        // for 3.
         // Each group of 16 as two halves of 8 lanes (the second only where it has lanes in use).
         // A half's sums are normalised and written after the next half's steps, so that the
         // latency of its sums' chain and of the normalisation hides behind independent loads.

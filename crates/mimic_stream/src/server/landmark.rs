@@ -1,33 +1,30 @@
 //! Landmark sessions: a tracker whose hello is a recording header and whose lines are recording
-//! frame lines (and, after the welcome, UDP frame packets). Every accepted frame is retargeted,
-//! broadcast and, when the server records, written to the session's recording.
+//! frame lines (and, after the welcome, UDP frame packets). Every accepted frame is retargeted by
+//! the one frame loop (`mimic_retarget::FrameLoop`, no outputs of its own), then broadcast and,
+//! when the server records, written to the session's recording (both async, so done here).
 
 use super::admission::{Admission, Refusal, find_rig};
-use super::follow::read_result;
 use super::hub::Route;
 use super::outputs::{Recording, count_forward, own_forward, start_forwarder};
 use super::session::{LineOutcome, Protocol, Session, TrackerLine, future_line, is_blank};
 use super::state::Shared;
 use crate::catalog::RigEntry;
 use crate::forward::{ForwardTarget, Forwarder};
-use crate::placement::{PlaceRequest, PlacedFrame, PlacementStatus, StepResult};
+use crate::placement::StepResult;
 use crate::record::RecordKind;
 use crate::settings::ServerSettings;
 use crate::stats::SessionSnapshot;
 use crate::sync::lock;
 use crate::timing::{FrameClock, TimeProblem};
-use glam::Vec3;
 use mimic_capture::{FrameProblem, RecordedFrame, RecordingHeader, parse_frame_line};
 use mimic_retarget::{
-    BlendshapeFitter, BlendshapeSettings, FrameOutput, FrameStatus, RetargetSettings, Retargeter,
+    BlendshapeFitter, BlendshapeSettings, FrameLoop, FrameStatus, RetargetSettings, Retargeter,
 };
 use mimic_types::LandmarkFrame;
 use mimic_wire::{ErrorCode, SessionRequest};
 use serde_json::{Map, Value, json};
-use std::collections::VecDeque;
 use std::hash::{BuildHasher, Hasher};
 use std::net::SocketAddr;
-use std::sync::Arc;
 use std::time::Instant;
 use tokio::sync::mpsc;
 
@@ -65,75 +62,6 @@ enum Outcome {
     Malformed,
 }
 
-/// Frames handed to a placement whose arrival times are kept for the latency (older ones are
-/// forgotten; they are counted all the same).
-const PENDING_KEPT: usize = 4096;
-
-/// How long an ending placed session waits for each of its last answers (the placement closes
-/// the answers sooner; this only guards a hang).
-const FINISH_WAIT: std::time::Duration = std::time::Duration::from_secs(10);
-
-/// How long a new session waits for its first worker before it starts anyway (its frames are
-/// lost until a worker takes it).
-const PLACE_WAIT: std::time::Duration = std::time::Duration::from_secs(5);
-
-/// A landmark session stepped by the server's placement (`mimic serve --nats`): accepted frames
-/// go out numbered, answers come back and are broadcast here.
-#[derive(Debug)]
-struct Remote {
-    frames: mpsc::Sender<PlacedFrame>,
-    results: mpsc::Receiver<StepResult>,
-    status: Arc<PlacementStatus>,
-    /// Frames handed over so far (the next frame's number).
-    next_n: u64,
-    /// The lowest frame number an answer may still have.
-    expected: u64,
-    /// Number, arrival time and transport (UDP) of frames not answered yet, oldest first.
-    pending: VecDeque<(u64, Instant, bool)>,
-}
-
-impl Remote {
-    /// Hands an accepted frame over (a full queue loses it: counted when answers pass it).
-    fn hand_over(&mut self, frame: &LandmarkFrame, arrival: Instant, udp: bool) {
-        let n = self.next_n;
-        self.next_n += 1;
-        self.status.sent.bump();
-        if self.pending.len() >= PENDING_KEPT {
-            self.pending.pop_front();
-        }
-        self.pending.push_back((n, arrival, udp));
-        let placed = PlacedFrame {
-            n,
-            frame: frame.clone(),
-        };
-        if self.frames.try_send(placed).is_err() {
-            tracing::debug!(n, "placement queue full: frame lost");
-        }
-    }
-
-    /// Takes answer `n` in order: frames it passed are counted lost; returns the frame's arrival
-    /// and transport, or `None` for a duplicate or an answer to no frame.
-    fn take(&mut self, n: u64) -> Option<(Instant, bool)> {
-        if n < self.expected || n >= self.next_n {
-            return None;
-        }
-        self.status.lost.add(n - self.expected);
-        self.status.retargeted.bump();
-        self.expected = n + 1;
-        let mut found = None;
-        while let Some(&(k, t, udp)) = self.pending.front() {
-            if k > n {
-                break;
-            }
-            self.pending.pop_front();
-            if k == n {
-                found = Some((t, udp));
-            }
-        }
-        Some(found.unwrap_or_else(|| (Instant::now(), false)))
-    }
-}
-
 /// An input of a landmark session besides its TCP lines.
 #[derive(Debug)]
 pub(crate) enum LandmarkEvent {
@@ -143,13 +71,14 @@ pub(crate) enum LandmarkEvent {
     Answer(StepResult),
 }
 
+mod placed;
+use placed::{Remote, Viewers, count_status};
+
 /// A landmark session's frame path.
-#[derive(Debug)]
 pub(crate) struct Landmark {
-    retargeter: Retargeter,
-    out: FrameOutput,
-    positions: Vec<Vec3>,
-    scratch: Vec<Vec3>,
+    /// The retargeter, stepped by the frame loop (untimed; the session is its only output).
+    frames: FrameLoop,
+    viewers: Viewers,
     clock: FrameClock,
     layout: String,
     point_count: usize,
@@ -182,26 +111,25 @@ impl Landmark {
             r.hand_over(frame, arrival, udp);
             return Outcome::Accepted;
         }
-        let before = self.retargeter.stats();
-        let status = if self.retargeter.source_to_target().is_none() && self.multi_thread {
+        let retargeter =
+            |f: &FrameLoop| (f.retargeter()).map(|r| (r.stats(), r.source_to_target().is_some()));
+        let (before, fitted) = retargeter(&self.frames).unwrap_or_default();
+        // The loop has no outputs (the session broadcasts and records), so its step cannot fail.
+        let step =
+            |frames: &mut FrameLoop| frames.step(frame, None).unwrap_or(FrameStatus::Rejected);
+        let status = if !fitted && self.multi_thread {
             // Finishing the neutral fits the source-to-target map (a consensus search of up to
             // tens of milliseconds): let the runtime move other sessions off this worker meanwhile.
-            tokio::task::block_in_place(|| self.retargeter.step(frame, &mut self.out))
+            tokio::task::block_in_place(|| step(&mut self.frames))
         } else {
-            self.retargeter.step(frame, &mut self.out)
+            step(&mut self.frames)
         };
         let r = &s.record;
-        let after = self.retargeter.stats();
+        let after = retargeter(&self.frames).unwrap_or_default().0;
         r.gated.add(after.gated.saturating_sub(before.gated));
         r.jumps.add(after.jumps.saturating_sub(before.jumps));
-        match status {
-            FrameStatus::Tracked => r.tracked.bump(),
-            FrameStatus::Calibrating => r.calibrating.bump(),
-            FrameStatus::Lost => r.lost.bump(),
-            FrameStatus::Rejected => {
-                r.malformed.bump();
-                return Outcome::Malformed;
-            }
+        if !count_status(r, status) {
+            return Outcome::Malformed;
         }
         if !self.durable {
             self.publish(s, arrival, udp);
@@ -211,60 +139,14 @@ impl Landmark {
 
     /// Counts the retargeted frame and broadcasts it to the viewers.
     fn publish(&mut self, s: &Session, arrival: Instant, udp: bool) {
-        let seq = s.next_seq(udp);
-        let (rig, scratch) = (&s.rig, &mut self.scratch);
-        s.broadcast(
-            seq,
-            &self.out,
-            &mut self.positions,
-            |d, positions| rig.deform(d, scratch, positions),
-            arrival,
-        );
+        let out = self.frames.output();
+        self.viewers.broadcast(s, s.next_seq(udp), out, arrival);
         if let Some(f) = self.forward.as_mut() {
             let (forwarder, fitter) = &mut **f;
-            let w = fitter.fit(&self.out.displacements, self.out.timestamp_us);
-            let sent = forwarder.weights(self.out.timestamp_us, w, self.out.pose.rotation);
+            let w = fitter.fit(&out.displacements, out.timestamp_us);
+            let sent = forwarder.weights(out.timestamp_us, w, out.pose.rotation);
             count_forward(s, sent);
         }
-    }
-
-    /// A placement's answer: counted as the local step counts it and broadcast with the frame's
-    /// number as its sequence number.
-    fn answer(&mut self, s: &Session, a: StepResult) {
-        let Some(remote) = self.remote.as_mut() else {
-            return;
-        };
-        let Some((arrival, udp)) = remote.take(a.n) else {
-            return;
-        };
-        let r = &s.record;
-        if !read_result(&a, &mut self.out) {
-            r.malformed.bump();
-            return;
-        }
-        r.gated.add(u64::from(a.gated));
-        r.jumps.add(u64::from(a.jump));
-        match self.out.status {
-            FrameStatus::Tracked => r.tracked.bump(),
-            FrameStatus::Calibrating => r.calibrating.bump(),
-            FrameStatus::Lost => r.lost.bump(),
-            FrameStatus::Rejected => {
-                r.malformed.bump();
-                return;
-            }
-        }
-        r.frames.bump();
-        if udp {
-            r.udp_frames.bump();
-        }
-        let (rig, scratch) = (&s.rig, &mut self.scratch);
-        s.broadcast(
-            a.n,
-            &self.out,
-            &mut self.positions,
-            |d, positions| rig.deform(d, scratch, positions),
-            arrival,
-        );
     }
 
     /// Records a frame [`Self::accept`] judged; under `--record-sync` an accepted frame is
@@ -277,12 +159,10 @@ impl Landmark {
         arrival: Instant,
         udp: bool,
     ) {
-        if self.durable && outcome == Outcome::Accepted {
-            if self.recording.frame_durable(f).await {
-                self.publish(s, arrival, udp);
-            }
-        } else if outcome == Outcome::Accepted {
+        if outcome == Outcome::Accepted && !self.durable {
             self.recording.frame(f).await;
+        } else if outcome == Outcome::Accepted && self.recording.frame_durable(f).await {
+            self.publish(s, arrival, udp);
         }
     }
 
@@ -423,37 +303,19 @@ impl Protocol for Landmark {
         tracing::info!(session = %s.name, id = s.id, rig = s.rig.name(), layout = %a.layout, "session started");
         let remote = match &s.shared.placement {
             Some(placement) => {
-                let placed = placement.place(PlaceRequest {
-                    session: s.name.clone(),
-                    id: s.id,
-                    rig: s.rig.name().to_string(),
-                    layout: a.layout.clone(),
-                    description: Self::describe(&a, &s.rig, &s.name, s.id),
-                });
-                *lock(&s.record.placement) = Some(placed.status.clone());
-                if !matches!(
-                    tokio::time::timeout(PLACE_WAIT, placed.ready).await,
-                    Ok(Ok(()))
-                ) {
-                    tracing::warn!(session = %s.name, "no worker took the session yet: its frames are lost until one does");
-                }
-                Some(Remote {
-                    frames: placed.frames,
-                    results: placed.results,
-                    status: placed.status,
-                    next_n: 0,
-                    expected: 0,
-                    pending: VecDeque::new(),
-                })
+                let description = Self::describe(&a, &s.rig, &s.name, s.id);
+                let out = a.retargeter.new_output();
+                Some(Remote::place(placement.as_ref(), s, &a.layout, description, out).await)
             }
             None => None,
         };
         let forward = landmark_forward(s, a.own_forward);
         let landmark = Landmark {
-            positions: s.rig.rig.mesh.positions.clone(),
-            scratch: Vec::new(),
-            out: a.retargeter.new_output(),
-            retargeter: a.retargeter,
+            frames: FrameLoop::landmarks(a.retargeter, None).untimed(),
+            viewers: Viewers {
+                positions: s.rig.rig.mesh.positions.clone(),
+                scratch: Vec::new(),
+            },
             clock: s.clock(),
             layout: a.layout,
             point_count: a.point_count,
@@ -489,7 +351,11 @@ impl Protocol for Landmark {
     async fn on_event(&mut self, s: &Session, event: LandmarkEvent) {
         match event {
             LandmarkEvent::Udp(arrival, frame) => self.accept_udp(s, frame, arrival).await,
-            LandmarkEvent::Answer(a) => self.answer(s, a),
+            LandmarkEvent::Answer(a) => {
+                if let Some(remote) = self.remote.as_mut() {
+                    remote.answer(s, a, &mut self.viewers);
+                }
+            }
         }
     }
 
@@ -530,21 +396,9 @@ impl Protocol for Landmark {
         while let Ok((arrival, frame)) = self.udp.try_recv() {
             self.accept_udp(s, frame, arrival).await;
         }
-        // A placed session: closing its frames ends it on the worker, whose last answers are
-        // broadcast; frames never answered are counted lost.
-        if let Some(remote) = self.remote.as_mut() {
-            let (closed, _) = mpsc::channel(1);
-            drop(std::mem::replace(&mut remote.frames, closed));
-        }
-        while let Some(remote) = self.remote.as_mut() {
-            match tokio::time::timeout(FINISH_WAIT, remote.results.recv()).await {
-                Ok(Some(a)) => self.answer(s, a),
-                Ok(None) | Err(_) => break,
-            }
-        }
+        // A placed session: its last answers are broadcast, frames never answered counted lost.
         if let Some(remote) = self.remote.take() {
-            remote.status.lost.add(remote.next_n - remote.expected);
-            remote.status.end();
+            remote.finish(s, &mut self.viewers).await;
         }
         // Every accepted frame is in the recording (written, flushed, synced) before the session
         // is reported ended.
