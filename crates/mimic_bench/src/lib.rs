@@ -15,6 +15,7 @@ pub mod batch;
 pub mod gpu;
 pub mod kernels;
 pub mod numpy;
+pub mod record_cost;
 mod report;
 mod run;
 pub mod sessions;
@@ -95,6 +96,9 @@ pub struct Options {
     pub steps: usize,
     /// Also step 1 and then this many sessions at once.
     pub sessions: Option<usize>,
+    /// With `sessions`: also step them recording into this folder, in each record mode
+    /// ([`record_cost`]).
+    pub record_cost: Option<std::path::PathBuf>,
     /// Also time numpy's product over the same rows.
     pub numpy: bool,
 }

@@ -61,6 +61,8 @@ pub struct RigReport {
     pub vector_kernels_in_step: KernelsInStep,
     /// 1 session against many (`--sessions`).
     pub sessions: Option<SessionsComparison>,
+    /// Many sessions recording in each record mode against none (`--sessions N --record-cost DIR`).
+    pub record_cost: Option<crate::record_cost::RecordCost>,
     /// The load average around the run.
     pub load_average: LoadAverage,
 }
@@ -122,6 +124,27 @@ impl RigReport {
                 c.many_frames_per_second,
                 c.speedup,
                 c.per_core_frames_per_second
+            );
+        }
+        if let Some(c) = &self.record_cost {
+            let modes: Vec<String> = c
+                .modes
+                .iter()
+                .map(|m| {
+                    let name = m
+                        .mode
+                        .map_or("none".to_string(), |w| format!("{w:?}").to_lowercase());
+                    format!(
+                        "{name} {:.0} ({:.2}x)",
+                        m.median_frames_per_second, m.ratio_to_none
+                    )
+                })
+                .collect();
+            let _ = writeln!(
+                s,
+                "  recording, {} sessions, frames/s (medians of 3 rounds): {}",
+                c.sessions,
+                modes.join(", ")
             );
         }
         s

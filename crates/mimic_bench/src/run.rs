@@ -41,6 +41,12 @@ pub fn bench_rig(
         Some(k) if k > 0 => Some(run_sessions(subject, recorded, options.steps, k)?),
         _ => None,
     };
+    let record_cost = match (options.sessions, &options.record_cost) {
+        (Some(k), Some(dir)) if k > 0 => {
+            Some(run_record_cost(subject, recorded, options.steps, k, dir)?)
+        }
+        _ => None,
+    };
     let basis = subject.retargeter.basis();
     Ok(RigReport {
         rig: rig.name.clone(),
@@ -62,6 +68,7 @@ pub fn bench_rig(
         numpy,
         vector_kernels_in_step: kernels,
         sessions,
+        record_cost,
         load_average: LoadAverage {
             start: load_start,
             end: load_average(),
@@ -122,5 +129,30 @@ fn run_sessions(
         span,
         steps,
         count,
+    )?)
+}
+
+/// `count` sessions at once with no recording and with each record mode, 3 rounds in turn, at
+/// least 5 000 steps a session a run.
+fn run_record_cost(
+    subject: &Subject<'_>,
+    recorded: &Recorded,
+    steps: usize,
+    count: usize,
+    dir: &std::path::Path,
+) -> Result<crate::record_cost::RecordCost, BenchError> {
+    let basis = Arc::new(subject.retargeter.basis().clone());
+    let make = || {
+        let settings = subject.settings.clone();
+        Retargeter::new(subject.rig, subject.layout, basis.clone(), settings)
+    };
+    Ok(crate::record_cost::compare_recording(
+        make,
+        &recorded.frames,
+        recorded.span_us(),
+        steps.max(5_000),
+        count,
+        dir,
+        3,
     )?)
 }

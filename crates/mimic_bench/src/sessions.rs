@@ -3,6 +3,7 @@
 //! several retargeters stepped alternately on one thread, so that an A/B of their settings sees
 //! the same machine speed states.
 
+use crate::record_cost::RecordWrite;
 use mimic_retarget::{FrameStatus, RetargetError, Retargeter, StageSamples, elapsed_ns};
 use mimic_types::LandmarkFrame;
 use std::time::{Duration, Instant};
@@ -36,6 +37,9 @@ pub enum SessionsError {
     /// A session's retargeter could not be made.
     #[error("session retargeter: {0}")]
     Retargeter(#[from] RetargetError),
+    /// A session's recording file or writer thread could not be made.
+    #[error("session {0}'s recording: {1}")]
+    Record(usize, std::io::Error),
 }
 
 /// What [`compare_sessions`] measured: one session against `sessions` at once.
@@ -155,6 +159,18 @@ pub fn step_sessions(
     span_us: i64,
     steps: usize,
 ) -> Result<SessionsReport, SessionsError> {
+    step_sessions_with(retargeters, frames, span_us, steps, None)
+}
+
+/// [`step_sessions`], with `record` each session also writing every timed frame as a recording
+/// line into the folder in that mode ([`crate::record_cost`]).
+pub fn step_sessions_with(
+    retargeters: Vec<Retargeter>,
+    frames: &[LandmarkFrame],
+    span_us: i64,
+    steps: usize,
+    record: Option<(&std::path::Path, RecordWrite)>,
+) -> Result<SessionsReport, SessionsError> {
     if frames.is_empty() {
         return Err(SessionsError::NoFrames);
     }
@@ -167,29 +183,46 @@ pub fn step_sessions(
             let spawned = std::thread::Builder::new()
                 .name(format!("mimic-session-{k}"))
                 .spawn_scoped(scope, move || {
-                    let mut out = r.new_output();
-                    let mut frame = frames[0].clone();
-                    // Untimed warm-up: the neutral and the source-to-target fit (once per
-                    // session, up to a few hundred milliseconds) and one loop of the frames.
-                    for src in frames {
-                        frame.clone_from(src);
-                        frame.timestamp_us = src.timestamp_us - span_us;
-                        r.step(&frame, &mut out);
-                    }
-                    barrier.wait();
-                    let t = Instant::now();
-                    let mut tracked = 0u64;
-                    for s in 0..steps {
-                        let src = &frames[s % frames.len()];
-                        frame.points.clone_from(&src.points);
-                        frame.valid.clone_from(&src.valid);
-                        frame.tracked = src.tracked;
-                        frame.timestamp_us = src.timestamp_us + (s / frames.len()) as i64 * span_us;
-                        if r.step(&frame, &mut out) == FrameStatus::Tracked {
-                            tracked += 1;
+                    std::thread::scope(|writers| {
+                        let mut rec = record
+                            .map(|(dir, mode)| crate::record_cost::start(writers, dir, k, mode))
+                            .transpose();
+                        let mut out = r.new_output();
+                        let mut frame = frames[0].clone();
+                        // Untimed warm-up: the neutral and the source-to-target fit (once per
+                        // session, up to a few hundred milliseconds) and one loop of the frames.
+                        for src in frames {
+                            frame.clone_from(src);
+                            frame.timestamp_us = src.timestamp_us - span_us;
+                            r.step(&frame, &mut out);
                         }
-                    }
-                    (t.elapsed(), tracked)
+                        // Every started thread reaches the barrier, even one whose file failed.
+                        barrier.wait();
+                        let rec = match &mut rec {
+                            Ok(rec) => rec,
+                            Err(e) => {
+                                let e = std::io::Error::new(e.kind(), e.to_string());
+                                return Err(SessionsError::Record(k, e));
+                            }
+                        };
+                        let t = Instant::now();
+                        let mut tracked = 0u64;
+                        for s in 0..steps {
+                            let src = &frames[s % frames.len()];
+                            frame.points.clone_from(&src.points);
+                            frame.valid.clone_from(&src.valid);
+                            frame.tracked = src.tracked;
+                            frame.timestamp_us =
+                                src.timestamp_us + (s / frames.len()) as i64 * span_us;
+                            if r.step(&frame, &mut out) == FrameStatus::Tracked {
+                                tracked += 1;
+                            }
+                            if let Some(rec) = rec.as_mut() {
+                                rec.frame(&frame);
+                            }
+                        }
+                        Ok((t.elapsed(), tracked))
+                    })
                 });
             handles.push((k, spawned));
         }
@@ -203,7 +236,8 @@ pub fn step_sessions(
             .map(|(k, h)| match h {
                 Ok(h) => h
                     .join()
-                    .map_err(|_| SessionsError::Thread(k, "panicked".into())),
+                    .map_err(|_| SessionsError::Thread(k, "panicked".into()))
+                    .and_then(|r| r),
                 Err(e) => Err(SessionsError::Thread(k, e.to_string())),
             })
             .collect()

@@ -39,6 +39,11 @@ pub struct Args {
     /// the sessions in one GPU dispatch (default 100).
     #[arg(long)]
     pub sessions: Option<usize>,
+    /// With --sessions: also step them while each writes its frames as a recording into DIR, in
+    /// each of `mimic serve --record`'s modes (queued, written: the default, synced), against no
+    /// recording (docs/reliability.md, "Crash loss").
+    #[arg(long, value_name = "DIR", requires = "sessions")]
+    pub record_cost: Option<PathBuf>,
     /// Also time numpy's `B @ D` (float32) over the same rows: runs `python3 tools/bench_numpy.py`.
     #[arg(long)]
     pub numpy: bool,
@@ -71,6 +76,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let options = Options {
         steps: args.steps,
         sessions: args.sessions,
+        record_cost: args.record_cost.clone(),
         numpy: args.numpy,
     };
     let (mut reports, mut gpu) = (Vec::new(), Vec::new());

@@ -84,9 +84,9 @@ pub(crate) struct Landmark {
     point_count: usize,
     multi_thread: bool,
     recording: Recording,
-    /// `--record-sync` with a recording: a frame is broadcast (and counted) only once it is on
-    /// disk.
-    durable: bool,
+    /// With a recording, unless `--record-queued`: a frame is broadcast (or, placed, handed
+    /// over) only once written (`Some(true)`: synced to the disk too, `--record-sync`).
+    waits: Option<bool>,
     udp: mpsc::Receiver<(Instant, LandmarkFrame)>,
     /// Set when the server's placement steps this session.
     remote: Option<Remote>,
@@ -95,8 +95,9 @@ pub(crate) struct Landmark {
 }
 
 impl Landmark {
-    /// Retargets one frame and broadcasts it (under `--record-sync`, [`Self::keep`] broadcasts
-    /// it once it is on disk); late frames and frames from the future are dropped and counted.
+    /// Retargets one frame and broadcasts it (or hands it to its placement); when the frame
+    /// waits for its recording, [`Self::keep`] does that once it is written. Late frames and
+    /// frames from the future are dropped and counted.
     fn accept(
         &mut self,
         s: &Session,
@@ -108,7 +109,9 @@ impl Landmark {
             return Outcome::Refused(p);
         }
         if let Some(r) = &mut self.remote {
-            r.hand_over(frame, arrival, udp);
+            if self.waits.is_none() {
+                r.hand_over(frame, arrival, udp);
+            }
             return Outcome::Accepted;
         }
         let retargeter =
@@ -131,7 +134,7 @@ impl Landmark {
         if !count_status(r, status) {
             return Outcome::Malformed;
         }
-        if !self.durable {
+        if self.waits.is_none() {
             self.publish(s, arrival, udp);
         }
         Outcome::Accepted
@@ -149,8 +152,10 @@ impl Landmark {
         }
     }
 
-    /// Records a frame [`Self::accept`] judged; under `--record-sync` an accepted frame is
-    /// broadcast only after it is on disk (one that cannot be written is never broadcast).
+    /// Records a frame [`Self::accept`] judged. Unless `--record-queued`, an accepted frame is
+    /// broadcast (placed: handed over) only after it is written, so a kill of the server loses
+    /// no frame a viewer saw; under `--record-sync` one that cannot be written is never
+    /// broadcast (placed: counted lost).
     async fn keep(
         &mut self,
         s: &Session,
@@ -159,10 +164,22 @@ impl Landmark {
         arrival: Instant,
         udp: bool,
     ) {
-        if outcome == Outcome::Accepted && !self.durable {
+        if outcome != Outcome::Accepted {
+            return;
+        }
+        let Some(sync) = self.waits else {
             self.recording.frame(f).await;
-        } else if outcome == Outcome::Accepted && self.recording.frame_durable(f).await {
-            self.publish(s, arrival, udp);
+            return;
+        };
+        let placed = self.remote.is_some().then(|| f.frame.clone());
+        // A failed write is logged and counted `record_lost`; without `--record-sync` the
+        // session goes on, with it the frame is never shown.
+        let go = self.recording.frame_acked(f, sync).await || !sync;
+        match (&mut self.remote, placed) {
+            (Some(r), Some(frame)) if go => r.hand_over(&frame, arrival, udp),
+            (Some(r), _) => r.skip(),
+            (None, _) if go => self.publish(s, arrival, udp),
+            (None, _) => {}
         }
     }
 
@@ -321,9 +338,10 @@ impl Protocol for Landmark {
             point_count: a.point_count,
             multi_thread: tokio::runtime::Handle::current().runtime_flavor()
                 == tokio::runtime::RuntimeFlavor::MultiThread,
-            durable: settings.record_sync
-                && !matches!(recording, Recording::Off)
-                && remote.is_none(),
+            waits: settings
+                .record_mode
+                .waits()
+                .filter(|_| !matches!(recording, Recording::Off)),
             recording,
             udp,
             remote,

@@ -73,7 +73,11 @@ impl MorphFrame {
                 times: Default::default(),
             },
             positions: s.rig.rig.mesh.positions.clone(),
-            waits: s.settings().record_mode.waits().filter(|_| recording.is_on()),
+            waits: s
+                .settings()
+                .record_mode
+                .waits()
+                .filter(|_| recording.is_on()),
             recording,
             forward,
             curves: None,
@@ -101,8 +105,8 @@ impl MorphFrame {
     }
 
     /// Keeps the current weights as an accepted frame at `t_us`: broadcast ([`Self::send`]) and
-    /// recorded; broadcast only once written (`--record-sync`: on disk; never, if it cannot be
-    /// written), unless `--record-queued`.
+    /// recorded; broadcast only once written (`--record-sync`: on disk, and never if it cannot
+    /// be), unless `--record-queued`.
     pub(crate) async fn keep(
         &mut self,
         s: &Session,
@@ -121,7 +125,8 @@ impl MorphFrame {
             weights: self.weights.clone(),
         };
         if let Some(sync) = self.waits {
-            if self.recording.frame_acked(entry, sync).await {
+            // Without `--record-sync` a failed write (counted `record_lost`) does not stop it.
+            if self.recording.frame_acked(entry, sync).await || !sync {
                 self.publish(s, morph, t_us, rotation, udp, arrival);
             }
         } else {

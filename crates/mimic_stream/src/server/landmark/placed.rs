@@ -98,6 +98,13 @@ impl Remote {
         }
     }
 
+    /// A frame accepted but not handed over (under a waiting record mode its write failed):
+    /// counted sent, and so lost once answers pass it or the session ends.
+    pub(super) fn skip(&mut self) {
+        self.next_n += 1;
+        self.status.sent.bump();
+    }
+
     /// Takes answer `n` in order: frames it passed are counted lost; returns the frame's arrival
     /// and transport, or `None` for a duplicate or an answer to no frame.
     fn take(&mut self, n: u64) -> Option<(Instant, bool)> {
