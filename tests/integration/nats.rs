@@ -140,7 +140,17 @@ fn a_killed_worker_s_session_fails_over_and_every_frame_is_counted() {
     let wa = start_worker(&url, "wa", &dir.path().join("wa.log"));
     let wb = start_worker(&url, "wb", &dir.path().join("wb.log"));
     let mut workers = [("wa", Some(wa)), ("wb", Some(wb))];
-    let front = Serve::start(&["--rig", "candide3", "--nats", &url, "--no-udp"]);
+    let records = dir.path().join("records");
+    std::fs::create_dir(&records).unwrap();
+    let front = Serve::start(&[
+        "--rig",
+        "candide3",
+        "--nats",
+        &url,
+        "--no-udp",
+        "--record",
+        records.to_str().unwrap(),
+    ]);
     let other = Serve::start(&[
         "--rig",
         "candide3",
@@ -251,6 +261,25 @@ fn a_killed_worker_s_session_fails_over_and_every_frame_is_counted() {
     assert_ne!(c["worker"].as_str(), Some(holder.as_str()), "{s}");
     assert_eq!(s["frames"], retargeted, "{s}");
     assert!(bye.contains(&format!("\"frames\":{retargeted}")), "{bye}");
+    // The front door's recording holds every accepted frame, those the failover lost too:
+    // frames + cluster.lost == recorded + record_lost (docs/reliability.md), and the file agrees.
+    let (recorded, record_lost) = (
+        s["recorded"].as_u64().unwrap(),
+        s["record_lost"].as_u64().unwrap(),
+    );
+    assert_eq!(retargeted + lost, recorded + record_lost, "{s}");
+    assert_eq!(record_lost, 0, "{s}");
+    let files: Vec<_> = std::fs::read_dir(&records)
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    assert_eq!(files.len(), 1, "{files:?}");
+    let lines = std::fs::read_to_string(&files[0]).unwrap().lines().count() as u64;
+    assert_eq!(
+        lines,
+        1 + recorded,
+        "header and one line per recorded frame"
+    );
 
     // The viewer on the other front door saw the session through: its description and rig,
     // every answered frame in order, a hold (no frame) across the failover, then the end.
