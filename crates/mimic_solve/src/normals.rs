@@ -136,6 +136,20 @@ impl VertexFans {
         }
     }
 
+    /// The same fans with `u32` offsets even where `u16` would do: `mimic bench`'s A/B of the
+    /// packing (the normals are the same).
+    pub fn with_long_offsets(mut self) -> Self {
+        if let PackedOffsets::Short(o) = &self.offsets {
+            self.offsets = PackedOffsets::Long(o.iter().map(|&w| u32::from(w)).collect());
+        }
+        self
+    }
+
+    /// Whether the packed offsets are `u16` (every one fits) rather than `u32`.
+    pub fn short_offsets(&self) -> bool {
+        matches!(self.offsets, PackedOffsets::Short(_))
+    }
+
     /// The same fans with each vertex `v`'s normal reported as `names[v]` instead of `v` (e.g.
     /// its index in the whole mesh, when the fans were built over a part of it): the normal
     /// passes then call `write(names[v], normal)`, saving the caller a lookup per vertex.

@@ -187,6 +187,20 @@ fn packed_offsets_are_16_bit_up_to_21_846_positions_and_32_bit_past() {
         let want: Vec<usize> = fans.entries.iter().map(|&w| 3 * w as usize).collect();
         assert_eq!(stored, want, "{nx} x 148: offsets are 3 x the entries");
         check_fans(&g.positions, &g.triangles, g.positions.len());
+        // Widened to u32 (`mimic bench`'s A/B of the packing): the same normals, bit for bit.
+        assert_eq!(fans.short_offsets(), short);
+        let long = fans.clone().with_long_offsets();
+        assert!(!long.short_offsets());
+        let mut packed: Vec<f32> = g.positions.iter().flat_map(|p| p.to_array()).collect();
+        packed.push(0.0);
+        let (mut a, mut b) = (vec![Vec3::NAN; fans.count()], vec![Vec3::NAN; fans.count()]);
+        fans.normals_packed(&packed, |v, n| a[v] = n);
+        long.normals_packed(&packed, |v, n| b[v] = n);
+        assert!(
+            a.iter()
+                .zip(&b)
+                .all(|(x, y)| x.to_array().map(f32::to_bits) == y.to_array().map(f32::to_bits))
+        );
     }
 }
 
