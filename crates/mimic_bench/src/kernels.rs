@@ -17,9 +17,8 @@ struct Variant {
     set: fn(&mut RetargetSettings),
 }
 
-/// The variants, the default first: each vector kernel replaced by the portable one, and the
-/// normal fans' `u16` offsets (where every offset fits) stored as `u32`.
-const VARIANTS: [Variant; 4] = [
+/// The variants, the default first: each vector kernel replaced by the portable one.
+const VARIANTS: [Variant; 3] = [
     Variant {
         name: "Default",
         what: "the kernels the step picks on this CPU",
@@ -34,11 +33,6 @@ const VARIANTS: [Variant; 4] = [
         name: "PortableNormals",
         what: "the normals by the portable kernel",
         set: |s| s.normals_kernel = Some(VectorKernel::Portable),
-    },
-    Variant {
-        name: "LongFanOffsets",
-        what: "the normal fans' offsets as u32 (the default packs u16 where every one fits)",
-        set: |s| s.long_fan_offsets = true,
     },
 ];
 

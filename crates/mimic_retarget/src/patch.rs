@@ -97,15 +97,6 @@ impl MovingPatch {
         self
     }
 
-    /// The same patch with its normal fans' offsets stored as `u32` (`long`) even where `u16`
-    /// would do.
-    pub(crate) fn with_long_fan_offsets(mut self, long: bool) -> Self {
-        if long {
-            self.fans = std::mem::take(&mut self.fans).with_long_offsets();
-        }
-        self
-    }
-
     /// Number of moving vertices.
     pub(crate) fn moving_count(&self) -> usize {
         self.deform.rows().len()

@@ -228,16 +228,14 @@ impl Retargeter {
         let mut r = Retargeter {
             layout: layout.clone(),
             patch: if settings.positions {
-                MovingPatch::new(&basis, &rig.mesh.triangles, &rig.mesh.positions)
-                    .with_kernels(
-                        settings
-                            .deform_kernel
-                            .unwrap_or_else(VectorKernel::best_for_deform),
-                        settings
-                            .normals_kernel
-                            .unwrap_or_else(VectorKernel::best_for_normals),
-                    )
-                    .with_long_fan_offsets(settings.long_fan_offsets)
+                MovingPatch::new(&basis, &rig.mesh.triangles, &rig.mesh.positions).with_kernels(
+                    settings
+                        .deform_kernel
+                        .unwrap_or_else(VectorKernel::best_for_deform),
+                    settings
+                        .normals_kernel
+                        .unwrap_or_else(VectorKernel::best_for_normals),
+                )
             } else {
                 // No positions: an empty patch, so no per-retargeter copy of the moving rows.
                 let empty = Basis::from_row_major(0, m, Vec::new())

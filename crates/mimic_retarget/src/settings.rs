@@ -40,9 +40,6 @@ pub struct RetargetSettings {
     /// The normal pass's kernel; `None`: [`VectorKernel::best_for_normals`]. One the CPU lacks
     /// runs the portable one. The kernels' normals differ by at most 9 eps per component.
     pub normals_kernel: Option<VectorKernel>,
-    /// Store the normal fans' packed offsets as `u32` even where `u16` would do (`mimic bench`'s
-    /// A/B of the packing; the normals are the same).
-    pub long_fan_offsets: bool,
     /// A control whose displacement, scaled to the target, exceeds this fraction of the RMS radius
     /// of the rig's controls is an outlier (e.g. a depth sample that hit the background): it is
     /// held like a missing control.
@@ -68,7 +65,6 @@ impl Default for RetargetSettings {
             positions: true,
             deform_kernel: None,
             normals_kernel: None,
-            long_fan_offsets: false,
             outlier_fraction: 0.8,
             stable_trim: 3.0,
             gate: GateSettings::default(),

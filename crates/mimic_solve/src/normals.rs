@@ -74,7 +74,7 @@ pub struct VertexFans {
     entries: Vec<u32>,
     /// `entries` times 3: each neighbour's offset (in floats) in positions packed 3 floats a
     /// vertex, read by the packed kernels with no multiply per load.
-    offsets: PackedOffsets,
+    offsets: Vec<u32>,
     /// Vertices with a fan.
     count: usize,
     /// Positions needed: one past the largest vertex any fan names.
@@ -121,11 +121,10 @@ impl VertexFans {
             3 * position_count <= u32::MAX as usize,
             "VertexFans::new: {position_count} positions: packed offsets past u32"
         );
-        let offsets = if 3 * position_count.saturating_sub(1) <= u16::MAX as usize {
-            PackedOffsets::Short(entries.iter().map(|&w| (3 * w) as u16).collect())
-        } else {
-            PackedOffsets::Long(entries.iter().map(|&w| 3 * w).collect())
-        };
+        // u32 offsets always: packing them as u16 where every one fits (`ict-face-3k`) made no
+        // difference to the step in `mimic bench`'s A/B on the CI machine class (AMD EPYC Zen 2,
+        // 2026-12-07: 0.992-0.999x), under the 10 % a variant must buy (docs/performance.md).
+        let offsets = entries.iter().map(|&w| 3 * w).collect();
         Self {
             groups,
             centres,
@@ -134,20 +133,6 @@ impl VertexFans {
             count,
             position_count,
         }
-    }
-
-    /// The same fans with `u32` offsets even where `u16` would do: `mimic bench`'s A/B of the
-    /// packing (the normals are the same).
-    pub fn with_long_offsets(mut self) -> Self {
-        if let PackedOffsets::Short(o) = &self.offsets {
-            self.offsets = PackedOffsets::Long(o.iter().map(|&w| u32::from(w)).collect());
-        }
-        self
-    }
-
-    /// Whether the packed offsets are `u16` (every one fits) rather than `u32`.
-    pub fn short_offsets(&self) -> bool {
-        matches!(self.offsets, PackedOffsets::Short(_))
     }
 
     /// The same fans with each vertex `v`'s normal reported as `names[v]` instead of `v` (e.g.
@@ -224,12 +209,7 @@ impl VertexFans {
             // entry v is below position_count, and the 4 floats at 3 v lie within positions
             // (asserted: 3 position_count + 1 floats); each group's entries lie in the offsets
             // by construction.
-            let ran = unsafe {
-                match &self.offsets {
-                    PackedOffsets::Short(o) => self.normals_packed_vector(kernel, o, p, &mut write),
-                    PackedOffsets::Long(o) => self.normals_packed_vector(kernel, o, p, &mut write),
-                }
-            };
+            let ran = unsafe { self.normals_packed_vector(kernel, &self.offsets, p, &mut write) };
             if ran {
                 return;
             }
@@ -237,7 +217,7 @@ impl VertexFans {
         self.normals_packed_portable(positions, &mut write);
     }
 
-    /// [`VertexFans::normals_packed_by`]'s vector kernels on packed offsets of either width;
+    /// [`VertexFans::normals_packed_by`]'s vector kernels on the packed offsets;
     /// false (nothing done) for [`VectorKernel::Portable`].
     ///
     /// # Safety
@@ -275,39 +255,13 @@ impl VertexFans {
     }
 }
 
-/// [`VertexFans`]' packed offsets (`3 v` for each entry `v`), as 16-bit integers when every one
-/// fits (at most 21 846 positions: 3 x 21 845 = 65 535): half the bytes of the largest array the
-/// packed kernels read per frame, so the frame's working set (this, the deform's weights, the
-/// positions) stays in a smaller cache.
-#[derive(Clone, Debug, PartialEq)]
-enum PackedOffsets {
-    /// Every offset fits 16 bits.
-    Short(Vec<u16>),
-    /// Some offset does not.
-    Long(Vec<u32>),
-}
-
-impl Default for PackedOffsets {
-    fn default() -> Self {
-        Self::Short(Vec::new())
-    }
-}
-
-/// A stored fan entry as the vector kernels read it: a packed position's float offset (`u32`,
-/// or `u16` where every offset fits).
+/// A stored fan entry as the vector kernels read it: a packed position's float offset.
 trait Entry: Copy {
     /// The entry as an index.
     fn index(self) -> usize;
 }
 
 impl Entry for u32 {
-    #[inline(always)]
-    fn index(self) -> usize {
-        self as usize
-    }
-}
-
-impl Entry for u16 {
     #[inline(always)]
     fn index(self) -> usize {
         self as usize

@@ -17,8 +17,7 @@ impl VertexFans {
     ///
     /// # Safety
     /// The CPU must support AVX2 and FMA, and `base` must be valid for reading 4 floats at
-    /// `3 v` for every `v < self.position_count`; `stored` must be the packed offsets (either
-    /// width).
+    /// `3 v` for every `v < self.position_count`; `stored` must be the packed offsets.
     #[target_feature(enable = "avx2,fma")]
     pub(super) unsafe fn normals_avx2<E: Entry>(
         &self,

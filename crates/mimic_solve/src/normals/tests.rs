@@ -167,40 +167,19 @@ fn fans_match_reference_on_generated_meshes() {
 }
 
 #[test]
-fn packed_offsets_are_16_bit_up_to_21_846_positions_and_32_bit_past() {
-    // 3 v fits 16 bits for every v <= 21 845 (3 x 21 845 = 65 535): a 147 x 148 grid (21 756
-    // positions) stores them as u16, a 148 x 148 one (21 904) as u32; both kernels read either
-    // width to the same normals, against the reference within its bound (`check_fans`).
-    for (nx, short) in [(147, true), (148, false)] {
+fn packed_offsets_are_three_times_the_entries_on_either_side_of_16_bits() {
+    // A 147 x 148 grid (21 756 positions: every offset below 65 536) and a 148 x 148 one (21 904:
+    // some past it): both kernels read the u32 offsets to the same normals, against the
+    // reference within its bound (`check_fans`).
+    for nx in [147, 148] {
         let g = grid(nx, 148, 0.3, 0.3, 7);
         let fans = VertexFans::new(g.positions.len(), g.positions.len(), &g.triangles);
-        let stored: Vec<usize> = match &fans.offsets {
-            PackedOffsets::Short(o) => {
-                assert!(short, "{nx} x 148: 16-bit offsets past 65 535");
-                o.iter().map(|&o| o as usize).collect()
-            }
-            PackedOffsets::Long(o) => {
-                assert!(!short, "{nx} x 148: 32-bit offsets where 16 bits fit");
-                o.iter().map(|&o| o as usize).collect()
-            }
-        };
-        let want: Vec<usize> = fans.entries.iter().map(|&w| 3 * w as usize).collect();
-        assert_eq!(stored, want, "{nx} x 148: offsets are 3 x the entries");
-        check_fans(&g.positions, &g.triangles, g.positions.len());
-        // Widened to u32 (`mimic bench`'s A/B of the packing): the same normals, bit for bit.
-        assert_eq!(fans.short_offsets(), short);
-        let long = fans.clone().with_long_offsets();
-        assert!(!long.short_offsets());
-        let mut packed: Vec<f32> = g.positions.iter().flat_map(|p| p.to_array()).collect();
-        packed.push(0.0);
-        let (mut a, mut b) = (vec![Vec3::NAN; fans.count()], vec![Vec3::NAN; fans.count()]);
-        fans.normals_packed(&packed, |v, n| a[v] = n);
-        long.normals_packed(&packed, |v, n| b[v] = n);
-        assert!(
-            a.iter()
-                .zip(&b)
-                .all(|(x, y)| x.to_array().map(f32::to_bits) == y.to_array().map(f32::to_bits))
+        let want: Vec<u32> = fans.entries.iter().map(|&w| 3 * w).collect();
+        assert_eq!(
+            fans.offsets, want,
+            "{nx} x 148: offsets are 3 x the entries"
         );
+        check_fans(&g.positions, &g.triangles, g.positions.len());
     }
 }
 
