@@ -15,7 +15,9 @@
 //! (weights and head pose per frame); [`write_glb`] writes mesh, materials, targets and the
 //! animation. Units and axes: [`metres_per_unit`] and docs/gltf.md.
 
+pub mod avatar;
 mod glb;
+pub mod gltf_check;
 mod morphs;
 mod rig;
 mod sink;
@@ -23,6 +25,7 @@ mod take;
 mod units;
 mod vertices;
 
+pub use avatar::{Avatar, AvatarError, load_avatar, parse_avatar};
 pub use glb::{GlbSummary, GltfMaterial, GltfMesh, Scene, write_glb};
 pub use morphs::{Morph, basis_morphs, basis_weights, control_morphs, target_morphs};
 pub use rig::{RigLookParts, rig_look_parts, write_rig_glb};
