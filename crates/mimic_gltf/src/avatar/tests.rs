@@ -277,7 +277,14 @@ fn hostile_files_give_one_line_errors_naming_file_and_pointer() {
         match parse_avatar(Path::new(&name), &bytes, None) {
             // sparse_oob's sparse index (0, read from the positions' view) is in range here.
             Ok(a) => assert!(
-                ["ok.glb", "candide3_rig.glb", "sparse_oob.glb"].contains(&name.as_str()),
+                [
+                    "ok.glb",
+                    "candide3_rig.glb",
+                    "sparse_oob.glb",
+                    "vrm0.vrm",
+                    "vrm1.vrm"
+                ]
+                .contains(&name.as_str()),
                 "{name} read: {} vertices",
                 a.vertex_count()
             ),
@@ -309,7 +316,7 @@ fn bad_binds_and_indices_name_their_pointer() {
     let doc: serde_json::Value = serde_json::from_slice(chunks.json).unwrap();
     let rebuild = |doc: &serde_json::Value| {
         let mut j = serde_json::to_vec(doc).unwrap();
-        while j.len() % 4 != 0 {
+        while !j.len().is_multiple_of(4) {
             j.push(b' ');
         }
         let bin = chunks.bin.unwrap();
