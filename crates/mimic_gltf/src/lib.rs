@@ -14,6 +14,9 @@
 //! ([`target_morphs`]) with the fitted weights. [`Take`] collects the keys of a performance
 //! (weights and head pose per frame); [`write_glb`] writes mesh, materials, targets and the
 //! animation. Units and axes: [`metres_per_unit`] and docs/gltf.md.
+//!
+//! glTF in: [`avatar`] reads a glTF, GLB or VRM avatar whole ([`load_avatar`], docs/avatars.md),
+//! after the structure checks of [`gltf_check`].
 
 pub mod avatar;
 mod glb;

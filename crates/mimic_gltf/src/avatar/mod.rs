@@ -11,6 +11,7 @@
 mod accessor;
 mod container;
 mod error;
+mod files;
 mod read;
 mod vrm;
 

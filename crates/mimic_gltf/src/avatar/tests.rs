@@ -357,6 +357,18 @@ fn bad_binds_and_indices_name_their_pointer() {
         err(&d),
         "/extensions/VRMC_vrm/expressions/preset/aa/morphTargetBinds/0/node"
     );
+    // A required compression extension is named.
+    let mut d = doc.clone();
+    d["extensionsRequired"] = serde_json::json!(["KHR_draco_mesh_compression"]);
+    d["extensionsUsed"] = serde_json::json!(["KHR_draco_mesh_compression"]);
+    assert_eq!(err(&d), "/extensionsRequired/0");
+    // Other required extensions are kept in the document, not refused.
+    let mut d = doc.clone();
+    d["extensionsRequired"] = serde_json::json!(["KHR_texture_transform", "KHR_materials_unlit"]);
+    d["extensionsUsed"] =
+        serde_json::json!(["KHR_texture_transform", "KHR_materials_unlit", "VRMC_vrm"]);
+    let a = parse_avatar(Path::new("x.vrm"), &rebuild(&d), None).unwrap();
+    assert_eq!(a.document["extensionsRequired"][1], "KHR_materials_unlit");
     // An index past the vertices (the index view holds u16s; 7 vertices).
     let mut d = doc.clone();
     d["accessors"][1]["count"] = 18.into();
