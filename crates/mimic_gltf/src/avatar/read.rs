@@ -358,47 +358,7 @@ fn read_meshes(
                 }
                 None => (0..n as u32).collect(),
             };
-            let mut prim_targets = Vec::new();
-            for (t, target) in prim.morph_targets().enumerate() {
-                let tat = format!("{at}/targets/{t}");
-                let key = (
-                    target.positions().map(|a| a.index()),
-                    target.normals().map(|a| a.index()),
-                );
-                let k = match targets.get(&key) {
-                    Some(&k) => k,
-                    None => {
-                        let mut mt = MorphTarget {
-                            position_accessor: key.0,
-                            normal_accessor: key.1,
-                            ..Default::default()
-                        };
-                        if let Some(a) = target.positions() {
-                            mt.positions = vec3s(r.floats(&a, &[3])?);
-                        }
-                        if let Some(a) = target.normals() {
-                            mt.normals = vec3s(r.floats(&a, &[3])?);
-                        }
-                        avatar.morph_targets.push(mt);
-                        targets.insert(key, avatar.morph_targets.len() - 1);
-                        avatar.morph_targets.len() - 1
-                    }
-                };
-                let mt = &avatar.morph_targets[k];
-                for (name, len) in [
-                    ("POSITION", mt.positions.len()),
-                    ("NORMAL", mt.normals.len()),
-                ] {
-                    if len != 0 && len != n {
-                        return Err(AvatarError::at(
-                            r.path,
-                            format!("{tat}/{name}"),
-                            format!("{len} deltas for {n} vertices"),
-                        ));
-                    }
-                }
-                prim_targets.push(k);
-            }
+            let prim_targets = read_targets(r, &prim, &at, n, &mut targets, avatar)?;
             if *target_count.get_or_insert(prim_targets.len()) != prim_targets.len() {
                 return Err(AvatarError::at(
                     r.path,
@@ -433,6 +393,60 @@ fn read_meshes(
         });
     }
     Ok(())
+}
+
+/// A primitive's morph targets as indices into [`Avatar::morph_targets`], each accessor pair read
+/// once (`targets` maps pairs to indices), their deltas as many as the `n` vertices.
+fn read_targets(
+    r: &Reader<'_>,
+    prim: &gltf::Primitive<'_>,
+    at: &str,
+    n: usize,
+    targets: &mut HashMap<(Option<usize>, Option<usize>), usize>,
+    avatar: &mut Avatar,
+) -> Result<Vec<usize>, AvatarError> {
+    let mut prim_targets = Vec::new();
+    for (t, target) in prim.morph_targets().enumerate() {
+        let tat = format!("{at}/targets/{t}");
+        let key = (
+            target.positions().map(|a| a.index()),
+            target.normals().map(|a| a.index()),
+        );
+        let k = match targets.get(&key) {
+            Some(&k) => k,
+            None => {
+                let mut mt = MorphTarget {
+                    position_accessor: key.0,
+                    normal_accessor: key.1,
+                    ..Default::default()
+                };
+                if let Some(a) = target.positions() {
+                    mt.positions = vec3s(r.floats(&a, &[3])?);
+                }
+                if let Some(a) = target.normals() {
+                    mt.normals = vec3s(r.floats(&a, &[3])?);
+                }
+                avatar.morph_targets.push(mt);
+                targets.insert(key, avatar.morph_targets.len() - 1);
+                avatar.morph_targets.len() - 1
+            }
+        };
+        let mt = &avatar.morph_targets[k];
+        for (name, len) in [
+            ("POSITION", mt.positions.len()),
+            ("NORMAL", mt.normals.len()),
+        ] {
+            if len != 0 && len != n {
+                return Err(AvatarError::at(
+                    r.path,
+                    format!("{tat}/{name}"),
+                    format!("{len} deltas for {n} vertices"),
+                ));
+            }
+        }
+        prim_targets.push(k);
+    }
+    Ok(prim_targets)
 }
 
 fn read_skins(r: &Reader<'_>, doc: &gltf::Document) -> Result<Vec<Skin>, AvatarError> {

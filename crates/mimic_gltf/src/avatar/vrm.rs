@@ -416,31 +416,34 @@ fn read_v0(cx: &Ctx<'_>, vrm: &Value) -> Result<Vrm, AvatarError> {
                 .unwrap_or(false),
         });
     }
-    let look_at = vrm.get("firstPerson").map(|fp| {
-        let range = |key: &str| {
-            fp.get(key).map(|r| RangeMap {
-                input_max: f32_of(r.get("xRange")).unwrap_or(90.0),
-                output_scale: f32_of(r.get("yRange")).unwrap_or(10.0),
-            })
-        };
-        let o = fp.get("firstPersonBoneOffset");
-        let c = |k: &str| f32_of(o.and_then(|o| o.get(k))).unwrap_or(0.0);
-        LookAt {
-            kind: match fp.get("lookAtTypeName").and_then(Value::as_str) {
-                Some("BlendShape") => LookAtKind::Expression,
-                _ => LookAtKind::Bone,
-            },
-            offset_from_head: Vec3::new(c("x"), c("y"), c("z")),
-            horizontal_inner: range("lookAtHorizontalInner"),
-            horizontal_outer: range("lookAtHorizontalOuter"),
-            vertical_down: range("lookAtVerticalDown"),
-            vertical_up: range("lookAtVerticalUp"),
-        }
-    });
+    let look_at = vrm.get("firstPerson").map(look_at_v0);
     Ok(Vrm {
         version: VrmVersion::V0,
         bones,
         expressions,
         look_at,
     })
+}
+
+/// VRM 0.x `firstPerson` as look-at (`xRange` the input, `yRange` the output of each curve).
+fn look_at_v0(fp: &Value) -> LookAt {
+    let range = |key: &str| {
+        fp.get(key).map(|r| RangeMap {
+            input_max: f32_of(r.get("xRange")).unwrap_or(90.0),
+            output_scale: f32_of(r.get("yRange")).unwrap_or(10.0),
+        })
+    };
+    let o = fp.get("firstPersonBoneOffset");
+    let c = |k: &str| f32_of(o.and_then(|o| o.get(k))).unwrap_or(0.0);
+    LookAt {
+        kind: match fp.get("lookAtTypeName").and_then(Value::as_str) {
+            Some("BlendShape") => LookAtKind::Expression,
+            _ => LookAtKind::Bone,
+        },
+        offset_from_head: Vec3::new(c("x"), c("y"), c("z")),
+        horizontal_inner: range("lookAtHorizontalInner"),
+        horizontal_outer: range("lookAtHorizontalOuter"),
+        vertical_down: range("lookAtVerticalDown"),
+        vertical_up: range("lookAtVerticalUp"),
+    }
 }
