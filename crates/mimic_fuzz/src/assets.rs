@@ -17,9 +17,35 @@ pub fn obj(data: &[u8]) {
     }
 }
 
-/// The avatar file reader (glTF / GLB / VRM bytes, as `mimic rig new` and `mimic info` read them):
-/// an accepted mesh's triangles index its vertices, each triangle has its material.
+/// The avatar file readers (glTF / GLB / VRM bytes): `mimic rig new`'s mesh reader (an accepted
+/// mesh's triangles index its vertices, each triangle has its material) and the whole-avatar
+/// reader (each primitive's indices lie in its vertex array, every attribute as long as the
+/// positions, one-line errors).
 pub fn avatar(data: &[u8]) {
+    match mimic_gltf::parse_avatar(Path::new("fuzz.glb"), data, None) {
+        Ok(a) => {
+            for p in a.meshes.iter().flat_map(|m| &m.primitives) {
+                let v = &a.vertex_arrays[p.vertices];
+                let n = v.positions.len();
+                assert!(
+                    p.indices.iter().all(|&i| (i as usize) < n),
+                    "index out of range"
+                );
+                for len in [
+                    v.normals.len(),
+                    v.colors.len(),
+                    v.joints.len(),
+                    v.weights.len(),
+                ] {
+                    assert!(
+                        len == 0 || len == n,
+                        "attribute length differs from POSITION"
+                    );
+                }
+            }
+        }
+        Err(e) => assert!(!e.to_string().contains('\n'), "error over several lines"),
+    }
     let read = mimic_rig::gltf_mesh::parse_gltf_look(Path::new("fuzz.glb"), data, None);
     if let Ok((mesh, look)) = read {
         let n = mesh.vertex_count();

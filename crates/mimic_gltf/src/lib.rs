@@ -14,8 +14,13 @@
 //! ([`target_morphs`]) with the fitted weights. [`Take`] collects the keys of a performance
 //! (weights and head pose per frame); [`write_glb`] writes mesh, materials, targets and the
 //! animation. Units and axes: [`metres_per_unit`] and docs/gltf.md.
+//!
+//! glTF in: [`avatar`] reads a glTF, GLB or VRM avatar whole ([`load_avatar`], docs/avatars.md),
+//! after the structure checks of [`gltf_check`].
 
+pub mod avatar;
 mod glb;
+pub mod gltf_check;
 mod morphs;
 mod rig;
 mod sink;
@@ -23,6 +28,7 @@ mod take;
 mod units;
 mod vertices;
 
+pub use avatar::{Avatar, AvatarError, load_avatar, parse_avatar};
 pub use glb::{GlbSummary, GltfMaterial, GltfMesh, Scene, write_glb};
 pub use morphs::{Morph, basis_morphs, basis_weights, control_morphs, target_morphs};
 pub use rig::{RigLookParts, rig_look_parts, write_rig_glb};

@@ -7,7 +7,6 @@ pub mod avatar_summary;
 pub mod check;
 pub mod eyes;
 pub mod frame;
-pub mod gltf_check;
 pub mod gltf_mesh;
 pub mod head_template;
 pub mod icp;
@@ -24,6 +23,9 @@ pub mod place;
 pub mod register;
 pub mod summary;
 pub mod write;
+
+/// The glTF structure checks, now in `mimic_gltf` (shared with its avatar reader).
+pub use mimic_gltf::gltf_check;
 
 pub use check::{Warning, check_rig};
 pub use frame::{FaceFrame, FramePoints};
