@@ -29,6 +29,15 @@ pub enum ViewError {
     /// An option that names nothing the rig has (`--heat control:FDP`).
     #[error("{0}")]
     Option(String),
+    /// An output folder could not be created.
+    #[error("creating {}", path.display())]
+    Folder {
+        /// The folder.
+        path: std::path::PathBuf,
+        /// What the OS said.
+        #[source]
+        cause: std::io::Error,
+    },
     /// The recording has no frames to play.
     #[error("the recording has no accepted frames")]
     NoFrames,

@@ -1,7 +1,8 @@
 //! Still images of a replay (`mimic render`): the frames to draw ([`spread`] for a contact
 //! sheet), the shading a `--heat` name asks for ([`shading_named`]), the heat map's legend
 //! ([`legend`]), the replay drawn at chosen frames ([`render_stills`]), a plot of a frame's
-//! landmarks ([`landmark_plot`]) and the sheet of head and plot tiles ([`contact_sheet`]).
+//! landmarks ([`landmark_plot`]), the sheet of head and plot tiles ([`contact_sheet`]), and
+//! where the images go ([`StillsOut`]).
 
 use crate::ViewError;
 use glam::{Mat4, Vec3};
@@ -9,6 +10,85 @@ use mimic_render::overlay::legend_ticks;
 use mimic_render::{Deform, Image, Overlay, Renderer, RigGpu, Shading, View};
 use mimic_retarget::Retargeter;
 use mimic_types::{ControlName, LandmarkFrame, Layout, Rig};
+use std::path::{Path, PathBuf};
+
+/// The frames to render out of `total`: `n` spread for a sheet, else `frames`; a frame past the
+/// end is the error.
+pub fn wanted_frames(
+    sheet: Option<usize>,
+    frames: &[usize],
+    total: usize,
+) -> Result<Vec<usize>, ViewError> {
+    let wanted: Vec<usize> = match sheet {
+        Some(n) => spread(n, total),
+        None => frames.to_vec(),
+    };
+    if let Some(&bad) = wanted.iter().find(|&&f| f >= total) {
+        return Err(ViewError::Option(format!(
+            "frame {bad} is past the end: the recording has {total} accepted frames"
+        )));
+    }
+    Ok(wanted)
+}
+
+/// Where `mimic render` writes: frames as `frame_NNNNNN.png` in a folder, or one contact sheet
+/// (`sheet.png` in the folder, or the path itself when it names a `.png`).
+#[derive(Clone, Debug)]
+pub struct StillsOut {
+    out: PathBuf,
+    sheet_file: bool,
+}
+
+impl StillsOut {
+    /// The output `out` of frames, or with `sheet` of a contact sheet; its folder is created.
+    pub fn create(out: &Path, sheet: bool) -> Result<Self, ViewError> {
+        let sheet_file = sheet && out.extension().is_some_and(|e| e == "png");
+        let dir = if sheet_file {
+            out.parent().unwrap_or(Path::new("."))
+        } else {
+            out
+        };
+        if !dir.as_os_str().is_empty() {
+            std::fs::create_dir_all(dir).map_err(|cause| ViewError::Folder {
+                path: dir.to_path_buf(),
+                cause,
+            })?;
+        }
+        Ok(Self {
+            out: out.to_path_buf(),
+            sheet_file,
+        })
+    }
+
+    /// The file of frame `index`.
+    pub fn frame_path(&self, index: usize) -> PathBuf {
+        self.out.join(format!("frame_{index:06}.png"))
+    }
+
+    /// Writes the contact sheet of `images` (index into `frames`, head), each beside the plot of
+    /// its frame's landmarks (`layout`), tiles of `width` x `height`, `columns` pairs a row; the
+    /// file written.
+    pub fn write_sheet(
+        &self,
+        images: Vec<(usize, Image)>,
+        frames: &[&LandmarkFrame],
+        layout: &Layout,
+        columns: usize,
+        (width, height): (u32, u32),
+    ) -> Result<PathBuf, ViewError> {
+        let tiles: Vec<_> = images
+            .into_iter()
+            .map(|(i, image)| (image, landmark_plot(frames[i], layout, width, height)))
+            .collect();
+        let path = if self.sheet_file {
+            self.out.clone()
+        } else {
+            self.out.join("sheet.png")
+        };
+        contact_sheet(&tiles, columns, width, height).save_png(&path)?;
+        Ok(path)
+    }
+}
 
 /// Frames to render for a sheet of `n` out of `total`: evenly spread, first and last included.
 pub fn spread(n: usize, total: usize) -> Vec<usize> {
