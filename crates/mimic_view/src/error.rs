@@ -6,6 +6,9 @@ pub enum ViewError {
     /// The renderer failed (no adapter, a size, a buffer).
     #[error(transparent)]
     Render(#[from] mimic_render::RenderError),
+    /// A rig's look (materials, textures) could not be read.
+    #[error(transparent)]
+    Asset(#[from] mimic_assets::AssetError),
     /// Opening the window or its event loop failed.
     #[error("window: {0}")]
     Window(String),
@@ -38,6 +41,9 @@ pub enum ViewError {
         #[source]
         cause: std::io::Error,
     },
+    /// The rig's mesh has no vertices to frame.
+    #[error("the rig's mesh is empty")]
+    EmptyMesh,
     /// The recording has no frames to play.
     #[error("the recording has no accepted frames")]
     NoFrames,

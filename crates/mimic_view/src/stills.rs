@@ -2,15 +2,43 @@
 //! sheet), the shading a `--heat` name asks for ([`shading_named`]), the heat map's legend
 //! ([`legend`]), the replay drawn at chosen frames ([`render_stills`]), a plot of a frame's
 //! landmarks ([`landmark_plot`]), the sheet of head and plot tiles ([`contact_sheet`]), and
-//! where the images go ([`StillsOut`]).
+//! where the images go ([`StillsOut`]); and a rig's neutral with its regions coloured and its
+//! controls labelled ([`rig_picture`], `mimic rig check -o`; the drawing is `mimic_rig::picture`).
 
 use crate::ViewError;
 use glam::{Mat4, Vec3};
 use mimic_render::overlay::legend_ticks;
 use mimic_render::{Deform, Image, Overlay, Renderer, RigGpu, Shading, View};
 use mimic_retarget::Retargeter;
+use mimic_rig::picture::{Canvas, annotate, controlled_triangles, free_bounds, region_colors};
 use mimic_types::{ControlName, LandmarkFrame, Layout, Rig};
 use std::path::{Path, PathBuf};
+
+/// `rig`'s neutral drawn by `renderer` (of `width` x `height`): the controlled pieces only,
+/// coloured by region, framed on the free vertices, every control labelled.
+pub fn rig_picture(
+    renderer: &Renderer,
+    rig: &Rig,
+    (width, height): (u32, u32),
+) -> Result<Image, ViewError> {
+    let gpu = renderer.upload_rig(&rig.mesh.positions, &controlled_triangles(rig), None)?;
+    renderer.set_albedo(&gpu, &region_colors(rig))?;
+    let (lo, hi) = free_bounds(rig).ok_or(ViewError::EmptyMesh)?;
+    let view = View::lit(mimic_render::Camera::framing(lo, hi, 0.0, 0.0));
+    let mut image = renderer.render(&gpu, Deform::Rest, &view)?;
+    let view_proj = view.camera.view_proj(width as f32 / height as f32);
+    let rgba = &mut image.rgba;
+    annotate(
+        &mut Canvas {
+            width,
+            height,
+            rgba,
+        },
+        rig,
+        view_proj,
+    );
+    Ok(image)
+}
 
 /// The frames to render out of `total`: `n` spread for a sheet, else `frames`; a frame past the
 /// end is the error.

@@ -1,13 +1,11 @@
 //! `mimic render`: frames of a recording retargeted onto a rig, rendered headless to PNG (the
 //! drawing is `mimic_view::stills`).
 
-use crate::cmd::setup::{
-    PipelineArgs, RigArgs, parse_size, prepare_with, quiet_headless_vulkan, rig_look,
-};
+use crate::cmd::setup::{PipelineArgs, RigArgs, parse_size, prepare_with, quiet_headless_vulkan};
 use anyhow::{Context, bail};
 use mimic_capture::RecordingReader;
 use mimic_render::{Camera, Renderer, View};
-use mimic_retarget::RetargetSettings;
+use mimic_view::load_look;
 use mimic_view::stills::{Stills, StillsOut, legend, render_stills, shading_named, wanted_frames};
 use std::path::PathBuf;
 
@@ -66,14 +64,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut reader = RecordingReader::open(&args.recording, None)?;
     // The GPU computes u = B d and the normals: the pipeline only needs d.
-    let settings = RetargetSettings {
-        positions: false,
-        normals: false,
-        ..args.pipeline.settings()
-    };
+    let settings = args.pipeline.settings().displacements_only();
     let mut prepared = prepare_with(&args.rig, settings, &reader.header().layout)?;
     let rig = &prepared.rig;
-    let look = rig_look(&args.rig, rig, args.hide.as_deref(), !args.no_materials)?;
+    let path = args.rig.rig_path();
+    let look = load_look(&path, rig, args.hide.as_deref(), !args.no_materials)?;
     let (lo, hi) = rig.mesh.bounds().context("the rig's mesh is empty")?;
     let shading = shading_named(rig, args.heat.as_deref(), args.heat_scale)?;
     let renderer = Renderer::new(width, height)?;

@@ -7,6 +7,7 @@ use mimic_stream::send::{
     DEFAULT_SUBJECT, SendOptions, TakeSender, TcpSent, recording_bye, send_openseeface,
     send_recording, send_take_udp, send_weights, weights_bye,
 };
+use mimic_types::parse::parse_factor;
 use serde_json::Value;
 use std::path::PathBuf;
 
@@ -72,18 +73,6 @@ pub struct Args {
 /// Exit status of `mimic send` when the server ended the session (its `bye`, e.g. `shutdown`,
 /// is printed) before everything was sent.
 pub const EXIT_SERVER_ENDED: u8 = 3;
-
-/// `--speed` and `--rate`: a positive factor or rate in [1e-3, 1e6].
-fn parse_factor(text: &str) -> Result<f64, String> {
-    let v: f64 = text
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{text}` is not a number"))?;
-    if !(1e-3..=1e6).contains(&v) {
-        return Err(format!("{text} is out of range: 0.001 to 1000000"));
-    }
-    Ok(v)
-}
 
 /// Runs `mimic send`.
 pub fn run(args: Args) -> anyhow::Result<()> {

@@ -4,6 +4,7 @@ use crate::cmd::setup::{PipelineArgs, RigArgs, parse_seconds};
 use anyhow::Context;
 use mimic_stream::launch::{self, Listeners};
 use mimic_stream::{DEFAULT_LISTEN, RecordMode, Server, ServerSettings, check_binds};
+use mimic_types::parse::parse_listen_addr;
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -43,7 +44,7 @@ pub struct Args {
     /// sessions at `/`, a session in 3D at `/view/SESSION` (three.js, shipped in the binary),
     /// its rig at `/rig/SESSION.glb`, frames over the WebSocket `/ws/SESSION` (docs/browser.md).
     /// Off without this flag; beyond loopback it needs `--token` like every listener.
-    #[arg(long, value_name = "ADDR", value_parser = parse_http_addr)]
+    #[arg(long, value_name = "ADDR", value_parser = parse_listen_addr)]
     pub http: Option<SocketAddr>,
     /// A host name (besides loopback names and the listener's addresses) the browser endpoint
     /// answers in a request's `Host` (repeatable, or comma-separated); others get 421.
@@ -289,13 +290,4 @@ fn settings(args: &Args, token: Option<String>) -> anyhow::Result<ServerSettings
         udp_allow: args.udp_allow.clone(),
         ..ServerSettings::default()
     })
-}
-
-/// `--http`: an address, or a port alone for loopback (`8080` is `127.0.0.1:8080`).
-fn parse_http_addr(s: &str) -> Result<SocketAddr, String> {
-    if let Ok(port) = s.parse::<u16>() {
-        return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
-    }
-    s.parse()
-        .map_err(|_| format!("`{s}` is neither a port nor an address like 127.0.0.1:8080"))
 }
