@@ -1,5 +1,5 @@
-//! Options and setup shared by the subcommands: rig, layout, solver and pipeline flags, the
-//! rig's look, output naming, the CANDIDE-3 model.
+//! Options and setup shared by the subcommands: rig, layout, solver and pipeline flags, output
+//! naming, the CANDIDE-3 model (a rig's look is `mimic_view::load_look`).
 
 use anyhow::{Context, bail};
 use mimic_assets::{ConfigDirs, load_morph_targets, load_rig};
