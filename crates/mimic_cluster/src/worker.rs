@@ -45,6 +45,16 @@ pub struct WorkerStats {
     pub leases_lost: u64,
 }
 
+impl WorkerStats {
+    /// The line `mimic worker` ends with.
+    pub fn summary(&self) -> String {
+        format!(
+            "mimic worker: {} sessions taken ({} resumed), {} frames",
+            self.sessions_taken, self.sessions_resumed, self.frames
+        )
+    }
+}
+
 /// A worker process's sessions.
 #[derive(Debug)]
 pub struct Worker {

@@ -28,6 +28,17 @@ pub struct CaptureFrame<'a> {
     pub pixels: Option<&'a [Option<DVec2>]>,
 }
 
+impl<'a> CaptureFrame<'a> {
+    /// A frame of `landmarks` with its `label` and no pixels (a recording keeps none).
+    pub fn without_pixels(landmarks: &'a LandmarkFrame, label: Option<i64>) -> Self {
+        Self {
+            landmarks,
+            label,
+            pixels: None,
+        }
+    }
+}
+
 /// What a fit run did.
 #[derive(Clone, Debug, PartialEq)]
 pub struct FitSummary {
@@ -236,6 +247,39 @@ pub fn fit_candide3(
     };
     let camera = Camera::KINECT_V1_COLOUR;
     Ok(fit_capture(candide, layout, camera, settings, frames)?)
+}
+
+impl FitSummary {
+    /// The figures as `mimic bench --json` gives them.
+    pub fn json(&self) -> Value {
+        json!({
+            "model": "candide3",
+            "frames": self.frames,
+            "lost": self.lost,
+            "frames_per_second": self.frames_per_s,
+            "median_residual_px": self.median_residual_px,
+        })
+    }
+
+    /// The fitting speed as `mimic bench` prints it.
+    pub fn speed_line(&self) -> String {
+        format!(
+            "fit CANDIDE-3 to the recording: {:.0} frames/s ({} frames, median residual {:.2} px)",
+            self.frames_per_s, self.frames, self.median_residual_px
+        )
+    }
+
+    /// The line `mimic import --fit candide3` prints for the recording written to `output`.
+    pub fn said(&self, output: &std::path::Path) -> String {
+        format!(
+            "{}: {} frames fitted with CANDIDE-3 ({} lost), median residual {:.2} px, {:.0} frames/s, layout kinect121",
+            output.display(),
+            self.frames,
+            self.lost,
+            self.median_residual_px,
+            self.frames_per_s
+        )
+    }
 }
 
 impl CaptureFit {

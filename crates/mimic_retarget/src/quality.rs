@@ -14,8 +14,36 @@ pub use report::{JitterReport, RigUnder, ShapesReport, file_name};
 use crate::{BlendshapeError, BlendshapeFitter, BlendshapeSettings};
 use glam::Vec3;
 use mimic_solve::Basis;
-use mimic_types::{MorphTarget, Rig};
+use mimic_types::{Mesh, MorphTarget, Rig};
 use serde::Serialize;
+use std::path::{Path, PathBuf};
+
+/// An expression mesh whose vertices or triangles are not the rig mesh's.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "{}: not the rig mesh's topology ({} vertices, {} triangles; the rig mesh has {} and {})",
+    path.display(), shape.0, shape.1, rig.0, rig.1
+)]
+pub struct TopologyMismatch {
+    /// The expression mesh's file.
+    pub path: PathBuf,
+    /// Its vertices and triangles.
+    pub shape: (usize, usize),
+    /// The rig mesh's vertices and triangles.
+    pub rig: (usize, usize),
+}
+
+/// Checks that `mesh` (read from `path`) has `rig`'s vertices and triangles.
+pub fn check_topology(path: &Path, mesh: &Mesh, rig: &Rig) -> Result<(), TopologyMismatch> {
+    if mesh.vertex_count() == rig.mesh.vertex_count() && mesh.triangles == rig.mesh.triangles {
+        return Ok(());
+    }
+    Err(TopologyMismatch {
+        path: path.to_path_buf(),
+        shape: (mesh.vertex_count(), mesh.triangles.len()),
+        rig: (rig.mesh.vertex_count(), rig.mesh.triangles.len()),
+    })
+}
 
 /// Error statistics over a set of vertices (rig units).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
@@ -367,6 +395,16 @@ pub struct Jitter {
     /// Median over frame pairs of the RMS first difference `|p(t) - p(t-1)|` (how much the
     /// face moves at all), for scale.
     pub median_first_difference: f64,
+}
+
+/// The pipeline settings a jitter measure replays with: the defaults, the One Euro filter on
+/// or off as `filter` says.
+pub fn jitter_settings(filter: bool) -> crate::RetargetSettings {
+    let defaults = crate::RetargetSettings::default();
+    crate::RetargetSettings {
+        filter: if filter { defaults.filter } else { None },
+        ..defaults
+    }
 }
 
 /// Replays `frames` through `r` and measures the jitter of the deformed positions at the

@@ -52,6 +52,18 @@ pub struct RetargetSettings {
     pub gate: GateSettings,
 }
 
+impl RetargetSettings {
+    /// These settings computing only the control displacements `d`: no positions, no normals
+    /// (for a GPU that computes `u = B d` and the normals itself).
+    pub fn displacements_only(self) -> Self {
+        Self {
+            positions: false,
+            normals: false,
+            ..self
+        }
+    }
+}
+
 impl Default for RetargetSettings {
     fn default() -> Self {
         Self {

@@ -1,12 +1,15 @@
 //! A rig's morph targets against a morph data file ([`MorphCheck`], reported by [`MorphImport`],
 //! `mimic morph import`), and
-//! the columns of a named-weights table that drive them ([`WeightColumns`], `mimic morph apply`).
+//! the columns of a named-weights table that drive them ([`WeightColumns`]), and a CSV of
+//! named weights turned into OBJ meshes ([`apply_csv`], `mimic morph apply`).
 
-use mimic_assets::{MORPH_FILE_DECIMALS, compare_deltas};
-use mimic_types::{MorphTarget, WeightMap};
+use mimic_assets::{AssetError, MORPH_FILE_DECIMALS, compare_deltas, write_obj_frame};
+use mimic_capture::named_csv::{CsvError, read_named_csv};
+use mimic_retarget::{BlendshapeError, BlendshapeFitter, BlendshapeSettings};
+use mimic_types::{MorphTarget, Rig, WeightMap};
 use serde::Serialize;
 use serde_json::{Value, json};
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 /// One target of a morph data file compared with the rig's target of that name.
 #[derive(Clone, Debug, PartialEq, Serialize)]
@@ -161,6 +164,149 @@ impl WeightColumns {
         map.apply(pairs.iter().copied(), out);
         Ok(())
     }
+}
+
+/// Why [`apply_csv`] failed.
+#[derive(Debug, thiserror::Error)]
+pub enum MorphApplyError {
+    /// The rig's morph targets cannot be blended.
+    #[error("blendshapes of rig `{rig}`")]
+    Blend {
+        /// The rig's name.
+        rig: String,
+        /// The cause.
+        #[source]
+        source: BlendshapeError,
+    },
+    /// The CSV could not be read.
+    #[error(transparent)]
+    Csv(#[from] CsvError),
+    /// No column of the CSV names a target of the rig.
+    #[error("{}: no column names a target of rig `{rig}` ({})", path.display(), targets.join(", "))]
+    NoColumn {
+        /// The CSV.
+        path: PathBuf,
+        /// The rig's name.
+        rig: String,
+        /// The rig's target names.
+        targets: Vec<String>,
+    },
+    /// A field is not a number.
+    #[error("{}:{line}: column `{column}`: `{value}` is not a number", path.display())]
+    NotANumber {
+        /// The CSV.
+        path: PathBuf,
+        /// Its line (1-based).
+        line: usize,
+        /// The column's name.
+        column: String,
+        /// The field.
+        value: String,
+    },
+    /// The output folder could not be created.
+    #[error("{}", path.display())]
+    Folder {
+        /// The folder.
+        path: PathBuf,
+        /// The cause.
+        #[source]
+        source: std::io::Error,
+    },
+    /// An OBJ could not be written.
+    #[error(transparent)]
+    Write(#[from] AssetError),
+}
+
+/// What [`apply_csv`] did, as `mimic morph apply` says it.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct MorphApplied {
+    /// Rows (frames) read.
+    pub frames: usize,
+    /// OBJ files written.
+    pub written: usize,
+    /// Names of the columns that drive targets.
+    pub used: Vec<String>,
+    /// Names of the other columns.
+    pub ignored: Vec<String>,
+}
+
+impl MorphApplied {
+    /// The summary line for the CSV `weights` written to `out`.
+    pub fn summary(&self, weights: &Path, out: &Path) -> String {
+        format!(
+            "{}: {} frames, {} written to {}; columns used: {}; ignored: {}",
+            weights.display(),
+            self.frames,
+            self.written,
+            out.display(),
+            self.used.join(" "),
+            if self.ignored.is_empty() {
+                "none".to_string()
+            } else {
+                self.ignored.join(" ")
+            }
+        )
+    }
+}
+
+/// Turns the CSV `weights` (a header row of names, one row of weights per frame) into meshes of
+/// `rig` through its morph `targets`: every `every`-th frame as an OBJ in `out` (created if
+/// missing; `frame_000000.obj` ...).
+pub fn apply_csv(
+    rig: &Rig,
+    targets: &[MorphTarget],
+    weights: &Path,
+    out: &Path,
+    every: usize,
+) -> Result<MorphApplied, MorphApplyError> {
+    let fitter =
+        BlendshapeFitter::new(rig, targets, &BlendshapeSettings::default()).map_err(|source| {
+            MorphApplyError::Blend {
+                rig: rig.name.clone(),
+                source,
+            }
+        })?;
+    let map = WeightMap::new(fitter.names());
+    let csv = read_named_csv(weights)?;
+    let columns = WeightColumns::new(&csv.header, &map, fitter.target_count());
+    if columns.used.is_empty() {
+        return Err(MorphApplyError::NoColumn {
+            path: weights.to_path_buf(),
+            rig: rig.name.clone(),
+            targets: fitter.names().to_vec(),
+        });
+    }
+    std::fs::create_dir_all(out).map_err(|source| MorphApplyError::Folder {
+        path: out.to_path_buf(),
+        source,
+    })?;
+    let mut w = vec![0f32; fitter.target_count()];
+    let mut positions = rig.mesh.positions.clone();
+    let (mut frames, mut written) = (0usize, 0usize);
+    for row in &csv.rows {
+        columns
+            .weights(&csv.header, &map, |c| row.field(c), &mut w)
+            .map_err(|c| MorphApplyError::NotANumber {
+                path: weights.to_path_buf(),
+                line: row.line,
+                column: csv.header[c].clone(),
+                value: row.field(c).to_string(),
+            })?;
+        if frames.is_multiple_of(every.max(1)) {
+            fitter.evaluate(&w, &mut positions, &mut []);
+            let header = format!("mimic morph apply onto rig {}: frame {frames}", rig.name);
+            write_obj_frame(out, frames, &header, &positions, &rig.mesh.triangles)?;
+            written += 1;
+        }
+        frames += 1;
+    }
+    let names = |cols: &[usize]| cols.iter().map(|&c| csv.header[c].clone()).collect();
+    Ok(MorphApplied {
+        frames,
+        written,
+        used: names(&columns.used),
+        ignored: names(&columns.ignored),
+    })
 }
 
 #[cfg(test)]

@@ -306,6 +306,21 @@ pub fn dense_controls(
     Ok((controls, registration))
 }
 
+/// The landmarks control set `set` registers from, for the rig file `rig_path`: read only for
+/// `ibug68`, from `landmarks` or else `<rig>.landmarks.json` beside the rig file when it exists.
+pub fn control_landmarks(
+    rig_path: &Path,
+    set: &str,
+    landmarks: Option<&Path>,
+) -> Result<Option<Landmarks>, RigNewError> {
+    let beside = rig_path.with_extension("landmarks.json");
+    let path = landmarks.or_else(|| beside.is_file().then_some(beside.as_path()));
+    match (path, set) {
+        (Some(p), "ibug68") => Ok(Some(crate::load_landmarks(p, Default::default())?)),
+        _ => Ok(None),
+    }
+}
+
 /// A rig's controls by set name: `mpeg4` keeps the rig's own (FDP) controls and returns
 /// `None`; a layout name of [`DENSE_SETS`] replaces them with that layout's registered points
 /// ([`dense_controls`]; the layout is read from `configs/layouts/`) and returns the registration.

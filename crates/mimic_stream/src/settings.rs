@@ -187,6 +187,16 @@ pub enum RecordMode {
 }
 
 impl RecordMode {
+    /// The mode `--record-sync` (`sync`) or `--record-queued` (`queued`) asks for; neither:
+    /// [`RecordMode::Written`].
+    pub fn from_flags(sync: bool, queued: bool) -> Self {
+        match (sync, queued) {
+            (true, _) => RecordMode::Synced,
+            (false, true) => RecordMode::Queued,
+            (false, false) => RecordMode::Written,
+        }
+    }
+
     /// Whether a frame waits for its write before its broadcast, and whether to sync it too.
     pub fn waits(self) -> Option<bool> {
         match self {
@@ -228,6 +238,26 @@ pub fn check_bind(what: &str, addr: SocketAddr, token: Option<&str>) -> Result<(
             addr,
         }),
     }
+}
+
+/// [`check_bind`] for every door a server opens: TCP at `listen`, UDP frames at `udp` (`None`:
+/// off) and the `more` named ones that are asked for.
+pub fn check_binds(
+    listen: SocketAddr,
+    udp: Option<SocketAddr>,
+    more: &[(&str, Option<SocketAddr>)],
+    token: Option<&str>,
+) -> Result<(), BindError> {
+    check_bind("TCP", listen, token)?;
+    if let Some(addr) = udp {
+        check_bind("UDP", addr, token)?;
+    }
+    for (what, addr) in more {
+        if let Some(addr) = addr {
+            check_bind(what, *addr, token)?;
+        }
+    }
+    Ok(())
 }
 
 #[cfg(test)]

@@ -221,6 +221,30 @@ pub struct ServerStats {
     pub sessions: Vec<SessionSnapshot>,
 }
 
+impl ServerStats {
+    /// The line `mimic serve` ends with: connections, sessions, latency, dropped frames.
+    pub fn summary(&self) -> String {
+        format!(
+            "mimic serve: {} connections, {} sessions; latency p50 {} us, p99 {} us; {} frames dropped for slow viewers",
+            self.connections,
+            self.sessions.len(),
+            self.latency.p50_us,
+            self.latency.p99_us,
+            self.viewer_frames_dropped
+        )
+    }
+
+    /// The line on the frames recorded in `dir` (`--record`), over every session listed.
+    pub fn record_summary(&self, dir: &std::path::Path) -> String {
+        let recorded: u64 = self.sessions.iter().map(|s| s.recorded).sum();
+        let lost: u64 = self.sessions.iter().map(|s| s.record_lost).sum();
+        format!(
+            "mimic serve: {recorded} frames recorded in {} ({lost} not recorded)",
+            dir.display()
+        )
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -48,6 +48,50 @@ impl Default for ImportOptions<'_> {
     }
 }
 
+impl<'a> ImportOptions<'a> {
+    /// A GFE file's: its `targets` file, the header's `source`, and whether depths stay raw.
+    pub fn gfe(targets: Option<&'a Path>, source: Option<&'a str>, raw_depth: bool) -> Self {
+        Self {
+            targets,
+            source,
+            raw_depth,
+            ..Self::default()
+        }
+    }
+
+    /// An OpenFace CSV's: re-timed at `rate_hz` (`None`: its own timestamps), the `source`.
+    pub fn openface(rate_hz: Option<f64>, source: Option<&'a str>) -> Self {
+        Self {
+            rate_hz,
+            source,
+            ..Self::default()
+        }
+    }
+
+    /// A MediaPipe dump's: the camera's field of view, the `source`.
+    pub fn mediapipe(fov_deg: f64, source: Option<&'a str>) -> Self {
+        Self {
+            fov_deg,
+            source,
+            ..Self::default()
+        }
+    }
+
+    /// An OpenSeeFace capture's: the `face`, its `frame_times` CSV, the `source`.
+    pub fn openseeface(
+        face: Option<i32>,
+        frame_times: Option<&'a Path>,
+        source: Option<&'a str>,
+    ) -> Self {
+        Self {
+            face,
+            frame_times,
+            source,
+            ..Self::default()
+        }
+    }
+}
+
 /// An imported capture and what a person should be told about it.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Import {

@@ -15,17 +15,20 @@
 //! - [`osf_frames`]: an OpenSeeFace face as an `openseeface68` landmark frame;
 //! - [`osf_pose`]: its head pose in the recording convention (the quaternion corrected, refined
 //!   on the 2D landmarks);
+//! - `import_write`: an import written as its recording, or fitted with CANDIDE-3 first
+//!   ([`importer::Import::write_fitted`]);
 //! - [`import`]: a `.osf` capture as a v1 recording (`mimic import openseeface`);
 //! - [`weights_csv`]: per-frame morph weights written as mimic's CSV or a Live Link take (a
 //!   frame loop output).
 //!
 //! Errors name the packet (by number or byte offset) or the file and line.
-//! Depends on mimic_types, mimic_capture (recordings, without its tokio replay), glam, serde and
-//! toml.
+//! Depends on mimic_types, mimic_capture (recordings, without its tokio replay), mimic_fit (the
+//! CANDIDE-3 fit of an import), glam, serde and toml.
 
 mod error;
 pub mod gfe;
 pub mod import;
+mod import_write;
 pub mod importer;
 pub mod livelink;
 pub mod mediapipe;
@@ -40,3 +43,4 @@ pub mod take_summary;
 pub mod weights_csv;
 
 pub use error::{PacketError, TrackerError};
+pub use import_write::ImportWriteError;

@@ -46,6 +46,19 @@ impl<'a> TakeOntoRig<'a> {
             .collect()
     }
 
+    /// The line naming the take's names the rig `rig` lacks (`lacking`, of [`Self::lacking`]),
+    /// if any.
+    pub fn lacking_line(&self, rig: &str, lacking: &[&str]) -> Option<String> {
+        (!lacking.is_empty()).then(|| {
+            format!(
+                "rig `{rig}` has no morph target for {} of the take's {} names (ignored): {}",
+                lacking.len(),
+                self.weights.targets.len(),
+                lacking.join(", ")
+            )
+        })
+    }
+
     /// Tracked row `k`: its time (microseconds), the weights in the rig's target order and the
     /// head rotation; `None` past the end.
     pub fn frame(&mut self, k: usize) -> Option<(i64, &[f32], glam::Quat)> {

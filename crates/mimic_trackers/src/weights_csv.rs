@@ -97,6 +97,18 @@ impl WeightsCsv {
         &self.lacking
     }
 
+    /// The line naming the [`WeightsCsv::lacking`] curves of the CSV at `path`, if any.
+    pub fn lacking_line(&self, path: &std::path::Path) -> Option<String> {
+        (!self.lacking.is_empty()).then(|| {
+            format!(
+                "{}: {} of the 52 curves have no morph target in the rig (written 0): {}",
+                path.display(),
+                self.lacking.len(),
+                self.lacking.join(", ")
+            )
+        })
+    }
+
     fn row(&mut self, f: &SinkFrame<'_>, weights: &[f32]) -> std::io::Result<()> {
         match &mut self.writer {
             Writer::Mimic(w) => {

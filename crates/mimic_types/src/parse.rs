@@ -1,9 +1,64 @@
 //! Parsers of the option values several commands share: durations in seconds, inclusive index
-//! ranges, `WIDTHxHEIGHT` sizes. Each error names the text it could not read.
+//! ranges, `WIDTHxHEIGHT` sizes, factors, listening addresses. Each error names the text it
+//! could not read.
 
 /// The longest duration an option takes: 10^6 s (about 11.6 days). Longer ones would overflow
 /// instants advanced by them (`Instant + Duration` panics) and mean nothing anyway.
 pub const MAX_OPTION_SECONDS: f64 = 1e6;
+
+/// Inclusive vertex index ranges (`mimic eval --vertices`).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct VertexRanges(pub Vec<(u32, u32)>);
+
+impl VertexRanges {
+    /// Whether vertex `i` lies in one of the ranges.
+    pub fn contains(&self, i: usize) -> bool {
+        self.0
+            .iter()
+            .any(|&(a, b)| (a as usize..=b as usize).contains(&i))
+    }
+}
+
+/// Parses `0-9408,11248-14061` as [`VertexRanges`] (a single index is a range of one;
+/// backwards is an error).
+pub fn parse_vertex_ranges(text: &str) -> Result<VertexRanges, String> {
+    parse_ranges(text, false).map(VertexRanges)
+}
+
+/// Parses a rate or speed factor: a number in [0.001, 1000000] (`mimic send --rate`, `--speed`).
+pub fn parse_factor(text: &str) -> Result<f64, String> {
+    let v: f64 = text
+        .trim()
+        .parse()
+        .map_err(|_| format!("`{text}` is not a number"))?;
+    if !(1e-3..=1e6).contains(&v) {
+        return Err(format!("{text} is out of range: 0.001 to 1000000"));
+    }
+    Ok(v)
+}
+
+/// Parses a listening address, or a port alone for loopback (`mimic serve --http`: `8080` is
+/// `127.0.0.1:8080`).
+pub fn parse_listen_addr(s: &str) -> Result<std::net::SocketAddr, String> {
+    if let Ok(port) = s.parse::<u16>() {
+        return Ok(std::net::SocketAddr::from(([127, 0, 0, 1], port)));
+    }
+    s.parse()
+        .map_err(|_| format!("`{s}` is neither a port nor an address like 127.0.0.1:8080"))
+}
+
+/// Parses `WIDTHxHEIGHT` (`--size`), e.g. `512x512`.
+pub fn parse_size(s: &str) -> Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once('x')
+        .ok_or_else(|| format!("--size `{s}`: expected WIDTHxHEIGHT, e.g. 512x512"))?;
+    let side = |v: &str, what: &str| {
+        v.trim()
+            .parse()
+            .map_err(|e| format!("--size {what} `{v}`: {e}"))
+    };
+    Ok((side(w, "width")?, side(h, "height")?))
+}
 
 /// Parses a duration in seconds: a finite number in [0, [`MAX_OPTION_SECONDS`]].
 pub fn parse_seconds(text: &str) -> Result<f64, String> {

@@ -6,6 +6,9 @@ pub enum ViewError {
     /// The renderer failed (no adapter, a size, a buffer).
     #[error(transparent)]
     Render(#[from] mimic_render::RenderError),
+    /// A rig's look (materials, textures) could not be read.
+    #[error(transparent)]
+    Asset(#[from] mimic_assets::AssetError),
     /// Opening the window or its event loop failed.
     #[error("window: {0}")]
     Window(String),
@@ -29,6 +32,18 @@ pub enum ViewError {
     /// An option that names nothing the rig has (`--heat control:FDP`).
     #[error("{0}")]
     Option(String),
+    /// An output folder could not be created.
+    #[error("creating {}", path.display())]
+    Folder {
+        /// The folder.
+        path: std::path::PathBuf,
+        /// What the OS said.
+        #[source]
+        cause: std::io::Error,
+    },
+    /// The rig's mesh has no vertices to frame.
+    #[error("the rig's mesh is empty")]
+    EmptyMesh,
     /// The recording has no frames to play.
     #[error("the recording has no accepted frames")]
     NoFrames,

@@ -25,6 +25,16 @@ pub struct HeadlessReport {
     pub title: String,
 }
 
+impl HeadlessReport {
+    /// The two lines `mimic view --headless-frames` ends with: the counts, then the title.
+    pub fn summary(&self) -> String {
+        format!(
+            "mimic view: {} images, {} new frames, last frame {}, solver {}\n{}",
+            self.drawn, self.new_frames, self.last_frame, self.solver, self.title
+        )
+    }
+}
+
 /// Runs the viewer's loop for `frames` images (local), or until `frames` live frames were drawn or
 /// the connection closed (live, polling every `poll`): at iteration k (from 1) the k-th of `keys`
 /// is applied first. `step` is the simulated time between iterations of a local replay; a live

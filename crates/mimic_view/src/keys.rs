@@ -114,6 +114,20 @@ pub fn action_named(name: &str) -> Option<Action> {
         .map(|(_, a, _)| *a)
 }
 
+/// The actions of `--headless-keys` names, in order; a name bound to nothing is the error.
+pub fn actions_named(names: &[String]) -> Result<Vec<Action>, crate::ViewError> {
+    names
+        .iter()
+        .map(|k| {
+            action_named(k.trim()).ok_or_else(|| {
+                crate::ViewError::Option(format!(
+                    "--headless-keys: no key `{k}` (see mimic view --help)"
+                ))
+            })
+        })
+        .collect()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

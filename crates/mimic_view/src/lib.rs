@@ -26,6 +26,6 @@ pub mod window;
 pub use error::ViewError;
 pub use headless::{HeadlessReport, run_headless};
 pub use keys::{Action, HELP};
-pub use look::{Look, LookFor, upload_with_look};
+pub use look::{Look, LookFor, load_look, upload_with_look};
 pub use viewer::{LocalSetup, Options, Viewer};
 pub use window::run_window;

@@ -1,10 +1,40 @@
-//! How a rig is drawn (colours, hidden parts, textures) and its upload with that look.
+//! How a rig is drawn (colours, hidden parts, textures), read from its `[look]`
+//! ([`load_look`]), and its upload with that look.
 
 use crate::ViewError;
 use glam::Vec3;
 use mimic_render::{Renderer, RigGpu};
 use mimic_solve::Basis;
-use mimic_types::MeshTextures;
+use mimic_types::{MeshTextures, Rig};
+use std::path::Path;
+
+/// The look of `rig`, read from the rig file `rig_path` as its `[look]` says: its materials'
+/// colours and textures unless `materials` is off (skin colour then), and the parts hidden by
+/// `hide` (as `--hide` gives them: ranges or `none`) or else by the look.
+pub fn load_look(
+    rig_path: &Path,
+    rig: &Rig,
+    hide: Option<&str>,
+    materials: bool,
+) -> Result<Look, ViewError> {
+    let look = mimic_assets::load_rig_look(rig_path)?;
+    let (colors, textures) = if materials {
+        let (p, t) = (&rig.mesh.positions, &rig.mesh.triangles);
+        let skin = mimic_render::SKIN_ALBEDO;
+        (
+            mimic_assets::look_colors(rig_path, &look, p, t, skin)?,
+            mimic_assets::load_rig_textures(rig_path, &rig.mesh)?,
+        )
+    } else {
+        (None, None)
+    };
+    Ok(Look {
+        colors,
+        hidden: mimic_types::parse::parse_hidden(hide, &look)
+            .map_err(|e| ViewError::Option(format!("--hide {e}")))?,
+        textures,
+    })
+}
 
 /// How a rig is drawn: per-vertex colours, vertex ranges whose triangles are left out, textures.
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -1,14 +1,122 @@
 //! Still images of a replay (`mimic render`): the frames to draw ([`spread`] for a contact
 //! sheet), the shading a `--heat` name asks for ([`shading_named`]), the heat map's legend
 //! ([`legend`]), the replay drawn at chosen frames ([`render_stills`]), a plot of a frame's
-//! landmarks ([`landmark_plot`]) and the sheet of head and plot tiles ([`contact_sheet`]).
+//! landmarks ([`landmark_plot`]), the sheet of head and plot tiles ([`contact_sheet`]), and
+//! where the images go ([`StillsOut`]); and a rig's neutral with its regions coloured and its
+//! controls labelled ([`rig_picture`], `mimic rig check -o`; the drawing is `mimic_rig::picture`).
 
 use crate::ViewError;
 use glam::{Mat4, Vec3};
 use mimic_render::overlay::legend_ticks;
 use mimic_render::{Deform, Image, Overlay, Renderer, RigGpu, Shading, View};
 use mimic_retarget::Retargeter;
+use mimic_rig::picture::{Canvas, annotate, controlled_triangles, free_bounds, region_colors};
 use mimic_types::{ControlName, LandmarkFrame, Layout, Rig};
+use std::path::{Path, PathBuf};
+
+/// `rig`'s neutral drawn by `renderer` (of `width` x `height`): the controlled pieces only,
+/// coloured by region, framed on the free vertices, every control labelled.
+pub fn rig_picture(
+    renderer: &Renderer,
+    rig: &Rig,
+    (width, height): (u32, u32),
+) -> Result<Image, ViewError> {
+    let gpu = renderer.upload_rig(&rig.mesh.positions, &controlled_triangles(rig), None)?;
+    renderer.set_albedo(&gpu, &region_colors(rig))?;
+    let (lo, hi) = free_bounds(rig).ok_or(ViewError::EmptyMesh)?;
+    let view = View::lit(mimic_render::Camera::framing(lo, hi, 0.0, 0.0));
+    let mut image = renderer.render(&gpu, Deform::Rest, &view)?;
+    let view_proj = view.camera.view_proj(width as f32 / height as f32);
+    let rgba = &mut image.rgba;
+    annotate(
+        &mut Canvas {
+            width,
+            height,
+            rgba,
+        },
+        rig,
+        view_proj,
+    );
+    Ok(image)
+}
+
+/// The frames to render out of `total`: `n` spread for a sheet, else `frames`; a frame past the
+/// end is the error.
+pub fn wanted_frames(
+    sheet: Option<usize>,
+    frames: &[usize],
+    total: usize,
+) -> Result<Vec<usize>, ViewError> {
+    let wanted: Vec<usize> = match sheet {
+        Some(n) => spread(n, total),
+        None => frames.to_vec(),
+    };
+    if let Some(&bad) = wanted.iter().find(|&&f| f >= total) {
+        return Err(ViewError::Option(format!(
+            "frame {bad} is past the end: the recording has {total} accepted frames"
+        )));
+    }
+    Ok(wanted)
+}
+
+/// Where `mimic render` writes: frames as `frame_NNNNNN.png` in a folder, or one contact sheet
+/// (`sheet.png` in the folder, or the path itself when it names a `.png`).
+#[derive(Clone, Debug)]
+pub struct StillsOut {
+    out: PathBuf,
+    sheet_file: bool,
+}
+
+impl StillsOut {
+    /// The output `out` of frames, or with `sheet` of a contact sheet; its folder is created.
+    pub fn create(out: &Path, sheet: bool) -> Result<Self, ViewError> {
+        let sheet_file = sheet && out.extension().is_some_and(|e| e == "png");
+        let dir = if sheet_file {
+            out.parent().unwrap_or(Path::new("."))
+        } else {
+            out
+        };
+        if !dir.as_os_str().is_empty() {
+            std::fs::create_dir_all(dir).map_err(|cause| ViewError::Folder {
+                path: dir.to_path_buf(),
+                cause,
+            })?;
+        }
+        Ok(Self {
+            out: out.to_path_buf(),
+            sheet_file,
+        })
+    }
+
+    /// The file of frame `index`.
+    pub fn frame_path(&self, index: usize) -> PathBuf {
+        self.out.join(format!("frame_{index:06}.png"))
+    }
+
+    /// Writes the contact sheet of `images` (index into `frames`, head), each beside the plot of
+    /// its frame's landmarks (`layout`), tiles of `width` x `height`, `columns` pairs a row; the
+    /// file written.
+    pub fn write_sheet(
+        &self,
+        images: Vec<(usize, Image)>,
+        frames: &[&LandmarkFrame],
+        layout: &Layout,
+        columns: usize,
+        (width, height): (u32, u32),
+    ) -> Result<PathBuf, ViewError> {
+        let tiles: Vec<_> = images
+            .into_iter()
+            .map(|(i, image)| (image, landmark_plot(frames[i], layout, width, height)))
+            .collect();
+        let path = if self.sheet_file {
+            self.out.clone()
+        } else {
+            self.out.join("sheet.png")
+        };
+        contact_sheet(&tiles, columns, width, height).save_png(&path)?;
+        Ok(path)
+    }
+}
 
 /// Frames to render for a sheet of `n` out of `total`: evenly spread, first and last included.
 pub fn spread(n: usize, total: usize) -> Vec<usize> {

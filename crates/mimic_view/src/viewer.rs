@@ -15,7 +15,7 @@ use glam::{Mat4, Quat, Vec3};
 use mimic_render::{Deform, Overlay, Renderer, RigGpu, Shading, View};
 use mimic_retarget::{FrameLoop, RetargetSettings, Retargeter};
 use mimic_solve::{Basis, build_basis};
-use mimic_types::{LandmarkFrame, Layout, MorphTarget, Rig, SolverSettings};
+use mimic_types::{LandmarkFrame, Layout, MorphTarget, Rig, SolverKind, SolverSettings};
 use std::sync::mpsc;
 use std::time::{Duration, Instant};
 
@@ -52,6 +52,19 @@ pub struct LocalSetup {
     pub look: Look,
     /// The rig's morph targets: the first nine go on the number keys (may be empty).
     pub expressions: Vec<MorphTarget>,
+}
+
+impl LocalSetup {
+    /// The solver the `s` key switches to from `first`: the RBF and the Laplacian swap, the
+    /// thin shell goes to the RBF.
+    pub fn other_solver(first: &SolverSettings) -> SolverSettings {
+        let mut other = *first;
+        other.kind = match first.kind {
+            SolverKind::Rbf => SolverKind::Laplacian,
+            SolverKind::Laplacian | SolverKind::Shell => SolverKind::Rbf,
+        };
+        other
+    }
 }
 
 /// One solver of a local replay: its retargeter, its GPU rig and what it computed so far.
@@ -299,6 +312,23 @@ impl Viewer {
         );
         v.note = format!("waiting for session {session}");
         v
+    }
+
+    /// A viewer following `session` of the `mimic serve` at `addr` (with `token`, if any):
+    /// [`crate::client::connect`], then [`Viewer::live`] waiting for the session there.
+    pub fn connect(
+        addr: &str,
+        session: &str,
+        token: Option<&str>,
+        look_for: LookFor,
+        options: Options,
+    ) -> Result<Self, ViewError> {
+        let live =
+            crate::client::connect(addr, session, token).map_err(|cause| ViewError::Connect {
+                addr: addr.to_string(),
+                cause,
+            })?;
+        Ok(Self::live(live, session, look_for, options).with_address(addr))
     }
 
     /// The waiting note with the server's address: `waiting for session X on ADDR`.

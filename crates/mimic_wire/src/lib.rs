@@ -20,7 +20,7 @@ pub use hello::{
     Hello, HelloError, MAX_TOKEN_BYTES, SessionRequest, WeightFrame, WeightFrameError,
     WeightsHello, parse_hello, parse_hello_with_token, parse_weight_frame, valid_session_name,
 };
-pub use text::escape_untrusted;
+pub use text::{escape_untrusted, plain_lines};
 pub use udp::{UDP_HEADER_BYTES, UDP_MAGIC, UdpFrame, decode_udp_frame, encode_udp_frame};
 pub use viewer::{
     BasisRows, FRAME_FIXED_BYTES, FrameMessage, KIND_END, KIND_ERROR, KIND_FRAME, KIND_RIG,

@@ -1,5 +1,6 @@
 //! Untrusted text (a tracker's or a recording's header strings) made safe to print on a
-//! terminal: control characters and escape codes shown escaped, never interpreted.
+//! terminal: control characters and escape codes shown escaped, never interpreted; a JSON
+//! summary of such text as indented `key: value` lines ([`plain_lines`], `mimic info`).
 
 use std::borrow::Cow;
 use std::fmt::Write as _;
@@ -32,6 +33,41 @@ pub fn escape_untrusted(s: &str) -> Cow<'_, str> {
         }
     }
     Cow::Owned(out)
+}
+
+/// A JSON object as indented `key: value` lines (a nested object as `key:` and its lines two
+/// spaces in), every key and value escaped ([`escape_untrusted`]); anything but an object gives
+/// no lines.
+pub fn plain_lines(v: &serde_json::Value) -> String {
+    let mut out = String::new();
+    plain(v, 0, &mut out);
+    out
+}
+
+/// [`plain_lines`] of `v` at `indent` levels, appended to `out`.
+fn plain(v: &serde_json::Value, indent: usize, out: &mut String) {
+    use serde_json::Value;
+    let pad = "  ".repeat(indent);
+    if let Value::Object(map) = v {
+        for (k, val) in map {
+            let _ = match val {
+                Value::Object(_) => {
+                    let _ = writeln!(out, "{pad}{}:", escape_untrusted(k));
+                    plain(val, indent + 1, out);
+                    Ok(())
+                }
+                Value::String(s) => {
+                    writeln!(out, "{pad}{}: {}", escape_untrusted(k), escape_untrusted(s))
+                }
+                other => writeln!(
+                    out,
+                    "{pad}{}: {}",
+                    escape_untrusted(k),
+                    escape_untrusted(&other.to_string())
+                ),
+            };
+        }
+    }
 }
 
 #[cfg(test)]

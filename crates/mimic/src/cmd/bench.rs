@@ -123,7 +123,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.json {
         let report = json!({
             "rigs": reports,
-            "fit": fit.as_ref().map(|f| json!({"model": "candide3", "frames": f.frames, "lost": f.lost, "frames_per_second": f.frames_per_s, "median_residual_px": f.median_residual_px})),
+            "fit": fit.as_ref().map(FitSummary::json),
             "build": if cfg!(debug_assertions) { "debug (not representative)" } else { "release" },
         });
         println!(
@@ -131,10 +131,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             serde_json::to_string_pretty(&report).context("report")?
         );
     } else if let Some(f) = &fit {
-        println!(
-            "fit CANDIDE-3 to the recording: {:.0} frames/s ({} frames, median residual {:.2} px)",
-            f.frames_per_s, f.frames, f.median_residual_px
-        );
+        println!("{}", f.speed_line());
     }
     Ok(())
 }
@@ -150,11 +147,7 @@ fn fit_throughput(recording: &mimic_capture::Recording) -> anyhow::Result<Option
     let frames: Vec<CaptureFrame> = recording
         .frames
         .iter()
-        .map(|f| CaptureFrame {
-            landmarks: &f.frame,
-            label: f.label,
-            pixels: None,
-        })
+        .map(|f| CaptureFrame::without_pixels(&f.frame, f.label))
         .collect();
     let odd = mimic_fit::OddParts::default();
     let fit = fit_candide3(&configs, &recording.header.layout, &frames, odd)?;

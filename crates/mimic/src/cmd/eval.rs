@@ -1,15 +1,17 @@
 //! `mimic eval`: measure a solver against real expression meshes (the measure is
 //! `mimic_retarget::quality`, docs/quality.md).
 
-use crate::cmd::setup::{RigArgs, SolverChoice, SolverTuningArgs, parse_ranges, timed_basis};
+use crate::cmd::setup::{RigArgs, SolverChoice, SolverTuningArgs, timed_basis};
 use anyhow::{Context, bail};
 use mimic_assets::{load_morph_targets, load_obj};
 use mimic_retarget::quality::{
-    JitterReport, MorphEval, RigUnder, ShapeError, ShapesReport, error_csv, evaluate, jitter,
-    noise_gain,
+    JitterReport, MorphEval, RigUnder, ShapeError, ShapesReport, check_topology, error_csv,
+    evaluate, jitter, jitter_settings, noise_gain,
 };
+use mimic_rig::register::control_landmarks;
 use mimic_solve::Basis;
 use mimic_types::Rig;
+use mimic_types::parse::{VertexRanges, parse_vertex_ranges};
 use serde_json::json;
 use std::path::PathBuf;
 
@@ -44,8 +46,8 @@ pub struct Args {
     pub ridge: f64,
     /// Measure only these vertices (inclusive ranges such as `0-9408`, comma-separated); frozen
     /// vertices are always left out. Default: every non-frozen vertex.
-    #[arg(long, value_parser = parse_vertices)]
-    pub vertices: Option<Ranges>,
+    #[arg(long, value_parser = parse_vertex_ranges)]
+    pub vertices: Option<VertexRanges>,
     /// Also write `<shape>.errors.csv` per shape into this folder (vertex, rest position, error,
     /// true displacement), for plotting where the error is.
     #[arg(long)]
@@ -65,35 +67,11 @@ pub struct Args {
     pub write_rig: Option<PathBuf>,
 }
 
-/// Inclusive vertex index ranges.
-#[derive(Clone, Debug)]
-pub struct Ranges(Vec<(u32, u32)>);
-
-impl Ranges {
-    fn contains(&self, i: usize) -> bool {
-        self.0
-            .iter()
-            .any(|&(a, b)| (a as usize..=b as usize).contains(&i))
-    }
-}
-
-/// Parses `0-9408,11248-14061` (a single index is a range of one; backwards is an error).
-fn parse_vertices(text: &str) -> Result<Ranges, String> {
-    parse_ranges(text, false).map(Ranges)
-}
-
 /// Puts the `--controls` set on the rig (registered from its template), and writes the rig with
 /// it under `--write-rig`.
 fn apply_controls(args: &Args, rig: &mut Rig) -> anyhow::Result<()> {
     let rig_path = args.rig.rig_path();
-    let landmarks = args.landmarks.clone().or_else(|| {
-        let p = rig_path.with_extension("landmarks.json");
-        p.is_file().then_some(p)
-    });
-    let marks = match (&landmarks, args.controls.as_str()) {
-        (Some(p), "ibug68") => Some(mimic_rig::load_landmarks(p, Default::default())?),
-        _ => None,
-    };
+    let marks = control_landmarks(&rig_path, &args.controls, args.landmarks.as_deref())?;
     let registration = mimic_rig::register::apply_control_set(
         rig,
         &args.controls,
@@ -128,16 +106,7 @@ fn score_shapes(
         .collect();
     for path in &args.shapes {
         let mesh = load_obj(path)?;
-        if mesh.vertex_count() != rig.mesh.vertex_count() || mesh.triangles != rig.mesh.triangles {
-            bail!(
-                "{}: not the rig mesh's topology ({} vertices, {} triangles; the rig mesh has {} and {})",
-                path.display(),
-                mesh.vertex_count(),
-                mesh.triangles.len(),
-                rig.mesh.vertex_count(),
-                rig.mesh.triangles.len()
-            );
-        }
+        check_topology(path, &mesh, rig)?;
         let e = evaluate(rig, basis, blend, &mesh.positions, &measured)?;
         if let Some(w) = &e.weights {
             weights.insert(path.display().to_string(), json!(w));
@@ -209,14 +178,7 @@ fn run_jitter(args: &Args, rig: &Rig, basis: Basis, noise_gain: f64) -> anyhow::
             .rig
             .config_dirs()
             .load_layout_named(&rec.header.layout)?;
-        let settings = mimic_retarget::RetargetSettings {
-            filter: if args.no_filter {
-                None
-            } else {
-                mimic_retarget::RetargetSettings::default().filter
-            },
-            ..Default::default()
-        };
+        let settings = jitter_settings(!args.no_filter);
         let mut r = mimic_retarget::Retargeter::new(rig, &layout, basis.clone(), settings)
             .with_context(|| format!("{}: rig `{}`", path.display(), rig.name))?;
         let j = jitter(&mut r, rec.frames.iter().map(|f| &f.frame), &measured);

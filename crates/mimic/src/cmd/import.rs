@@ -7,13 +7,9 @@ use crate::cmd::setup::fit_candide3;
 use anyhow::Context;
 use clap::Subcommand;
 use mimic_assets::ConfigDirs;
-use mimic_capture::{Imported, RecordingWriter};
 use mimic_fit::OddParts;
-use mimic_fit::capture::{CaptureFrame, frame_fields};
-use mimic_trackers::gfe::FramePixels;
 use mimic_trackers::importer::{ImportOptions, importer};
-use std::io::BufWriter;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Model a capture can be fitted with.
 #[derive(clap::ValueEnum, Clone, Copy, Debug, PartialEq, Eq)]
@@ -114,8 +110,7 @@ pub enum ImportCommand {
 /// Runs an import subcommand: the tracker's row of `mimic_trackers::importer::IMPORTERS` reads
 /// the file; then the recording is written, or fitted first with `--fit`.
 pub fn run(c: ImportCommand) -> anyhow::Result<()> {
-    let mut o = ImportOptions::default();
-    let (name, input, output, fit, symmetric) = match &c {
+    let (name, mut o, input, output, fit, symmetric) = match &c {
         ImportCommand::Gfe {
             datapoints,
             targets,
@@ -125,10 +120,8 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             symmetric,
             raw_depth,
         } => {
-            o.targets = targets.as_deref();
-            o.source = source.as_deref();
-            o.raw_depth = *raw_depth;
-            ("gfe", datapoints, output, *fit, *symmetric)
+            let o = ImportOptions::gfe(targets.as_deref(), source.as_deref(), *raw_depth);
+            ("gfe", o, datapoints, output, *fit, *symmetric)
         }
         ImportCommand::Openface {
             csv,
@@ -139,9 +132,9 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             fit,
             symmetric,
         } => {
-            o.rate_hz = (!keep_timestamps).then_some(*rate);
-            o.source = source.as_deref();
-            ("openface", csv, output, *fit, *symmetric)
+            let rate = (!keep_timestamps).then_some(*rate);
+            let o = ImportOptions::openface(rate, source.as_deref());
+            ("openface", o, csv, output, *fit, *symmetric)
         }
         ImportCommand::Mediapipe {
             dump,
@@ -149,9 +142,8 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             fov_deg,
             source,
         } => {
-            o.fov_deg = *fov_deg;
-            o.source = source.as_deref();
-            ("mediapipe", dump, output, None, false)
+            let o = ImportOptions::mediapipe(*fov_deg, source.as_deref());
+            ("mediapipe", o, dump, output, None, false)
         }
         ImportCommand::Openseeface {
             capture,
@@ -160,10 +152,8 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             frame_times,
             source,
         } => {
-            o.face = *face;
-            o.frame_times = frame_times.as_deref();
-            o.source = source.as_deref();
-            ("openseeface", capture, output, None, false)
+            let o = ImportOptions::openseeface(*face, frame_times.as_deref(), source.as_deref());
+            ("openseeface", o, capture, output, None, false)
         }
     };
     o.for_fit = fit.is_some();
@@ -181,64 +171,14 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
         } else {
             OddParts::AfterPose
         };
-        return write_fitted(&import.imported, import.pixels.as_deref(), odd, output);
+        let configs = ConfigDirs::locate(None);
+        let layout = &import.imported.header.layout;
+        let fit = fit_candide3(&configs, layout, &import.capture_frames(), odd)?;
+        import.write_fitted(&fit, output)?;
+        println!("{}", fit.summary.said(output));
+        return Ok(());
     }
-    write(&import.imported, output)?;
+    import.write(output)?;
     println!("{}", import.imported.summary(output));
-    Ok(())
-}
-
-fn write(imported: &Imported, output: &Path) -> anyhow::Result<()> {
-    let file = std::fs::File::create(output)
-        .with_context(|| format!("{}: cannot create", output.display()))?;
-    imported
-        .write_to(BufWriter::new(file))
-        .with_context(|| format!("{}: cannot write", output.display()))?;
-    Ok(())
-}
-
-/// Fits CANDIDE-3 to an imported capture (with the tracker's pixels where it gave them), writes
-/// the `kinect121` recording with each frame's `fit` and prints the summary line.
-fn write_fitted(
-    imported: &Imported,
-    pixels: Option<&[FramePixels]>,
-    odd: OddParts,
-    output: &Path,
-) -> anyhow::Result<()> {
-    let frames: Vec<CaptureFrame> = imported
-        .frames
-        .iter()
-        .enumerate()
-        .map(|(i, f)| CaptureFrame {
-            landmarks: &f.frame,
-            label: f.label,
-            pixels: pixels.and_then(|p| p.get(i)).map(Vec::as_slice),
-        })
-        .collect();
-    let fit = fit_candide3(
-        &ConfigDirs::locate(None),
-        &imported.header.layout,
-        &frames,
-        odd,
-    )?;
-    let labelled = imported.frames.iter().any(|f| f.label.is_some());
-    let header = fit.recording_header(&imported.header, labelled);
-    let cannot_write = || format!("{}: cannot write", output.display());
-    let mut w = RecordingWriter::create(output, &header)
-        .with_context(|| format!("{}: cannot create", output.display()))?;
-    for ((frame, r), source) in fit.frames.iter().zip(&fit.results).zip(&imported.frames) {
-        w.write_frame_with_fields(frame, source.label, &frame_fields(r))
-            .with_context(cannot_write)?;
-    }
-    w.finish().with_context(cannot_write)?;
-    let s = &fit.summary;
-    println!(
-        "{}: {} frames fitted with CANDIDE-3 ({} lost), median residual {:.2} px, {:.0} frames/s, layout kinect121",
-        output.display(),
-        s.frames,
-        s.lost,
-        s.median_residual_px,
-        s.frames_per_s
-    );
     Ok(())
 }

@@ -4,7 +4,7 @@
 use anyhow::Context;
 use mimic_assets::{ConfigDirs, load_layout, load_rig};
 use mimic_rig::{LayoutSummary, RigSummary};
-use mimic_stream::wire::escape_untrusted;
+use mimic_stream::wire::{escape_untrusted, plain_lines};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -77,39 +77,11 @@ fn summarise(args: Args) -> anyhow::Result<()> {
     let text = if args.json {
         serde_json::to_string_pretty(&summary)? + "\n"
     } else {
-        let mut text = String::new();
-        plain(&summary, 0, &mut text);
-        text
+        plain_lines(&summary)
     };
     // A closed pipe (e.g. `| head`) is not an error of ours.
     let _ = std::io::Write::write_all(&mut std::io::stdout(), text.as_bytes());
     Ok(())
-}
-
-/// Renders a JSON object as indented `key: value` lines.
-fn plain(v: &Value, indent: usize, out: &mut String) {
-    use std::fmt::Write as _;
-    let pad = "  ".repeat(indent);
-    if let Value::Object(map) = v {
-        for (k, val) in map {
-            let _ = match val {
-                Value::Object(_) => {
-                    let _ = writeln!(out, "{pad}{}:", escape_untrusted(k));
-                    plain(val, indent + 1, out);
-                    Ok(())
-                }
-                Value::String(s) => {
-                    writeln!(out, "{pad}{}: {}", escape_untrusted(k), escape_untrusted(s))
-                }
-                other => writeln!(
-                    out,
-                    "{pad}{}: {}",
-                    escape_untrusted(k),
-                    escape_untrusted(&other.to_string())
-                ),
-            };
-        }
-    }
 }
 
 /// Validates a recording strictly (the first rejected frame is the error) and returns its summary.

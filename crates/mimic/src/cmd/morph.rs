@@ -2,11 +2,10 @@
 //! the checks are `mimic_rig::morph`).
 
 use crate::cmd::setup::load_rig_with_targets;
-use anyhow::{Context, bail};
+use anyhow::bail;
 use clap::Subcommand;
-use mimic_assets::{MORPH_FILE_DECIMALS, load_morph_file, save_morph_file, write_obj_frame};
-use mimic_retarget::{BlendshapeFitter, BlendshapeSettings, WeightMap};
-use mimic_rig::morph::{MorphCheck, MorphImport, WeightColumns};
+use mimic_assets::{MORPH_FILE_DECIMALS, load_morph_file, save_morph_file};
+use mimic_rig::morph::{MorphCheck, MorphImport, apply_csv};
 use std::path::{Path, PathBuf};
 
 /// Export and import of morph data files.
@@ -146,7 +145,7 @@ fn import(file: &Path, rig: &str, configs: Option<&Path>, as_json: bool) -> anyh
     Ok(())
 }
 
-/// `mimic morph apply`: meshes from a CSV of named weights.
+/// `mimic morph apply`: meshes from a CSV of named weights (`mimic_rig::morph::apply_csv`).
 fn apply(
     weights: &Path,
     rig: &str,
@@ -155,56 +154,7 @@ fn apply(
     every: usize,
 ) -> anyhow::Result<()> {
     let (rig, targets) = load_rig_with_targets(rig, configs)?;
-    let fitter = BlendshapeFitter::new(&rig, &targets, &BlendshapeSettings::default())
-        .with_context(|| format!("blendshapes of rig `{}`", rig.name))?;
-    let map = WeightMap::new(fitter.names());
-    let csv = mimic_capture::named_csv::read_named_csv(weights)?;
-    let columns = WeightColumns::new(&csv.header, &map, fitter.target_count());
-    if columns.used.is_empty() {
-        bail!(
-            "{}: no column names a target of rig `{}` ({})",
-            weights.display(),
-            rig.name,
-            fitter.names().join(", ")
-        );
-    }
-    std::fs::create_dir_all(out).with_context(|| out.display().to_string())?;
-    let mut w = vec![0f32; fitter.target_count()];
-    let mut positions = rig.mesh.positions.clone();
-    let (mut frames, mut written) = (0usize, 0usize);
-    for row in &csv.rows {
-        columns
-            .weights(&csv.header, &map, |c| row.field(c), &mut w)
-            .map_err(|c| {
-                anyhow::anyhow!(
-                    "{}:{}: column `{}`: `{}` is not a number",
-                    weights.display(),
-                    row.line,
-                    csv.header[c],
-                    row.field(c)
-                )
-            })?;
-        if frames.is_multiple_of(every.max(1)) {
-            fitter.evaluate(&w, &mut positions, &mut []);
-            let header = format!("mimic morph apply onto rig {}: frame {frames}", rig.name);
-            write_obj_frame(out, frames, &header, &positions, &rig.mesh.triangles)?;
-            written += 1;
-        }
-        frames += 1;
-    }
-    let names =
-        |cols: &[usize]| -> Vec<&str> { cols.iter().map(|&c| csv.header[c].as_str()).collect() };
-    let ignored = names(&columns.ignored);
-    println!(
-        "{}: {frames} frames, {written} written to {}; columns used: {}; ignored: {}",
-        weights.display(),
-        out.display(),
-        names(&columns.used).join(" "),
-        if ignored.is_empty() {
-            "none".to_string()
-        } else {
-            ignored.join(" ")
-        }
-    );
+    let applied = apply_csv(&rig, &targets, weights, out, every)?;
+    println!("{}", applied.summary(weights, out));
     Ok(())
 }

@@ -1,17 +1,13 @@
 //! `mimic render`: frames of a recording retargeted onto a rig, rendered headless to PNG (the
 //! drawing is `mimic_view::stills`).
 
-use crate::cmd::setup::{
-    PipelineArgs, RigArgs, parse_size, prepare_with, quiet_headless_vulkan, rig_look,
-};
+use crate::cmd::setup::{PipelineArgs, RigArgs, parse_size, prepare_with, quiet_headless_vulkan};
 use anyhow::{Context, bail};
 use mimic_capture::RecordingReader;
 use mimic_render::{Camera, Renderer, View};
-use mimic_retarget::RetargetSettings;
-use mimic_view::stills::{
-    Stills, contact_sheet, landmark_plot, legend, render_stills, shading_named, spread,
-};
-use std::path::{Path, PathBuf};
+use mimic_view::load_look;
+use mimic_view::stills::{Stills, StillsOut, legend, render_stills, shading_named, wanted_frames};
+use std::path::PathBuf;
 
 /// Arguments of `mimic render`.
 #[derive(clap::Args, Debug)]
@@ -68,14 +64,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
     let mut reader = RecordingReader::open(&args.recording, None)?;
     // The GPU computes u = B d and the normals: the pipeline only needs d.
-    let settings = RetargetSettings {
-        positions: false,
-        normals: false,
-        ..args.pipeline.settings()
-    };
+    let settings = args.pipeline.settings().displacements_only();
     let mut prepared = prepare_with(&args.rig, settings, &reader.header().layout)?;
     let rig = &prepared.rig;
-    let look = rig_look(&args.rig, rig, args.hide.as_deref(), !args.no_materials)?;
+    let path = args.rig.rig_path();
+    let look = load_look(&path, rig, args.hide.as_deref(), !args.no_materials)?;
     let (lo, hi) = rig.mesh.bounds().context("the rig's mesh is empty")?;
     let shading = shading_named(rig, args.heat.as_deref(), args.heat_scale)?;
     let renderer = Renderer::new(width, height)?;
@@ -96,25 +89,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if rejected > 0 {
         tracing::warn!(rejected, "lines rejected by the reader were skipped");
     }
-    let wanted: Vec<usize> = match args.sheet {
-        Some(n) => spread(n, frames.len()),
-        None => args.frames.clone(),
-    };
-    if let Some(&bad) = wanted.iter().find(|&&f| f >= frames.len()) {
-        bail!(
-            "frame {bad} is past the end: the recording has {} accepted frames",
-            frames.len()
-        );
-    }
-    let sheet_file = args.sheet.is_some() && args.out.extension().is_some_and(|e| e == "png");
-    let dir = if sheet_file {
-        args.out.parent().unwrap_or(Path::new(".")).to_path_buf()
-    } else {
-        args.out.clone()
-    };
-    if !dir.as_os_str().is_empty() {
-        std::fs::create_dir_all(&dir).with_context(|| format!("creating {}", dir.display()))?;
-    }
+    let wanted = wanted_frames(args.sheet, &args.frames, frames.len())?;
+    let out = StillsOut::create(&args.out, args.sheet.is_some())?;
     let mut stills = Stills {
         renderer: &renderer,
         gpu: &gpu,
@@ -126,27 +102,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let images = render_stills(&mut stills, &mut prepared.retargeter, &frames, &wanted)?;
     if args.sheet.is_none() {
         for (index, image) in &images {
-            let path = args.out.join(format!("frame_{index:06}.png"));
+            let path = out.frame_path(*index);
             image.save_png(&path)?;
             println!("{}", path.display());
         }
         return Ok(());
     }
-    let tiles: Vec<_> = images
-        .into_iter()
-        .map(|(i, image)| {
-            (
-                image,
-                landmark_plot(frames[i], &prepared.layout, width, height),
-            )
-        })
-        .collect();
-    let path = if sheet_file {
-        args.out.clone()
-    } else {
-        args.out.join("sheet.png")
-    };
-    contact_sheet(&tiles, args.columns, width, height).save_png(&path)?;
+    let layout = &prepared.layout;
+    let path = out.write_sheet(images, &frames, layout, args.columns, (width, height))?;
     let list: Vec<String> = wanted.iter().map(usize::to_string).collect();
     println!("{} (frames {})", path.display(), list.join(","));
     Ok(())

@@ -12,6 +12,7 @@ use anyhow::{Context, bail};
 use indicatif::{ProgressBar, ProgressStyle};
 use mimic_assets::load_morph_targets;
 use mimic_capture::{FileSource, Pace, RecordingReader, Replay, ReplayOptions};
+use mimic_retarget::summary::ReplaySummary;
 use mimic_retarget::{BlendshapeFitter, FrameLoop};
 use std::io::IsTerminal;
 use std::path::PathBuf;
@@ -166,19 +167,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     })?;
     let wall_s = wall.elapsed().as_secs_f64();
     let retargeter = frames.retargeter().context("a landmark loop")?;
-    let run = summary::Run {
-        stats: retargeter.stats(),
-        moving_vertices: retargeter.moving_vertex_count(),
-        source_to_target: retargeter.source_to_target().copied(),
-        read: replay.source().reader().stats().clone(),
+    let summary = ReplaySummary {
+        recording: &args.recording,
         layout,
+        rig: rig.name.clone(),
         solver,
         basis_time,
+        moving_vertices: retargeter.moving_vertex_count(),
+        read: summary::read_figures(replay.source().reader().stats())?,
+        stats: retargeter.stats(),
+        source_to_target: retargeter.source_to_target().copied(),
         wall_s,
+        out: args.out.as_deref(),
     };
     let report = frames.finish()?;
     bar.finish_and_clear();
-    summary::print(&args, &rig, run, report)
+    summary::print(&args, &summary, report)
 }
 
 /// The blend-shape fit of `--mode blendshapes` for `rig` and the rig's morph targets, or

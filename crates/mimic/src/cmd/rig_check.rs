@@ -1,11 +1,9 @@
 //! `mimic rig check`: warnings about a rig, and a labelled picture of its neutral (logic in
-//! `mimic_rig::check` and `mimic_rig::picture`; drawn by `mimic_render`).
+//! `mimic_rig::check` and `mimic_rig::picture`; drawn by `mimic_view::stills::rig_picture`).
 
 use crate::cmd::setup::{load_rig_with_targets, parse_size};
-use anyhow::Context;
 use mimic_assets::ConfigDirs;
-use mimic_render::{Camera, Deform, Renderer, View};
-use mimic_rig::picture::{Canvas, annotate, controlled_triangles, free_bounds, region_colors};
+use mimic_render::Renderer;
 use std::path::PathBuf;
 
 /// Arguments of `mimic rig check`.
@@ -36,21 +34,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(out) = &args.output {
         let (width, height) = parse_size(&args.size)?;
         let renderer = Renderer::new(width, height)?;
-        let gpu = renderer.upload_rig(&rig.mesh.positions, &controlled_triangles(&rig), None)?;
-        renderer.set_albedo(&gpu, &region_colors(&rig))?;
-        let (lo, hi) = free_bounds(&rig).context("the rig's mesh is empty")?;
-        let view = View::lit(Camera::framing(lo, hi, 0.0, 0.0));
-        let mut image = renderer.render(&gpu, Deform::Rest, &view)?;
-        let view_proj = view.camera.view_proj(width as f32 / height as f32);
-        annotate(
-            &mut Canvas {
-                width,
-                height,
-                rgba: &mut image.rgba,
-            },
-            &rig,
-            view_proj,
-        );
+        let image = mimic_view::stills::rig_picture(&renderer, &rig, (width, height))?;
         image.save_png(out)?;
     }
     if args.json {

@@ -4,9 +4,10 @@
 
 use anyhow::Context;
 use mimic_stream::send::{
-    DEFAULT_SUBJECT, SendOptions, TakeSender, TcpSent, send_openseeface, send_recording,
-    send_take_udp, send_weights,
+    DEFAULT_SUBJECT, SendOptions, TakeSender, TcpSent, recording_bye, send_openseeface,
+    send_recording, send_take_udp, send_weights, weights_bye,
 };
+use mimic_types::parse::parse_factor;
 use serde_json::Value;
 use std::path::PathBuf;
 
@@ -73,18 +74,6 @@ pub struct Args {
 /// is printed) before everything was sent.
 pub const EXIT_SERVER_ENDED: u8 = 3;
 
-/// `--speed` and `--rate`: a positive factor or rate in [1e-3, 1e6].
-fn parse_factor(text: &str) -> Result<f64, String> {
-    let v: f64 = text
-        .trim()
-        .parse()
-        .map_err(|_| format!("`{text}` is not a number"))?;
-    if !(1e-3..=1e6).contains(&v) {
-        return Err(format!("{text} is out of range: 0.001 to 1000000"));
-    }
-    Ok(v)
-}
-
 /// Runs `mimic send`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     // Socket writes after the server closed must come back as errors (to report its `bye`),
@@ -127,16 +116,12 @@ fn recording(args: &Args, o: &SendOptions) -> anyhow::Result<()> {
     let recording = args.recording.clone().context("no recording given")?;
     let Some(addr) = args.openseeface else {
         let r = send_recording(&recording, o)?;
-        return report(r, "frames", &o.to, |b| {
-            let (f, l, m, why) = (&b["frames"], &b["late"], &b["malformed"], &b["reason"]);
-            format!("{f} frames retargeted, {l} late, {m} malformed ({why})")
-        });
+        return report(r, "frames", &o.to, recording_bye);
     };
     let u = send_openseeface(&recording, addr, o)?;
-    let (n, t, span) = (u.sent, u.elapsed_s, u.span_s);
-    let speed = args.speed;
     println!(
-        "sent {n} OpenSeeFace datagrams to {addr} in {t:.3} s (recording {span:.3} s, speed {speed})"
+        "{}",
+        u.said("OpenSeeFace datagrams", addr, "recording", args.speed)
     );
     Ok(())
 }
@@ -146,54 +131,26 @@ fn take(args: &Args, csv: &std::path::Path, o: &SendOptions) -> anyhow::Result<(
     if let Some(addr) = args.livelink {
         let u = send_take_udp(csv, addr, o)?;
         let subject = args.session.as_deref().unwrap_or(DEFAULT_SUBJECT);
-        let (n, t, span, speed) = (u.sent, u.elapsed_s, u.span_s, args.speed);
-        println!(
-            "sent {n} Live Link packets (subject `{subject}`) to {addr} in {t:.3} s (take {span:.3} s, speed {speed})"
-        );
+        let what = format!("Live Link packets (subject `{subject}`)");
+        println!("{}", u.said(&what, addr, "take", args.speed));
         return Ok(());
     }
     let take = TakeSender::open(csv, args.namemap.as_deref(), o)?;
-    if !take.lacking.is_empty() {
-        let (rig, k, all) = (&take.rig, take.lacking.len(), take.names());
-        let names = take.lacking.join(", ");
-        println!(
-            "rig `{rig}` has no morph target for {k} of the take's {all} names (not sent): {names}"
-        );
+    if let Some(line) = take.lacking_line() {
+        println!("{line}");
     }
     let t = take.send()?;
-    let (sent, paced, due) = (t.tcp.sent, t.paced_s, t.last_due_s);
-    let (rows, none, secs, fps) = (t.rows, t.untracked, t.duration_s, t.timecode_rate);
-    println!(
-        "take {}: {rows} rows ({none} with no face, not sent), {secs:.3} s at {fps} fps timecode; sent {sent} weight frames in {paced:.3} s (due {due:.3} s)",
-        csv.display()
-    );
+    println!("{}", t.said(csv));
     if let Some(b) = &t.tcp.bye {
         println!("server: {}", weights_bye(b));
     }
     ended_early(t.tcp)
 }
 
-/// A weights session's `bye` as printed.
-fn weights_bye(b: &Value) -> String {
-    let (f, l, m, u, why) = (
-        &b["frames"],
-        &b["late"],
-        &b["malformed"],
-        &b["unknown_weights"],
-        &b["reason"],
-    );
-    format!("{f} frames, {l} late, {m} malformed, {u} unknown weight names ({why})")
-}
-
 /// Prints what a TCP session's send did (`server` words its `bye`), then [`ended_early`].
 fn report(r: TcpSent, frames: &str, to: &str, server: fn(&Value) -> String) -> anyhow::Result<()> {
-    let sent = r.sent;
-    match &r.bye {
-        Some(b) => println!("sent {sent} {frames} to {to}; server: {}", server(b)),
-        None if r.write_failed.is_none() => {
-            println!("sent {sent} {frames} to {to}; no reply from the server");
-        }
-        None => {}
+    if let Some(line) = r.said(frames, to, server) {
+        println!("{line}");
     }
     ended_early(r)
 }

@@ -3,7 +3,8 @@
 use crate::cmd::setup::{PipelineArgs, RigArgs, parse_seconds};
 use anyhow::Context;
 use mimic_stream::launch::{self, Listeners};
-use mimic_stream::{DEFAULT_LISTEN, RecordMode, Server, ServerSettings, check_bind};
+use mimic_stream::{DEFAULT_LISTEN, RecordMode, Server, ServerSettings, check_binds};
+use mimic_types::parse::parse_listen_addr;
 use std::io::Write;
 use std::net::SocketAddr;
 use std::path::PathBuf;
@@ -43,7 +44,7 @@ pub struct Args {
     /// sessions at `/`, a session in 3D at `/view/SESSION` (three.js, shipped in the binary),
     /// its rig at `/rig/SESSION.glb`, frames over the WebSocket `/ws/SESSION` (docs/browser.md).
     /// Off without this flag; beyond loopback it needs `--token` like every listener.
-    #[arg(long, value_name = "ADDR", value_parser = parse_http_addr)]
+    #[arg(long, value_name = "ADDR", value_parser = parse_listen_addr)]
     pub http: Option<SocketAddr>,
     /// A host name (besides loopback names and the listener's addresses) the browser endpoint
     /// answers in a request's `Host` (repeatable, or comma-separated); others get 421.
@@ -180,10 +181,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Protected mode first: no rig is loaded for a server that may not start.
     let token = crate::cmd::setup::token_or_env(args.token.as_deref());
     let t = token.as_deref();
-    check_bind("TCP", args.listen, t)?;
-    if !args.no_udp {
-        check_bind("UDP", args.udp.unwrap_or(args.listen), t)?;
-    }
+    let udp = (!args.no_udp).then(|| args.udp.unwrap_or(args.listen));
     // The trackers' own protocols carry no token: beyond loopback they need one all the same
     // (an operator's explicit choice), and are warned about when bound.
     let more = [
@@ -191,11 +189,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ("Live Link Face UDP", args.livelink),
         ("HTTP", args.http),
     ];
-    for (what, addr) in more {
-        if let Some(addr) = addr {
-            check_bind(what, addr, t)?;
-        }
-    }
+    check_binds(args.listen, udp, &more, t)?;
     let (catalog, rig_paths) = crate::cmd::setup::build_catalog(&args.rig, &args.also_rig)?;
     let web = mimic_stream::HttpSettings {
         skin: mimic_render::SKIN_ALBEDO,
@@ -247,21 +241,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("{}", serde_json::to_string_pretty(&stats)?);
         return Ok(());
     }
-    println!(
-        "mimic serve: {} connections, {} sessions; latency p50 {} us, p99 {} us; {} frames dropped for slow viewers",
-        stats.connections,
-        stats.sessions.len(),
-        stats.latency.p50_us,
-        stats.latency.p99_us,
-        stats.viewer_frames_dropped
-    );
+    println!("{}", stats.summary());
     if let Some(dir) = &args.record {
-        let recorded: u64 = stats.sessions.iter().map(|s| s.recorded).sum();
-        let lost: u64 = stats.sessions.iter().map(|s| s.record_lost).sum();
-        println!(
-            "mimic serve: {recorded} frames recorded in {} ({lost} not recorded)",
-            dir.display()
-        );
+        println!("{}", stats.record_summary(dir));
     }
     Ok(())
 }
@@ -291,13 +273,7 @@ fn settings(args: &Args, token: Option<String>) -> anyhow::Result<ServerSettings
         record_dir: launch::record_dir(args.record.as_deref())?,
         token,
         record_queue_frames: args.record_queue.max(1),
-        record_mode: if args.record_sync {
-            RecordMode::Synced
-        } else if args.record_queued {
-            RecordMode::Queued
-        } else {
-            RecordMode::Written
-        },
+        record_mode: RecordMode::from_flags(args.record_sync, args.record_queued),
         retarget: args.pipeline.settings(),
         openseeface: launch::bind_tracker_udp(args.openseeface, "--openseeface", &args.udp_allow)?,
         livelink: launch::livelink_intake(
@@ -314,13 +290,4 @@ fn settings(args: &Args, token: Option<String>) -> anyhow::Result<ServerSettings
         udp_allow: args.udp_allow.clone(),
         ..ServerSettings::default()
     })
-}
-
-/// `--http`: an address, or a port alone for loopback (`8080` is `127.0.0.1:8080`).
-fn parse_http_addr(s: &str) -> Result<SocketAddr, String> {
-    if let Ok(port) = s.parse::<u16>() {
-        return Ok(SocketAddr::from(([127, 0, 0, 1], port)));
-    }
-    s.parse()
-        .map_err(|_| format!("`{s}` is neither a port nor an address like 127.0.0.1:8080"))
 }

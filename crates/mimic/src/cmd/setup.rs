@@ -1,5 +1,5 @@
-//! Options and setup shared by the subcommands: rig, layout, solver and pipeline flags, the
-//! rig's look, output naming, the CANDIDE-3 model.
+//! Options and setup shared by the subcommands: rig, layout, solver and pipeline flags, output
+//! naming, the CANDIDE-3 model (a rig's look is `mimic_view::load_look`).
 
 use anyhow::{Context, bail};
 use mimic_assets::{ConfigDirs, load_morph_targets, load_rig};
@@ -130,7 +130,12 @@ pub fn timed_basis(rig: &Rig, settings: &SolverSettings) -> anyhow::Result<(Basi
     Ok((basis, t.elapsed()))
 }
 
-pub use mimic_types::parse::{parse_ranges, parse_seconds, parse_seconds_f32};
+pub use mimic_types::parse::{parse_seconds, parse_seconds_f32};
+
+/// Parses `WIDTHxHEIGHT` (`mimic_types::parse::parse_size`).
+pub fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
+    mimic_types::parse::parse_size(s).map_err(anyhow::Error::msg)
+}
 pub use tuning::SolverTuningArgs;
 
 /// The warning `--f16-weights` prints (once): the f16 weights are gone from the deform.
@@ -274,48 +279,6 @@ impl BlendshapeArgs {
             },
         }
     }
-}
-
-/// Parses `WIDTHxHEIGHT`.
-pub fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
-    let (w, h) = s
-        .split_once('x')
-        .with_context(|| format!("--size `{s}`: expected WIDTHxHEIGHT, e.g. 512x512"))?;
-    Ok((
-        w.trim()
-            .parse()
-            .with_context(|| format!("--size width `{w}`"))?,
-        h.trim()
-            .parse()
-            .with_context(|| format!("--size height `{h}`"))?,
-    ))
-}
-
-/// Colours, textures and hidden parts of the rig `rig_args` names, as its `[look]` says (`hide` and
-/// `materials` as `--hide` and not `--no-materials` give them).
-pub fn rig_look(
-    rig_args: &RigArgs,
-    rig: &Rig,
-    hide: Option<&str>,
-    materials: bool,
-) -> anyhow::Result<mimic_view::Look> {
-    let path = rig_args.rig_path();
-    let look = mimic_assets::load_rig_look(&path)?;
-    let (colors, textures) = if materials {
-        let (p, t) = (&rig.mesh.positions, &rig.mesh.triangles);
-        (
-            mimic_assets::look_colors(&path, &look, p, t, mimic_render::SKIN_ALBEDO)?,
-            mimic_assets::load_rig_textures(&path, &rig.mesh)?,
-        )
-    } else {
-        (None, None)
-    };
-    Ok(mimic_view::Look {
-        colors,
-        hidden: mimic_types::parse::parse_hidden(hide, &look)
-            .map_err(|e| anyhow::anyhow!("--hide {e}"))?,
-        textures,
-    })
 }
 
 /// Fits CANDIDE-3 (`configs/models/candide3/candide3.wfm`) to a capture in the layout named

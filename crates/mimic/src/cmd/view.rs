@@ -1,13 +1,11 @@
 //! `mimic view`: a window replaying a recording through the retargeter, or following a live
 //! `mimic serve` session (`--connect`), drawn with the GPU morph (`crates/mimic_view`).
 
-use crate::cmd::setup::{PipelineArgs, RigArgs, parse_size, rig_look};
-use anyhow::{Context, bail};
+use crate::cmd::setup::{PipelineArgs, RigArgs, parse_size};
+use anyhow::bail;
 use mimic_capture::RecordingReader;
 use mimic_render::Renderer;
-use mimic_retarget::RetargetSettings;
-use mimic_types::SolverKind;
-use mimic_view::{Action, HELP, LocalSetup, Look, LookFor, Options, Viewer};
+use mimic_view::{HELP, LocalSetup, Look, LookFor, Options, Viewer, load_look};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
@@ -74,12 +72,6 @@ pub struct Args {
 
 /// The viewer following a live `mimic serve` session at `addr`.
 fn live_viewer(args: &Args, addr: &str, options: Options) -> anyhow::Result<Viewer> {
-    let live = mimic_view::client::connect(
-        addr,
-        &args.session,
-        crate::cmd::setup::token_or_env(args.token.as_deref()).as_deref(),
-    )
-    .with_context(|| format!("connecting to {addr}"))?;
     // Colour a live rig with the local configs' materials when they have that rig.
     let (rig_args, hide, materials) = (args.rig.clone(), args.hide.clone(), !args.no_materials);
     let look_for: LookFor = Box::new(move |name: &str, n: usize| {
@@ -89,7 +81,8 @@ fn live_viewer(args: &Args, addr: &str, options: Options) -> anyhow::Result<View
         };
         match local.load_rig() {
             Ok(rig) if rig.mesh.vertex_count() == n => {
-                rig_look(&local, &rig, hide.as_deref(), materials).unwrap_or_else(|e| {
+                let path = local.rig_path();
+                load_look(&path, &rig, hide.as_deref(), materials).unwrap_or_else(|e| {
                     tracing::warn!("rig `{name}`: {e:#}; drawing it in skin colour");
                     Look::default()
                 })
@@ -97,7 +90,15 @@ fn live_viewer(args: &Args, addr: &str, options: Options) -> anyhow::Result<View
             _ => Look::default(),
         }
     });
-    Ok(Viewer::live(live, &args.session, look_for, options).with_address(addr))
+    let token = crate::cmd::setup::token_or_env(args.token.as_deref());
+    let session = &args.session;
+    Ok(Viewer::connect(
+        addr,
+        session,
+        token.as_deref(),
+        look_for,
+        options,
+    )?)
 }
 
 /// The viewer replaying `recording` locally.
@@ -109,11 +110,6 @@ fn local_viewer(args: &Args, recording: &Path, options: Options) -> anyhow::Resu
         .load_layout_named(&reader.header().layout)?;
     let rig = args.rig.load_rig()?;
     let (basis, first, _) = args.rig.build_basis(&rig)?;
-    let mut other = first;
-    other.kind = match first.kind {
-        SolverKind::Rbf => SolverKind::Laplacian,
-        SolverKind::Laplacian | SolverKind::Shell => SolverKind::Rbf,
-    };
     // Lines the reader rejects are skipped, as `mimic render` does.
     reader.expect_points(layout.point_count)?;
     let frames = reader
@@ -122,21 +118,18 @@ fn local_viewer(args: &Args, recording: &Path, options: Options) -> anyhow::Resu
         .into_iter()
         .map(|f| f.frame)
         .collect();
-    let look = rig_look(&args.rig, &rig, args.hide.as_deref(), !args.no_materials)?;
+    let path = args.rig.rig_path();
+    let look = load_look(&path, &rig, args.hide.as_deref(), !args.no_materials)?;
     // The GPU computes u = B d and the normals: the pipeline only needs d.
-    let settings = RetargetSettings {
-        positions: false,
-        normals: false,
-        ..args.pipeline.settings()
-    };
+    let settings = args.pipeline.settings().displacements_only();
     // The rig's morph targets go on the number keys 1-9.
-    let expressions = mimic_assets::load_morph_targets(&args.rig.rig_path(), &rig)?;
+    let expressions = mimic_assets::load_morph_targets(&path, &rig)?;
     let setup = LocalSetup {
         rig,
         layout,
         settings,
         first: (first, basis),
-        other,
+        other: LocalSetup::other_solver(&first),
         frames,
         look,
         expressions,
@@ -150,14 +143,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         crate::cmd::setup::quiet_headless_vulkan();
     }
     let (width, height) = parse_size(&args.size)?;
-    let keys: Vec<Action> = args
-        .headless_keys
-        .iter()
-        .map(|k| {
-            mimic_view::keys::action_named(k.trim())
-                .with_context(|| format!("--headless-keys: no key `{k}` (see mimic view --help)"))
-        })
-        .collect::<anyhow::Result<_>>()?;
+    let keys = mimic_view::keys::actions_named(&args.headless_keys)?;
     let options = Options {
         pose: args.pose,
         heat: args.heat,
@@ -189,10 +175,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let (Some(path), Some(image)) = (&args.headless_out, &report.image) {
         image.save_png(path)?;
     }
-    println!(
-        "mimic view: {} images, {} new frames, last frame {}, solver {}",
-        report.drawn, report.new_frames, report.last_frame, report.solver
-    );
-    println!("{}", report.title);
+    println!("{}", report.summary());
     Ok(())
 }

@@ -63,10 +63,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if args.json {
         println!("{}", serde_json::to_string_pretty(&stats)?);
     } else {
-        println!(
-            "mimic worker: {} sessions taken ({} resumed), {} frames",
-            stats.sessions_taken, stats.sessions_resumed, stats.frames
-        );
+        println!("{}", stats.summary());
     }
     Ok(())
 }

@@ -82,14 +82,7 @@ pub(super) fn add(
             WeightsFormat::Livelink => WeightsLayout::LiveLink,
         };
         let csv = WeightsCsv::create(p, layout, &names, &args.namemap_path())?;
-        let lacking = csv.lacking();
-        if !lacking.is_empty() {
-            let line = format!(
-                "{}: {} of the 52 curves have no morph target in the rig (written 0): {}",
-                p.display(),
-                lacking.len(),
-                lacking.join(", ")
-            );
+        if let Some(line) = csv.lacking_line(p) {
             // With --json, stdout holds only the summary.
             if args.json {
                 eprintln!("{line}");

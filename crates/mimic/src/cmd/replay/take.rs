@@ -34,14 +34,11 @@ pub fn run(args: &Args) -> anyhow::Result<()> {
     let tw = take_weights(&take, &map);
     let mut onto = TakeOntoRig::new(&take, &tw, &names);
     let lacking = onto.lacking();
-    if !lacking.is_empty() && !args.json {
-        println!(
-            "rig `{}` has no morph target for {} of the take's {} names (ignored): {}",
-            rig.name,
-            lacking.len(),
-            tw.targets.len(),
-            lacking.join(", ")
-        );
+    if let Some(line) = onto
+        .lacking_line(&rig.name, &lacking)
+        .filter(|_| !args.json)
+    {
+        println!("{line}");
     }
     let header = format!("mimic replay of a Live Link take onto rig {}", rig.name);
     let mut frames = FrameLoop::weights(&rig.mesh.positions, fitter);
