@@ -5,6 +5,9 @@ use std::path::PathBuf;
 /// A file that could not be read or does not hold together.
 #[derive(Debug, thiserror::Error)]
 pub enum AssetError {
+    /// An avatar file (glTF, GLB, VRM) that does not read: its one-line error.
+    #[error("{0}")]
+    Avatar(#[from] mimic_avatar::AvatarError),
     /// The file could not be opened or read.
     #[error("{}: {cause}", path.display())]
     Io {

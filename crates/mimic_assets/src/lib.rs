@@ -1,9 +1,10 @@
-//! Files for mimic: OBJ meshes (through tobj), landmark layouts and target rigs from `configs/`.
+//! Files for mimic: OBJ meshes (through tobj) and avatar faces (through mimic_avatar), landmark layouts and target rigs from `configs/`.
 //!
 //! Entry points: [`load_obj`], [`write_obj`], [`load_layout`], [`load_rig`], [`ConfigDirs`].
 //! Every error is an [`AssetError`] that names the file and, where the problem sits on a line,
 //! that line. This crate knows nothing of recordings (that is `mimic_capture`) or solvers.
 
+mod avatar_rig;
 mod error;
 mod frames;
 mod layout;
@@ -18,6 +19,7 @@ mod sinks;
 mod span;
 mod texture;
 
+pub use avatar_rig::{AvatarSection, RigAvatar, load_rig_avatar, read_avatar_face};
 pub use error::AssetError;
 pub use frames::{FRAMES_MAGIC, FRAMES_VERSION, FrameRecord, FramesReader, FramesWriter};
 pub use layout::{ConfigDirs, load_layout, parse_layout};

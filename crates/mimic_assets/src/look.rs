@@ -28,7 +28,8 @@ pub fn load_rig_look(rig_path: &Path) -> Result<RigLook, AssetError> {
 /// `Kd`, except `skin` for the look's skin materials and for vertices of no material, and the
 /// look's eyeballs coloured from their front (+z from the centre of their vertices): within
 /// [`PUPIL_DEGREES`] the pupil, within [`IRIS_DEGREES`] the eyeball material's `Kd`, the rest the
-/// white's. `None` when the mesh names no materials.
+/// white's. `None` when the mesh names no materials. An avatar's face gives its own colours
+/// (`COLOR_0` times the base colour).
 pub fn look_colors(
     rig_path: &Path,
     look: &RigLook,
@@ -36,6 +37,18 @@ pub fn look_colors(
     triangles: &[[u32; 3]],
     skin: [f32; 3],
 ) -> Result<Option<Vec<[f32; 3]>>, AssetError> {
+    if let Some(a) = crate::load_rig_avatar(rig_path)?
+        && a.face.colors.len() == positions.len()
+    {
+        // An avatar's face: its vertex colours times its materials' base colours.
+        return Ok(Some(
+            a.face
+                .colors
+                .iter()
+                .map(|c| c.truncate().to_array())
+                .collect(),
+        ));
+    }
     let materials = load_rig_materials(rig_path)?;
     if materials.materials.is_empty() || materials.triangle_material.len() != triangles.len() {
         return Ok(None);

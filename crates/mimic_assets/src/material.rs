@@ -175,8 +175,12 @@ pub fn rig_mesh_path(rig_path: &Path) -> Result<PathBuf, AssetError> {
         .join(file.mesh.get_ref()))
 }
 
-/// The materials of a rig's mesh (see [`parse_obj_materials`]).
+/// The materials of a rig's mesh (see [`parse_obj_materials`]; for an avatar, its face mesh's
+/// glTF materials, [`crate::avatar_rig::avatar_materials`]).
 pub fn load_rig_materials(rig_path: &Path) -> Result<MeshMaterials, AssetError> {
+    if let Some(a) = crate::load_rig_avatar(rig_path)? {
+        return Ok(crate::avatar_rig::avatar_materials(&a));
+    }
     let obj = rig_mesh_path(rig_path)?;
     let text = crate::read::read_text(&obj, &limits::OBJ_FILE)?;
     parse_obj_materials(&obj, &text)

@@ -18,8 +18,11 @@ pub struct RigFile {
     pub description: String,
     /// Length unit of the mesh.
     pub units: String,
-    /// OBJ file, relative to the rig file.
+    /// OBJ file, or a glTF / GLB / VRM avatar, relative to the rig file.
     pub mesh: Spanned<PathBuf>,
+    /// For an avatar mesh: its face mesh and parts ([`crate::AvatarSection`]).
+    #[serde(default)]
+    pub avatar: Option<crate::AvatarSection>,
     /// Inclusive vertex index ranges that never move.
     #[serde(default)]
     pub frozen: Vec<Spanned<[u32; 2]>>,
@@ -135,7 +138,13 @@ pub fn parse_rig(path: &Path, text: &str) -> Result<Rig, AssetError> {
         .join(file.mesh.get_ref());
     // A FIFO, a device or an oversized file is refused at the `mesh` line, before a byte of it is
     // read; other errors (a missing file) come from the mesh loader as before.
-    if let Err(cause) = mimic_types::limits::check_file(&mesh_path, &mimic_types::limits::OBJ_FILE)
+    let avatar = mimic_avatar::is_avatar_path(&mesh_path);
+    let kind = if avatar {
+        &mimic_avatar::AVATAR_FILE
+    } else {
+        &mimic_types::limits::OBJ_FILE
+    };
+    if let Err(cause) = mimic_types::limits::check_file(&mesh_path, kind)
         && cause.is_refusal()
     {
         return Err(AssetError::Refused {
@@ -145,7 +154,13 @@ pub fn parse_rig(path: &Path, text: &str) -> Result<Rig, AssetError> {
             cause,
         });
     }
-    let mesh = crate::load_obj(&mesh_path).map_err(|e| AssetError::RigMesh {
+    let mesh = if avatar {
+        let section = file.avatar.clone().unwrap_or_default();
+        crate::read_avatar_face(&mesh_path, &section).map(|a| a.face.mesh_data)
+    } else {
+        crate::load_obj(&mesh_path)
+    };
+    let mesh = mesh.map_err(|e| AssetError::RigMesh {
         path: path.to_path_buf(),
         cause: Box::new(e),
     })?;

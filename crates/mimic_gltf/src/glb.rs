@@ -83,14 +83,18 @@ const UNSIGNED_INT: u32 = 5125;
 
 /// Binary chunk and the JSON arrays that index it.
 #[derive(Default)]
-struct Builder {
-    bin: Vec<u8>,
-    views: Vec<Value>,
-    accessors: Vec<Value>,
+pub(crate) struct Builder {
+    pub(crate) bin: Vec<u8>,
+    pub(crate) views: Vec<Value>,
+    pub(crate) accessors: Vec<Value>,
 }
 
 impl Builder {
-    fn view(&mut self, bytes: impl IntoIterator<Item = u8>, target: Option<u32>) -> usize {
+    pub(crate) fn view(
+        &mut self,
+        bytes: impl IntoIterator<Item = u8>,
+        target: Option<u32>,
+    ) -> usize {
         while !self.bin.len().is_multiple_of(4) {
             self.bin.push(0);
         }
@@ -104,13 +108,19 @@ impl Builder {
         self.views.len() - 1
     }
 
-    fn accessor(&mut self, a: Value) -> usize {
+    pub(crate) fn accessor(&mut self, a: Value) -> usize {
         self.accessors.push(a);
         self.accessors.len() - 1
     }
 
     /// A float accessor of `n`-component elements (`kind` "SCALAR", "VEC3", ...), with min/max.
-    fn floats(&mut self, values: &[f32], n: usize, kind: &str, target: Option<u32>) -> usize {
+    pub(crate) fn floats(
+        &mut self,
+        values: &[f32],
+        n: usize,
+        kind: &str,
+        target: Option<u32>,
+    ) -> usize {
         let (min, max) = min_max(values, n);
         let view = self.view(le(values), target);
         self.accessor(json!({
@@ -121,7 +131,7 @@ impl Builder {
 
     /// A VEC3 accessor of `count` elements, zero except at `entries` (ascending index): sparse
     /// when that is smaller than dense. Returns the accessor and whether it is sparse.
-    fn vec3_sparse(&mut self, count: usize, entries: &[(u32, Vec3)]) -> (usize, bool) {
+    pub(crate) fn vec3_sparse(&mut self, count: usize, entries: &[(u32, Vec3)]) -> (usize, bool) {
         let mut min = entries.iter().fold(Vec3::INFINITY, |a, (_, v)| a.min(*v));
         let mut max = entries
             .iter()
@@ -428,11 +438,32 @@ pub fn write_glb(scene: &Scene<'_>, w: &mut impl Write) -> Result<GlbSummary, Gl
     root["buffers"] = json!([{"byteLength": b.bin.len()}]);
     root["bufferViews"] = Value::Array(b.views);
     root["accessors"] = Value::Array(b.accessors);
-    let mut text = serde_json::to_vec(&root)?;
+    let total = write_container(&root, &b.bin, w)?;
+    Ok(GlbSummary {
+        bytes: total,
+        vertices: count,
+        primitives: groups.iter().filter(|g| !g.is_empty()).count(),
+        targets: targets.len(),
+        sparse_targets,
+        keys,
+        duration_s,
+    })
+}
+
+/// Writes the GLB container (header, JSON chunk, binary chunk) of `root` and `bin` to `w`;
+/// returns the file's length.
+pub(crate) fn write_container(
+    root: &Value,
+    bin: &[u8],
+    w: &mut impl Write,
+) -> Result<usize, GltfError> {
+    let mut text = serde_json::to_vec(root)?;
     while !text.len().is_multiple_of(4) {
         text.push(b' ');
     }
-    let total = 12 + 8 + text.len() + 8 + b.bin.len();
+    let pad = (4 - bin.len() % 4) % 4;
+    let bin_len = bin.len() + pad;
+    let total = 12 + 8 + text.len() + 8 + bin_len;
     if total > u32::MAX as usize {
         return Err(GltfError::TooLarge(total));
     }
@@ -443,16 +474,9 @@ pub fn write_glb(scene: &Scene<'_>, w: &mut impl Write) -> Result<GlbSummary, Gl
     w.write_all(&u(text.len()))?;
     w.write_all(b"JSON")?;
     w.write_all(&text)?;
-    w.write_all(&u(b.bin.len()))?;
+    w.write_all(&u(bin_len))?;
     w.write_all(b"BIN\0")?;
-    w.write_all(&b.bin)?;
-    Ok(GlbSummary {
-        bytes: total,
-        vertices: count,
-        primitives: groups.iter().filter(|g| !g.is_empty()).count(),
-        targets: targets.len(),
-        sparse_targets,
-        keys,
-        duration_s,
-    })
+    w.write_all(bin)?;
+    w.write_all(&[0u8; 3][..pad])?;
+    Ok(total)
 }

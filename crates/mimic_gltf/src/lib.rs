@@ -15,12 +15,11 @@
 //! (weights and head pose per frame); [`write_glb`] writes mesh, materials, targets and the
 //! animation. Units and axes: [`metres_per_unit`] and docs/gltf.md.
 //!
-//! glTF in: [`avatar`] reads a glTF, GLB or VRM avatar whole ([`load_avatar`], docs/avatars.md),
-//! after the structure checks of [`gltf_check`].
+//! glTF in: `mimic_avatar` reads a glTF, GLB or VRM avatar whole ([`load_avatar`],
+//! docs/avatars.md), after the structure checks of [`gltf_check`] (both re-exported here).
 
-pub mod avatar;
+mod avatar_out;
 mod glb;
-pub mod gltf_check;
 mod morphs;
 mod rig;
 mod sink;
@@ -28,8 +27,9 @@ mod take;
 mod units;
 mod vertices;
 
-pub use avatar::{Avatar, AvatarError, load_avatar, parse_avatar};
+pub use avatar_out::{AvatarGlbSummary, head_node, write_avatar_glb};
 pub use glb::{GlbSummary, GltfMaterial, GltfMesh, Scene, write_glb};
+pub use mimic_avatar::{Avatar, AvatarError, gltf_check, load_avatar, parse_avatar};
 pub use morphs::{Morph, basis_morphs, basis_weights, control_morphs, target_morphs};
 pub use rig::{RigLookParts, rig_look_parts, write_rig_glb};
 pub use sink::{GlbKeys, GlbSink};

@@ -26,6 +26,8 @@ pub struct GlbSink {
     weights: Vec<f32>,
     /// The head's last translation (metres), held over frames without one.
     translation: Vec3,
+    /// The rig's avatar, written back whole with the targets and the take (docs/avatars.md).
+    avatar: Option<mimic_assets::RigAvatar>,
 }
 
 /// How a [`GlbSink`] keys its take.
@@ -51,15 +53,21 @@ impl GlbSink {
         if let Some(dir) = path.parent().filter(|d| !d.as_os_str().is_empty()) {
             std::fs::create_dir_all(dir).map_err(|e| SinkError::new(dir, e))?;
         }
-        let scale = metres_per_unit(&rig.units).ok_or_else(|| {
-            SinkError::new(
-                path,
-                format!(
-                    "rig `{}`: units `{}` have no length in metres for glTF",
-                    rig.name, rig.units
-                ),
-            )
-        })?;
+        let avatar =
+            mimic_assets::load_rig_avatar(rig_path).map_err(|e| SinkError::new(path, e))?;
+        // An avatar's face is in the file's own units: its targets' weights are `d` as it is.
+        let scale = metres_per_unit(&rig.units)
+            .filter(|_| avatar.is_none())
+            .or(avatar.as_ref().map(|_| 1.0))
+            .ok_or_else(|| {
+                SinkError::new(
+                    path,
+                    format!(
+                        "rig `{}`: units `{}` have no length in metres for glTF",
+                        rig.name, rig.units
+                    ),
+                )
+            })?;
         let targets = morphs.len();
         Ok(Self {
             path: path.to_path_buf(),
@@ -71,6 +79,7 @@ impl GlbSink {
             scale,
             weights: vec![0.0; targets],
             translation: Vec3::ZERO,
+            avatar,
         })
     }
 }
@@ -121,6 +130,23 @@ impl FrameSink for GlbSink {
         let path = &self.path;
         let file = File::create(path).map_err(|e| SinkError::new(path, e))?;
         let mut w = BufWriter::new(file);
+        if let Some(a) = &self.avatar {
+            let written =
+                crate::write_avatar_glb(&a.avatar, &a.face, &self.morphs, Some(&self.take), &mut w)
+                    .map_err(|e| SinkError::new(path, e))?;
+            w.flush().map_err(|e| SinkError::new(path, e))?;
+            return Ok(SinkReport {
+                kind: "glb",
+                path: self.path.clone(),
+                frames: self.take.len(),
+                bytes: written.bytes as u64,
+                detail: json!({
+                    "summary": written,
+                    "skipped_frames": self.take.skipped(),
+                    "write_s": started.elapsed().as_secs_f64(),
+                }),
+            });
+        }
         let written = write_rig_glb(
             &self.rig_path,
             &self.rig,

@@ -232,3 +232,27 @@ fn a_take_with_the_wrong_target_count_is_refused() {
         "{e}"
     );
 }
+
+#[test]
+fn mimics_ict_export_reads_its_shared_vertex_list_once() {
+    let rig_path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/rigs/ict-face.toml");
+    let rig = mimic_assets::load_rig(&rig_path).unwrap();
+    let mut glb = Vec::new();
+    let summary =
+        crate::write_rig_glb(&rig_path, &rig, &[], None, [0.8, 0.6, 0.5], &mut glb).unwrap();
+    let a = mimic_avatar::parse_avatar(std::path::Path::new("ict-face.glb"), &glb, None).unwrap();
+    let prims = &a.meshes[0].primitives;
+    assert_eq!(prims.len(), summary.primitives);
+    assert!(prims.len() >= 10, "{} primitives", prims.len());
+    // Every primitive names the one vertex array: the head's vertices counted once, not per primitive.
+    assert_eq!(a.vertex_arrays.len(), 1);
+    assert!(prims.iter().all(|p| p.vertices == 0));
+    assert_eq!(a.vertex_count(), summary.vertices);
+    assert_eq!(a.vertex_count(), 28_911);
+    let triangles: usize = prims.iter().map(|p| p.triangles().count()).sum();
+    assert_eq!(triangles, rig.mesh.triangles.len());
+    // Materials keep their names, and the vertex colours come through.
+    assert!(a.material_named("M_Face").is_some());
+    assert_eq!(a.vertex_arrays[0].colors.len(), a.vertex_count());
+}

@@ -3,6 +3,7 @@
 //! in face units (`mimic rig new`), landmarks found by registering a template head when none are
 //! given, and the checks of `mimic rig check`.
 
+pub mod avatar_parts;
 pub mod avatar_summary;
 pub mod check;
 pub mod eyes;
@@ -25,7 +26,7 @@ pub mod summary;
 pub mod write;
 
 /// The glTF structure checks, now in `mimic_gltf` (shared with its avatar reader).
-pub use mimic_gltf::gltf_check;
+pub use mimic_avatar::gltf_check;
 
 pub use check::{Warning, check_rig};
 pub use frame::{FaceFrame, FramePoints};

@@ -13,8 +13,11 @@ use std::path::{Path, PathBuf};
 /// What `mimic rig new` was asked for.
 #[derive(Clone, Debug)]
 pub struct NewRig<'a> {
-    /// The face mesh (OBJ, glTF or GLB).
+    /// The face mesh (OBJ), or an avatar (glTF, GLB, VRM) whose face mesh the rig drives.
     pub mesh: &'a Path,
+    /// For an avatar: its face mesh by name or `#K` (`None`: the largest mesh named like a face
+    /// or head, else the largest).
+    pub face: Option<&'a str>,
     /// The rig TOML to write.
     pub output: &'a Path,
     /// The landmark file and its numbering; `None` finds them by registering the ICT head.
@@ -57,6 +60,9 @@ impl NewRig<'_> {
             self.mesh.display().to_string(),
             format!("-o {}", self.output.display()),
         ];
+        if let Some(f) = self.face {
+            words.push(format!("--face {f}"));
+        }
         if let Some((l, numbering)) = &self.landmarks {
             words.push(format!("--landmarks {}", l.display()));
             if let Some(b) = numbering.point {
@@ -184,7 +190,11 @@ pub fn make_rig_file(
                 .map_err(context("--overrides"))
         })
         .collect::<Result<Vec<_>, _>>()?;
-    let mesh = crate::load_mesh(job.mesh)?;
+    let avatar = avatar_of(job, note)?;
+    let mesh = match &avatar {
+        Some(a) => a.face.mesh_data.clone(),
+        None => crate::load_mesh(job.mesh)?,
+    };
     let (marks, marks_from) = landmarks_of(job, &mesh, note)?;
     if let Some(out) = job.landmarks_out {
         write(out, &landmarks_json(&marks))?;
@@ -204,6 +214,14 @@ pub fn make_rig_file(
     let generated = make_rig(&mesh, &marks, &name, job.units, job.defaults)
         .map_err(context(format!("{}: {marks_from}", job.mesh.display())))?;
     let text = rig_text(job, &mesh, &generated)?;
+    let text = match &avatar {
+        Some(a) => {
+            let parts = crate::avatar_parts::classify_parts(&a.avatar, &a.face, &marks);
+            note(parts_line(&a.avatar, &a.face, &parts));
+            format!("{text}{}", avatar_toml(&a.avatar, a.face.mesh, &parts))
+        }
+        None => text,
+    };
     let merged: Vec<(&Path, &str)> = overrides.iter().map(|(p, t)| (*p, t.as_str())).collect();
     let text = crate::apply_overrides(&text, &merged, job.output)?;
     write(job.output, &text)?;
@@ -211,32 +229,83 @@ pub fn make_rig_file(
     Ok(MadeRig { generated, loaded })
 }
 
-/// The generated rig's TOML (the command line as its second line); for a glTF mesh, writes the
-/// OBJ copy the rig names beside the rig.
+/// For an avatar file: the file read whole and its face mesh (said in a progress line).
+fn avatar_of(
+    job: &NewRig<'_>,
+    note: &mut dyn FnMut(String),
+) -> Result<Option<mimic_assets::RigAvatar>, RigNewError> {
+    if !mimic_avatar::is_avatar_path(job.mesh) {
+        return Ok(None);
+    }
+    let section = mimic_assets::AvatarSection {
+        face: job.face.map(str::to_string),
+        ..Default::default()
+    };
+    let a = mimic_assets::read_avatar_face(job.mesh, &section)?;
+    note(format!(
+        "{}: face mesh `{}` ({} vertices) of {} meshes (--face picks another)",
+        job.mesh.display(),
+        mesh_name(&a.avatar, a.face.mesh),
+        a.face.mesh_data.vertex_count(),
+        a.avatar.meshes.len()
+    ));
+    Ok(Some(a))
+}
+
+/// Mesh `k`'s name, `#K` when it has none.
+fn mesh_name(avatar: &mimic_avatar::Avatar, k: usize) -> String {
+    avatar.meshes[k]
+        .name
+        .clone()
+        .unwrap_or_else(|| format!("#{k}"))
+}
+
+/// The line saying what each other mesh of the avatar was taken for.
+fn parts_line(
+    avatar: &mimic_avatar::Avatar,
+    face: &mimic_avatar::FaceMesh,
+    parts: &std::collections::BTreeMap<String, String>,
+) -> String {
+    let said: Vec<String> = parts.iter().map(|(m, k)| format!("{m} = {k}")).collect();
+    format!(
+        "avatar parts besides the face `{}`: {} (the rig's [avatar.parts] changes them)",
+        mesh_name(avatar, face.mesh),
+        if said.is_empty() {
+            "none".into()
+        } else {
+            said.join(", ")
+        }
+    )
+}
+
+/// The rig's `[avatar]` section: the face mesh and the other meshes' kinds.
+fn avatar_toml(
+    avatar: &mimic_avatar::Avatar,
+    face: usize,
+    parts: &std::collections::BTreeMap<String, String>,
+) -> String {
+    // A JSON string is a TOML basic string.
+    let q = |s: &str| serde_json::Value::String(s.to_string()).to_string();
+    let mut out = format!(
+        "\n# The avatar: which mesh is the face, and what the other meshes are ({}).\n[avatar]\nface = {}\n\n[avatar.parts]\n",
+        crate::avatar_parts::PART_KINDS.join(", "),
+        q(&mesh_name(avatar, face))
+    );
+    for (m, k) in parts {
+        out.push_str(&format!("{} = {}\n", q(m), q(k)));
+    }
+    out
+}
+
+/// The generated rig's TOML (the command line as its second line); an avatar's file is named
+/// as the rig's mesh, relative to the rig.
 fn rig_text(job: &NewRig<'_>, mesh: &Mesh, rig: &GeneratedRig) -> Result<String, RigNewError> {
     let out_dir = job
         .output
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .map_or_else(|| PathBuf::from("."), PathBuf::from);
-    let mesh_file = if crate::gltf_mesh::is_gltf(job.mesh) {
-        let stem = job
-            .output
-            .file_stem()
-            .map_or_else(|| "rig".into(), |s| s.to_string_lossy().into_owned());
-        // The OBJ copy keeps the glTF's UVs, materials and base colour textures (MTL map_Kd).
-        let (_, look) = crate::gltf_mesh::load_gltf_look(job.mesh)?;
-        let header = format!("from {} by mimic rig new", job.mesh.display());
-        crate::gltf_mesh::write_obj_copy(&out_dir, &stem, mesh, &look, &header).map_err(
-            |cause| RigNewError::Write {
-                path: out_dir.join(format!("{stem}.mesh.obj")),
-                cause,
-            },
-        )?
-    } else {
-        job.mesh.to_path_buf()
-    };
-    let mesh_rel = relative_path(&out_dir, &mesh_file);
+    let mesh_rel = relative_path(&out_dir, job.mesh);
     let text = write_rig_toml(rig, &mesh_rel, mesh.vertex_count());
     let (first, rest) = text.split_once('\n').unwrap_or((&text, ""));
     Ok(format!(

@@ -68,6 +68,23 @@ impl SinkReport {
         let mb = self.bytes as f64 / 1e6;
         let path = self.path.display();
         match self.kind {
+            "glb" if self.detail["summary"].get("meshes").is_some() => {
+                let s = &self.detail["summary"];
+                let n = |k: &str| s[k].as_u64().unwrap_or(0);
+                format!(
+                    "wrote {path}: the avatar ({} meshes, {} vertices) with {} morph targets added ({} in all), {} keys over {:.2} s, head pose on {}, {mb:.1} MB in {:.2} s",
+                    n("meshes"),
+                    n("vertices"),
+                    n("added_targets"),
+                    n("targets"),
+                    n("keys"),
+                    s["duration_s"].as_f64().unwrap_or(0.0),
+                    s["head_node"]
+                        .as_str()
+                        .map_or("no node".into(), |h| format!("`{h}`")),
+                    self.detail["write_s"].as_f64().unwrap_or(0.0),
+                )
+            }
             "glb" => {
                 let s = &self.detail["summary"];
                 let n = |k: &str| s[k].as_u64().unwrap_or(0);

@@ -9,9 +9,13 @@ use std::str::FromStr;
 /// Arguments of `mimic rig new`.
 #[derive(clap::Args, Debug)]
 pub struct Args {
-    /// The face mesh (OBJ, or glTF / GLB: then an OBJ copy is written beside the rig as
-    /// `<rig>.mesh.obj`, which the rig names), y up, facing +z.
+    /// The face mesh (OBJ), or an avatar (glTF, GLB, VRM) the rig names as it is: its face
+    /// mesh drives, its other meshes are classified (docs/avatars.md); y up, facing +z.
     pub mesh: PathBuf,
+    /// For an avatar: the face mesh's name, or `#K` for mesh K (default: the largest mesh named
+    /// like a face or head, else the largest).
+    #[arg(long)]
+    pub face: Option<String>,
     /// Where to write the rig TOML.
     #[arg(short = 'o', long)]
     pub output: PathBuf,
@@ -75,6 +79,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let configs = mimic_assets::ConfigDirs::locate(None).root;
     let job = NewRig {
         mesh: &args.mesh,
+        face: args.face.as_deref(),
         output: &args.output,
         landmarks: args.landmarks.as_deref().map(|p| {
             let numbering = Numbering {

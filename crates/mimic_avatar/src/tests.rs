@@ -1,4 +1,4 @@
-//! The avatar reader on mimic's own ICT export, the multi-mesh ICT fixture, VRM 0.x and 1.0
+//! The avatar reader on the multi-mesh ICT fixture, VRM 0.x and 1.0
 //! files and the hostile seeds of the `avatar` fuzz corpus.
 
 use super::*;
@@ -12,29 +12,6 @@ fn repo(rel: &str) -> PathBuf {
 
 fn load(rel: &str) -> Avatar {
     load_avatar(&repo(rel)).unwrap()
-}
-
-#[test]
-fn mimics_ict_export_reads_its_shared_vertex_list_once() {
-    let rig_path = repo("configs/rigs/ict-face.toml");
-    let rig = mimic_assets::load_rig(&rig_path).unwrap();
-    let mut glb = Vec::new();
-    let summary =
-        crate::write_rig_glb(&rig_path, &rig, &[], None, [0.8, 0.6, 0.5], &mut glb).unwrap();
-    let a = parse_avatar(Path::new("ict-face.glb"), &glb, None).unwrap();
-    let prims = &a.meshes[0].primitives;
-    assert_eq!(prims.len(), summary.primitives);
-    assert!(prims.len() >= 10, "{} primitives", prims.len());
-    // Every primitive names the one vertex array: the head's vertices counted once, not per primitive.
-    assert_eq!(a.vertex_arrays.len(), 1);
-    assert!(prims.iter().all(|p| p.vertices == 0));
-    assert_eq!(a.vertex_count(), summary.vertices);
-    assert_eq!(a.vertex_count(), 28_911);
-    let triangles: usize = prims.iter().map(|p| p.triangles().count()).sum();
-    assert_eq!(triangles, rig.mesh.triangles.len());
-    // Materials keep their names, and the vertex colours come through.
-    assert!(a.material_named("M_Face").is_some());
-    assert_eq!(a.vertex_arrays[0].colors.len(), a.vertex_count());
 }
 
 #[test]

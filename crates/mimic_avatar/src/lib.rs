@@ -1,3 +1,10 @@
+#![cfg_attr(
+    test,
+    allow(
+        clippy::unwrap_used,
+        reason = "tests: a failed unwrap is the failure report"
+    )
+)]
 //! The avatar as data: a glTF, GLB or VRM file read whole (docs/avatars.md).
 //!
 //! [`parse_avatar`] checks the document's structure first ([`crate::gltf_check`]), then reads
@@ -11,7 +18,9 @@
 mod accessor;
 mod container;
 mod error;
+mod face;
 mod files;
+pub mod gltf_check;
 mod read;
 mod vrm;
 
@@ -19,6 +28,7 @@ mod vrm;
 mod tests;
 
 pub use error::AvatarError;
+pub use face::{FaceMesh, find_mesh, is_avatar_path, largest_mesh};
 pub use read::{AVATAR_FILE, load_avatar, parse_avatar};
 pub use vrm::{Expression, LookAt, LookAtKind, MorphBind, RangeMap, Vrm, VrmVersion};
 

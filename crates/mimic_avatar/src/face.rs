@@ -1,0 +1,218 @@
+//! One mesh of an avatar as mimic's working mesh (the rig's face): the mesh's vertex arrays,
+//! each once, posed at rest in world space, with what a writer needs to put mimic's deltas back
+//! into the file's own space.
+//!
+//! A vertex of a skinned mesh sits at `sum_k w_k (world(joint_k) * inverse_bind_k) p` (glTF's
+//! skinning at the bind pose); any other mesh's at `world(node) * p`. A delta `u` in world space is
+//! `A^-1 u` in the file's space, `A` the linear part of that transform ([`FaceMesh::to_file`]).
+
+use crate::{Avatar, AvatarError, Mode};
+use glam::{Mat3, Mat4, Vec2, Vec4};
+
+/// A mesh of the avatar as one mimic mesh (module docs).
+#[derive(Clone, Debug)]
+pub struct FaceMesh {
+    /// The glTF mesh.
+    pub mesh: usize,
+    /// The node that shows it (the first in file order).
+    pub node: usize,
+    /// Its vertex arrays in order, each with the mimic index of its first vertex.
+    pub arrays: Vec<(usize, u32)>,
+    /// The working mesh: rest positions in world space, triangles, UVs (OBJ convention, v up).
+    pub mesh_data: mimic_types::Mesh,
+    /// Per vertex: world delta to the file's space (the inverse of the rest transform's linear part).
+    pub to_file: Vec<Mat3>,
+    /// Per vertex `COLOR_0` times its material's base colour (linear RGBA).
+    pub colors: Vec<Vec4>,
+    /// Per triangle: its material (None: glTF's default).
+    pub triangle_material: Vec<Option<usize>>,
+}
+
+/// Which mesh of `avatar` the text `face` names: a mesh name, or `#K` for mesh K.
+pub fn find_mesh(avatar: &Avatar, face: &str) -> Option<usize> {
+    if let Some(k) = face.strip_prefix('#') {
+        return k.parse().ok().filter(|&k: &usize| k < avatar.meshes.len());
+    }
+    avatar.mesh_named(face)
+}
+
+impl FaceMesh {
+    /// Mesh `mesh` of `avatar` (module docs); an error when no node shows it or it has no triangles.
+    pub fn of(avatar: &Avatar, mesh: usize) -> Result<Self, AvatarError> {
+        let pointer = format!("/meshes/{mesh}");
+        let bad = |m: String| AvatarError::at(&avatar.path, &pointer, m);
+        let m = avatar
+            .meshes
+            .get(mesh)
+            .ok_or_else(|| bad(format!("the file has {} meshes", avatar.meshes.len())))?;
+        let node = avatar
+            .nodes_of_mesh(mesh)
+            .next()
+            .ok_or_else(|| bad("no node shows this mesh".into()))?;
+        let mut arrays: Vec<(usize, u32)> = Vec::new();
+        let mut next = 0u32;
+        for p in m.primitives.iter().filter(|p| p.mode == Mode::Triangles) {
+            if !arrays.iter().any(|(a, _)| *a == p.vertices) {
+                arrays.push((p.vertices, next));
+                next += avatar.vertex_arrays[p.vertices].positions.len() as u32;
+            }
+        }
+        if arrays.is_empty() {
+            return Err(bad("the mesh has no triangle primitives".into()));
+        }
+        let n = next as usize;
+        let skin = avatar.nodes[node].skin.map(|s| &avatar.skins[s]);
+        let joint_mats: Vec<Mat4> = skin.map_or_else(Vec::new, |s| {
+            s.joints
+                .iter()
+                .zip(&s.inverse_bind_matrices)
+                .map(|(&j, ibm)| avatar.nodes[j].world * *ibm)
+                .collect()
+        });
+        let node_world = avatar.nodes[node].world;
+        let mut positions = Vec::with_capacity(n);
+        let mut to_file = Vec::with_capacity(n);
+        let mut uvs = Vec::new();
+        let mut colors = Vec::new();
+        let any_uv = arrays
+            .iter()
+            .all(|(a, _)| !avatar.vertex_arrays[*a].tex_coords.is_empty());
+        for &(a, _) in &arrays {
+            let va = &avatar.vertex_arrays[a];
+            for (i, p) in va.positions.iter().enumerate() {
+                let rest = rest_transform(va, i, &joint_mats).unwrap_or(node_world);
+                positions.push(rest.transform_point3(*p));
+                let linear = Mat3::from_mat4(rest);
+                let inv = if linear.determinant().abs() > f32::MIN_POSITIVE {
+                    linear.inverse()
+                } else {
+                    Mat3::IDENTITY
+                };
+                to_file.push(inv);
+                if any_uv {
+                    let t = va.tex_coords[i];
+                    uvs.push(Vec2::new(t.x, 1.0 - t.y));
+                }
+            }
+        }
+        let mut triangles = Vec::new();
+        let mut triangle_material = Vec::new();
+        let mut vertex_material: Vec<Option<usize>> = vec![None; n];
+        for p in m.primitives.iter().filter(|p| p.mode == Mode::Triangles) {
+            let offset = arrays
+                .iter()
+                .find(|(a, _)| *a == p.vertices)
+                .map_or(0, |(_, o)| *o);
+            for t in p.triangles() {
+                let t = t.map(|v| v + offset);
+                t.iter()
+                    .for_each(|&v| vertex_material[v as usize] = p.material);
+                triangles.push(t);
+                triangle_material.push(p.material);
+            }
+        }
+        for &(a, offset) in &arrays {
+            let va = &avatar.vertex_arrays[a];
+            for i in 0..va.positions.len() {
+                let base = vertex_material[offset as usize + i]
+                    .and_then(|k| avatar.materials.get(k))
+                    .map_or(Vec4::ONE, |mat| mat.base_color);
+                colors.push(va.colors.get(i).copied().unwrap_or(Vec4::ONE) * base);
+            }
+        }
+        let uv_triangles = if any_uv {
+            triangles.clone()
+        } else {
+            Vec::new()
+        };
+        Ok(Self {
+            mesh,
+            node,
+            arrays,
+            mesh_data: mimic_types::Mesh {
+                positions,
+                triangles,
+                uvs,
+                uv_triangles,
+            },
+            to_file,
+            colors,
+            triangle_material,
+        })
+    }
+
+    /// The working mesh's vertex `v` as (vertex array, index in it).
+    pub fn locate(&self, v: u32) -> Option<(usize, usize)> {
+        let k = self
+            .arrays
+            .partition_point(|(_, o)| *o <= v)
+            .checked_sub(1)?;
+        let (a, o) = self.arrays[k];
+        Some((a, (v - o) as usize))
+    }
+}
+
+/// The bind-pose transform of vertex `i` of a skinned array (None when it is not skinned).
+fn rest_transform(va: &crate::VertexArray, i: usize, joints: &[Mat4]) -> Option<Mat4> {
+    if joints.is_empty() {
+        return None;
+    }
+    let (j, w) = (va.joints.get(i)?, va.weights.get(i)?);
+    let total = w.x + w.y + w.z + w.w;
+    if total <= 0.0 {
+        return None;
+    }
+    let mut m = Mat4::ZERO;
+    for (k, &weight) in w.to_array().iter().enumerate() {
+        if weight > 0.0 {
+            m += *joints.get(j[k] as usize)? * (weight / total);
+        }
+    }
+    Some(m)
+}
+
+/// The mesh of `avatar` most likely the face when the caller has no registration to go by: the
+/// triangle mesh with the most vertices whose name says face or head, else the one with the most
+/// vertices.
+pub fn largest_mesh(avatar: &Avatar) -> Option<usize> {
+    let count = |m: &crate::Mesh| -> usize {
+        let mut arrays: Vec<usize> = m
+            .primitives
+            .iter()
+            .filter(|p| p.mode == Mode::Triangles)
+            .map(|p| p.vertices)
+            .collect();
+        arrays.sort_unstable();
+        arrays.dedup();
+        arrays
+            .iter()
+            .map(|&a| avatar.vertex_arrays[a].positions.len())
+            .sum()
+    };
+    let shown = |k: usize| avatar.nodes_of_mesh(k).next().is_some();
+    let named = |m: &crate::Mesh| {
+        m.name.as_deref().is_some_and(|n| {
+            let n = n.to_ascii_lowercase();
+            n.contains("face") || n.contains("head")
+        })
+    };
+    let best = |want_name: bool| {
+        avatar
+            .meshes
+            .iter()
+            .enumerate()
+            .filter(|(k, m)| shown(*k) && (!want_name || named(m)) && count(m) > 0)
+            .max_by_key(|(_, m)| count(m))
+            .map(|(k, _)| k)
+    };
+    best(true).or_else(|| best(false))
+}
+
+/// Whether `path` names a glTF, GLB or VRM file (by extension; a VRM is a GLB).
+pub fn is_avatar_path(path: &std::path::Path) -> bool {
+    path.extension().and_then(|e| e.to_str()).is_some_and(|e| {
+        ["gltf", "glb", "vrm"]
+            .iter()
+            .any(|x| e.eq_ignore_ascii_case(x))
+    })
+}

@@ -1,0 +1,346 @@
+//! The avatar written back: the file's own document with mimic's additions, every other node,
+//! skin, material, texture, extension and byte kept (docs/avatars.md).
+//!
+//! - Buffers are merged into the GLB's one binary chunk (each buffer's views shifted by where it
+//!   now starts, 16-byte aligned, so every accessor keeps its alignment); images that were files
+//!   or data URIs become buffer views. Nothing else in the document changes.
+//! - The face mesh gains the morph targets after its own: each primitive the targets of its
+//!   vertex array (primitives sharing an array share the accessors), deltas turned from world
+//!   space into the file's space ([`FaceMesh::to_file`]: the bind space of a skinned mesh), and
+//!   `extras.targetNames`, `weights` extended to match.
+//! - The take becomes one more animation: the face node's weights (its own targets held at their
+//!   defaults), and the head rotation and translation on the head joint (the VRM humanoid head,
+//!   else a node named like a head, else the face's node), as local keys under its parent.
+
+use crate::glb::{Builder, write_container};
+use crate::{GltfError, Morph, Take};
+use glam::{Mat3, Vec3};
+use mimic_avatar::{Avatar, FaceMesh};
+use serde_json::{Value, json};
+use std::io::Write;
+
+/// What [`write_avatar_glb`] wrote.
+#[derive(Clone, Debug, PartialEq, serde::Serialize)]
+pub struct AvatarGlbSummary {
+    /// Bytes of the file.
+    pub bytes: usize,
+    /// Vertices of the avatar (each shared vertex array once), unchanged by the writer.
+    pub vertices: usize,
+    /// Meshes, unchanged.
+    pub meshes: usize,
+    /// The face mesh's morph targets: the file's own plus mimic's.
+    pub targets: usize,
+    /// Of them, added by mimic.
+    pub added_targets: usize,
+    /// Animation keys (0: no animation).
+    pub keys: usize,
+    /// Seconds from the first key to the last.
+    pub duration_s: f32,
+    /// The node the head pose keys move (None: no pose keys).
+    pub head_node: Option<String>,
+}
+
+/// The node the head pose goes on: the VRM humanoid head bone, else a node named `head`,
+/// `Head`, `J_Bip_C_Head` or ending in `_head` / `:Head`, else the face mesh's node.
+pub fn head_node(avatar: &Avatar, face_node: usize) -> usize {
+    if let Some(h) = avatar.vrm.as_ref().and_then(|v| v.head()) {
+        return h;
+    }
+    let named = avatar.nodes.iter().position(|n| {
+        n.name.as_deref().is_some_and(|name| {
+            let l = name.to_ascii_lowercase();
+            l == "head" || l.ends_with("_head") || l.ends_with(":head") || l.ends_with(".head")
+        })
+    });
+    named.unwrap_or(face_node)
+}
+
+/// Writes `avatar` back as one GLB (module docs) with `morphs` (over `face`'s working vertices,
+/// in the file's units per unit of weight) and, if given, `take` (weights per key: one per morph).
+pub fn write_avatar_glb(
+    avatar: &Avatar,
+    face: &FaceMesh,
+    morphs: &[Morph],
+    take: Option<&Take>,
+    w: &mut impl Write,
+) -> Result<AvatarGlbSummary, GltfError> {
+    let mut doc = avatar.document.clone();
+    let mut b = merged_buffers(avatar, &mut doc);
+    let own = own_target_count(avatar, face.mesh);
+    let added = add_targets(avatar, face, morphs, own, &mut b, &mut doc);
+    let head = head_node(avatar, face.node);
+    let (keys, duration_s) = match take.filter(|t| !t.is_empty()) {
+        Some(t) => {
+            if t.target_count() != morphs.len() {
+                return Err(GltfError::TargetCount {
+                    take: t.target_count(),
+                    mesh: morphs.len(),
+                });
+            }
+            add_animation(avatar, face, own, head, t, &mut b, &mut doc);
+            (t.len(), t.duration_s())
+        }
+        None => (0, 0.0),
+    };
+    while !b.bin.len().is_multiple_of(4) {
+        b.bin.push(0);
+    }
+    if b.bin.len() > u32::MAX as usize - 1024 {
+        return Err(GltfError::TooLarge(b.bin.len()));
+    }
+    doc["buffers"] = json!([{"byteLength": b.bin.len()}]);
+    doc["bufferViews"] = Value::Array(std::mem::take(&mut b.views));
+    doc["accessors"] = Value::Array(std::mem::take(&mut b.accessors));
+    let bytes = write_container(&doc, &b.bin, w)?;
+    Ok(AvatarGlbSummary {
+        bytes,
+        vertices: avatar.vertex_count(),
+        meshes: avatar.meshes.len(),
+        targets: own + added,
+        added_targets: added,
+        keys,
+        duration_s,
+        head_node: take
+            .filter(|t| t.has_pose() && !t.is_empty())
+            .map(|_| node_name(avatar, head)),
+    })
+}
+
+/// Node `k`'s name, `#K` when it has none.
+fn node_name(avatar: &Avatar, k: usize) -> String {
+    avatar.nodes[k]
+        .name
+        .clone()
+        .unwrap_or_else(|| format!("#{k}"))
+}
+
+/// Every buffer in one binary chunk, the document's views pointing into it, images from files
+/// or data URIs moved into buffer views; the builder holds the document's views and accessors.
+fn merged_buffers(avatar: &Avatar, doc: &mut Value) -> Builder {
+    let mut b = Builder::default();
+    let mut starts = Vec::with_capacity(avatar.buffers.len());
+    for buffer in &avatar.buffers {
+        while !b.bin.len().is_multiple_of(16) {
+            b.bin.push(0);
+        }
+        starts.push(b.bin.len());
+        b.bin.extend_from_slice(buffer);
+    }
+    let views = doc
+        .get_mut("bufferViews")
+        .and_then(Value::as_array_mut)
+        .map(std::mem::take)
+        .unwrap_or_default();
+    for mut v in views {
+        let buffer = v["buffer"].as_u64().unwrap_or(0) as usize;
+        let offset = v["byteOffset"].as_u64().unwrap_or(0) as usize;
+        v["buffer"] = json!(0);
+        v["byteOffset"] = json!(starts.get(buffer).copied().unwrap_or(0) + offset);
+        b.views.push(v);
+    }
+    b.accessors = doc
+        .get_mut("accessors")
+        .and_then(Value::as_array_mut)
+        .map(std::mem::take)
+        .unwrap_or_default();
+    if let Some(images) = doc.get_mut("images").and_then(Value::as_array_mut) {
+        for (k, image) in images.iter_mut().enumerate() {
+            let Some(obj) = image.as_object_mut() else {
+                continue;
+            };
+            if obj.remove("uri").is_none() {
+                continue;
+            }
+            let Some(read) = avatar.images.get(k) else {
+                continue;
+            };
+            let view = b.view(read.bytes.iter().copied(), None);
+            obj.insert("bufferView".into(), json!(view));
+            let mime = read.mime_type.clone().unwrap_or_else(|| "image/png".into());
+            obj.insert("mimeType".into(), json!(mime));
+        }
+    }
+    b
+}
+
+/// The face mesh's own morph target count (every primitive has the same, glTF's rule).
+fn own_target_count(avatar: &Avatar, mesh: usize) -> usize {
+    avatar.meshes[mesh]
+        .primitives
+        .first()
+        .map_or(0, |p| p.targets.len())
+}
+
+/// Adds `morphs` to every primitive of the face mesh; returns how many were added.
+fn add_targets(
+    avatar: &Avatar,
+    face: &FaceMesh,
+    morphs: &[Morph],
+    own: usize,
+    b: &mut Builder,
+    doc: &mut Value,
+) -> usize {
+    if morphs.is_empty() {
+        return 0;
+    }
+    let with_normals = morphs.iter().any(|m| !m.normals.is_empty());
+    // Per vertex array of the face: one accessor pair per morph.
+    let mut per_array: Vec<(usize, Vec<Value>)> = Vec::new();
+    for &(array, offset) in &face.arrays {
+        let count = avatar.vertex_arrays[array].positions.len();
+        let end = offset + count as u32;
+        let local = |entries: &[(u32, Vec3)]| -> Vec<(u32, Vec3)> {
+            entries
+                .iter()
+                .filter(|(v, _)| (offset..end).contains(v))
+                .map(|(v, d)| (v - offset, face.to_file[*v as usize] * *d))
+                .collect()
+        };
+        let targets = morphs
+            .iter()
+            .map(|m| {
+                let mut t = json!({"POSITION": b.vec3_sparse(count, &local(&m.positions)).0});
+                if with_normals {
+                    t["NORMAL"] = json!(b.vec3_sparse(count, &local(&m.normals)).0);
+                }
+                t
+            })
+            .collect();
+        per_array.push((array, targets));
+    }
+    let mesh = &avatar.meshes[face.mesh];
+    for (k, p) in mesh.primitives.iter().enumerate() {
+        let ours = match per_array.iter().find(|(a, _)| *a == p.vertices) {
+            Some((_, t)) => t.clone(),
+            None => {
+                // A primitive on another vertex array: zero targets (no buffer view).
+                let count = avatar.vertex_arrays[p.vertices].positions.len();
+                let zero = b.accessor(json!({
+                    "componentType": 5126, "count": count, "type": "VEC3",
+                    "min": [0.0, 0.0, 0.0], "max": [0.0, 0.0, 0.0],
+                }));
+                vec![json!({"POSITION": zero}); morphs.len()]
+            }
+        };
+        let prim = &mut doc["meshes"][face.mesh]["primitives"][k];
+        let mut targets = prim
+            .get("targets")
+            .and_then(Value::as_array)
+            .cloned()
+            .unwrap_or_default();
+        targets.extend(ours);
+        prim["targets"] = Value::Array(targets);
+    }
+    let gl_mesh = &mut doc["meshes"][face.mesh];
+    let mut names: Vec<Value> = (0..own)
+        .map(|k| {
+            json!(
+                mesh.target_names
+                    .get(k)
+                    .cloned()
+                    .unwrap_or_else(|| format!("target_{k}"))
+            )
+        })
+        .collect();
+    names.extend(morphs.iter().map(|m| json!(m.name)));
+    let mut weights: Vec<Value> = (0..own)
+        .map(|k| json!(mesh.weights.get(k).copied().unwrap_or(0.0)))
+        .collect();
+    weights.extend(std::iter::repeat_n(json!(0.0), morphs.len()));
+    gl_mesh["weights"] = Value::Array(weights);
+    if !gl_mesh.get("extras").is_some_and(Value::is_object) {
+        gl_mesh["extras"] = json!({});
+    }
+    gl_mesh["extras"]["targetNames"] = Value::Array(names);
+    // Nodes that override the mesh's weights keep theirs and get zeros for the new targets.
+    for n in avatar.nodes_of_mesh(face.mesh) {
+        // `get_mut`, not indexing: an index would insert a null `weights`.
+        if let Some(ws) = doc["nodes"][n]
+            .get_mut("weights")
+            .and_then(Value::as_array_mut)
+        {
+            ws.extend(std::iter::repeat_n(json!(0.0), morphs.len()));
+        }
+    }
+    morphs.len()
+}
+
+/// Adds the take as an animation (module docs).
+fn add_animation(
+    avatar: &Avatar,
+    face: &FaceMesh,
+    own: usize,
+    head: usize,
+    take: &Take,
+    b: &mut Builder,
+    doc: &mut Value,
+) {
+    let interpolation = take.interpolation.gltf_name();
+    let input = b.floats(take.times(), 1, "SCALAR", None);
+    let mut samplers = Vec::new();
+    let mut channels = Vec::new();
+    let mut channel = |b: &mut Builder, values: &[f32], n: usize, kind: &str, node, path| {
+        let out = b.floats(values, n, kind, None);
+        samplers.push(json!({"input": input, "output": out, "interpolation": interpolation}));
+        channels
+            .push(json!({"sampler": samplers.len() - 1, "target": {"node": node, "path": path}}));
+    };
+    let added = take.target_count();
+    if added > 0 {
+        let defaults = &avatar.meshes[face.mesh].weights;
+        let mut out = Vec::with_capacity(take.len() * (own + added));
+        for key in take.weights().chunks_exact(added) {
+            out.extend((0..own).map(|k| defaults.get(k).copied().unwrap_or(0.0)));
+            out.extend_from_slice(key);
+        }
+        channel(b, &out, 1, "SCALAR", face.node, "weights");
+    }
+    if take.has_pose() {
+        let node = &avatar.nodes[head];
+        let parent = node
+            .parent
+            .map_or(glam::Mat4::IDENTITY, |p| avatar.nodes[p].world);
+        let (_, parent_rot, _) = parent.to_scale_rotation_translation();
+        let to_parent = {
+            let m = Mat3::from_mat4(parent);
+            if m.determinant().abs() > f32::MIN_POSITIVE {
+                m.inverse()
+            } else {
+                Mat3::IDENTITY
+            }
+        };
+        let (scale, rest_rot, rest_t) = node.local.to_scale_rotation_translation();
+        let rot: Vec<f32> = take
+            .rotations()
+            .iter()
+            .flat_map(|r| {
+                (parent_rot.inverse() * *r * parent_rot * rest_rot)
+                    .normalize()
+                    .to_array()
+            })
+            .collect();
+        let tr: Vec<f32> = take
+            .translations()
+            .iter()
+            .flat_map(|t| (rest_t + to_parent * *t).to_array())
+            .collect();
+        channel(b, &rot, 4, "VEC4", head, "rotation");
+        channel(b, &tr, 3, "VEC3", head, "translation");
+        // An animated node must use TRS, not a matrix.
+        let n = &mut doc["nodes"][head];
+        if let Some(obj) = n.as_object_mut()
+            && obj.remove("matrix").is_some()
+        {
+            obj.insert("translation".into(), json!(rest_t.to_array()));
+            obj.insert("rotation".into(), json!(rest_rot.to_array()));
+            obj.insert("scale".into(), json!(scale.to_array()));
+        }
+    }
+    let mut animations = doc
+        .get("animations")
+        .and_then(Value::as_array)
+        .cloned()
+        .unwrap_or_default();
+    animations.push(json!({"name": "mimic take", "samplers": samplers, "channels": channels}));
+    doc["animations"] = Value::Array(animations);
+}
