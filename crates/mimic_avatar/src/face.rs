@@ -2,12 +2,17 @@
 //! each once, posed at rest in world space, with what a writer needs to put mimic's deltas back
 //! into the file's own space.
 //!
+//! Vertices the file splits at UV or normal seams (one surface point, several vertices at exactly
+//! the same place) are welded into one working vertex, so that a solve cannot pull the copies
+//! apart (a crack); [`FaceMesh::weld`] maps each file vertex to its working vertex, and the writer
+//! gives every copy the same delta.
+//!
 //! A vertex of a skinned mesh sits at `sum_k w_k (world(joint_k) * inverse_bind_k) p` (glTF's
 //! skinning at the bind pose); any other mesh's at `world(node) * p`. A delta `u` in world space is
 //! `A^-1 u` in the file's space, `A` the linear part of that transform ([`FaceMesh::to_file`]).
 
 use crate::{Avatar, AvatarError, Mode};
-use glam::{Mat3, Mat4, Vec2, Vec4};
+use glam::{Mat3, Mat4, Vec2, Vec3, Vec4};
 
 /// A mesh of the avatar as one mimic mesh (module docs).
 #[derive(Clone, Debug)]
@@ -16,13 +21,18 @@ pub struct FaceMesh {
     pub mesh: usize,
     /// The node that shows it (the first in file order).
     pub node: usize,
-    /// Its vertex arrays in order, each with the mimic index of its first vertex.
+    /// Its vertex arrays in order, each with the index of its first vertex in the file vertex
+    /// list (the arrays' vertices one after another).
     pub arrays: Vec<(usize, u32)>,
-    /// The working mesh: rest positions in world space, triangles, UVs (OBJ convention, v up).
+    /// Per file vertex: its working vertex (seam copies share one).
+    pub weld: Vec<u32>,
+    /// The working mesh: rest positions in world space, triangles, UVs (OBJ convention, v up;
+    /// one per file vertex, so seams keep their two UVs).
     pub mesh_data: mimic_types::Mesh,
-    /// Per vertex: world delta to the file's space (the inverse of the rest transform's linear part).
+    /// Per file vertex: world delta to the file's space (the inverse of the rest transform's
+    /// linear part).
     pub to_file: Vec<Mat3>,
-    /// Per vertex `COLOR_0` times its material's base colour (linear RGBA).
+    /// Per working vertex `COLOR_0` times its material's base colour (linear RGBA).
     pub colors: Vec<Vec4>,
     /// Per triangle: its material (None: glTF's default).
     pub triangle_material: Vec<Option<usize>>,
@@ -95,7 +105,8 @@ impl FaceMesh {
                 }
             }
         }
-        let mut triangles = Vec::new();
+        let (weld, welded) = weld_exact(&positions);
+        let mut file_triangles = Vec::new();
         let mut triangle_material = Vec::new();
         let mut vertex_material: Vec<Option<usize>> = vec![None; n];
         for p in m.primitives.iter().filter(|p| p.mode == Mode::Triangles) {
@@ -107,28 +118,33 @@ impl FaceMesh {
                 let t = t.map(|v| v + offset);
                 t.iter()
                     .for_each(|&v| vertex_material[v as usize] = p.material);
-                triangles.push(t);
+                file_triangles.push(t);
                 triangle_material.push(p.material);
             }
         }
-        for &(a, offset) in &arrays {
+        colors.resize(welded.len(), Vec4::ONE);
+        for &(a, offset) in arrays.iter().rev() {
             let va = &avatar.vertex_arrays[a];
-            for i in 0..va.positions.len() {
-                let base = vertex_material[offset as usize + i]
+            for i in (0..va.positions.len()).rev() {
+                let f = offset as usize + i;
+                let base = vertex_material[f]
                     .and_then(|k| avatar.materials.get(k))
                     .map_or(Vec4::ONE, |mat| mat.base_color);
-                colors.push(va.colors.get(i).copied().unwrap_or(Vec4::ONE) * base);
+                // The first copy of a welded vertex gives its colour (written last).
+                colors[weld[f] as usize] = va.colors.get(i).copied().unwrap_or(Vec4::ONE) * base;
             }
         }
-        let uv_triangles = if any_uv {
-            triangles.clone()
-        } else {
-            Vec::new()
-        };
+        let triangles = file_triangles
+            .iter()
+            .map(|t| t.map(|v| weld[v as usize]))
+            .collect();
+        let uv_triangles = if any_uv { file_triangles } else { Vec::new() };
+        let positions = welded;
         Ok(Self {
             mesh,
             node,
             arrays,
+            weld,
             mesh_data: mimic_types::Mesh {
                 positions,
                 triangles,
@@ -141,15 +157,30 @@ impl FaceMesh {
         })
     }
 
-    /// The working mesh's vertex `v` as (vertex array, index in it).
-    pub fn locate(&self, v: u32) -> Option<(usize, usize)> {
-        let k = self
-            .arrays
-            .partition_point(|(_, o)| *o <= v)
-            .checked_sub(1)?;
-        let (a, o) = self.arrays[k];
-        Some((a, (v - o) as usize))
+    /// File vertices (the arrays' vertices one after another).
+    pub fn file_vertex_count(&self) -> usize {
+        self.weld.len()
     }
+}
+
+/// Each point's first exact copy: per point the index of its welded point, and the welded
+/// points in first-seen order.
+fn weld_exact(points: &[Vec3]) -> (Vec<u32>, Vec<Vec3>) {
+    let mut seen: std::collections::HashMap<[u32; 3], u32> =
+        std::collections::HashMap::with_capacity(points.len());
+    let mut welded = Vec::with_capacity(points.len());
+    let weld = points
+        .iter()
+        .map(|p| {
+            // +0.0 and -0.0 are one place.
+            let key = (*p + Vec3::ZERO).to_array().map(f32::to_bits);
+            *seen.entry(key).or_insert_with(|| {
+                welded.push(*p);
+                (welded.len() - 1) as u32
+            })
+        })
+        .collect();
+    (weld, welded)
 }
 
 /// The bind-pose transform of vertex `i` of a skinned array (None when it is not skinned).

@@ -16,6 +16,7 @@
 //! typed view, [`Vrm`]. Every error is one line naming the file and the JSON pointer.
 
 mod accessor;
+mod animation;
 mod container;
 mod error;
 mod face;
@@ -27,6 +28,7 @@ mod vrm;
 #[cfg(test)]
 mod tests;
 
+pub use animation::{Animation, Channel, ChannelPath};
 pub use error::AvatarError;
 pub use face::{FaceMesh, find_mesh, is_avatar_path, largest_mesh};
 pub use read::{AVATAR_FILE, load_avatar, parse_avatar};
@@ -64,6 +66,8 @@ pub struct Avatar {
     pub images: Vec<Image>,
     /// The VRM extension's view, for a VRM 0.x or 1.0 file.
     pub vrm: Option<Vrm>,
+    /// Every animation, its channels' keys read.
+    pub animations: Vec<Animation>,
 }
 
 impl Avatar {

@@ -105,9 +105,11 @@ pub fn parse_avatar(
         textures,
         images,
         vrm: None,
+        animations: Vec::new(),
     };
     read_meshes(&reader, &doc, &mut avatar)?;
     avatar.skins = read_skins(&reader, &doc)?;
+    avatar.animations = crate::animation::read_animations(&reader, &doc)?;
     avatar.vrm = vrm::read(path, &avatar.document, &avatar.nodes, &avatar.meshes)?;
     avatar.buffers = buffers;
     Ok(avatar)

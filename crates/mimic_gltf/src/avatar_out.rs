@@ -40,19 +40,33 @@ pub struct AvatarGlbSummary {
     pub head_node: Option<String>,
 }
 
-/// The node the head pose goes on: the VRM humanoid head bone, else a node named `head`,
-/// `Head`, `J_Bip_C_Head` or ending in `_head` / `:Head`, else the face mesh's node.
+/// The node the head pose goes on: the VRM humanoid head bone, else a skin joint named `head`,
+/// `Head`, `J_Bip_C_Head` or ending in `_head` / `:Head`, else a node so named that shows no
+/// mesh, else the face mesh's node.
 pub fn head_node(avatar: &Avatar, face_node: usize) -> usize {
     if let Some(h) = avatar.vrm.as_ref().and_then(|v| v.head()) {
         return h;
     }
-    let named = avatar.nodes.iter().position(|n| {
-        n.name.as_deref().is_some_and(|name| {
+    let is_head = |k: &usize| {
+        avatar.nodes[*k].name.as_deref().is_some_and(|name| {
             let l = name.to_ascii_lowercase();
             l == "head" || l.ends_with("_head") || l.ends_with(":head") || l.ends_with(".head")
         })
-    });
-    named.unwrap_or(face_node)
+    };
+    // A skin's joint first, then any node that shows no mesh (a mesh node named `Head` is the
+    // face itself, not its joint).
+    let joint = avatar
+        .skins
+        .iter()
+        .flat_map(|s| s.joints.iter().copied())
+        .find(is_head);
+    joint
+        .or_else(|| {
+            (0..avatar.nodes.len())
+                .filter(|k| avatar.nodes[*k].mesh.is_none())
+                .find(is_head)
+        })
+        .unwrap_or(face_node)
 }
 
 /// Writes `avatar` back as one GLB (module docs) with `morphs` (over `face`'s working vertices,
@@ -184,24 +198,41 @@ fn add_targets(
         return 0;
     }
     let with_normals = morphs.iter().any(|m| !m.normals.is_empty());
-    // Per vertex array of the face: one accessor pair per morph.
+    // Per vertex array of the face: one accessor pair per morph; every file copy of a welded
+    // working vertex gets its delta.
+    let working = face.mesh_data.positions.len();
+    let mut scratch = vec![Vec3::ZERO; working];
+    let mut on_array = |entries: &[(u32, Vec3)], offset: u32, count: usize| -> Vec<(u32, Vec3)> {
+        for (v, d) in entries {
+            if let Some(slot) = scratch.get_mut(*v as usize) {
+                *slot = *d;
+            }
+        }
+        let out = (0..count)
+            .filter_map(|i| {
+                let f = offset as usize + i;
+                let d = scratch[face.weld[f] as usize];
+                (d != Vec3::ZERO).then(|| (i as u32, face.to_file[f] * d))
+            })
+            .collect();
+        for (v, _) in entries {
+            if let Some(slot) = scratch.get_mut(*v as usize) {
+                *slot = Vec3::ZERO;
+            }
+        }
+        out
+    };
     let mut per_array: Vec<(usize, Vec<Value>)> = Vec::new();
     for &(array, offset) in &face.arrays {
         let count = avatar.vertex_arrays[array].positions.len();
-        let end = offset + count as u32;
-        let local = |entries: &[(u32, Vec3)]| -> Vec<(u32, Vec3)> {
-            entries
-                .iter()
-                .filter(|(v, _)| (offset..end).contains(v))
-                .map(|(v, d)| (v - offset, face.to_file[*v as usize] * *d))
-                .collect()
-        };
         let targets = morphs
             .iter()
             .map(|m| {
-                let mut t = json!({"POSITION": b.vec3_sparse(count, &local(&m.positions)).0});
+                let p = on_array(&m.positions, offset, count);
+                let mut t = json!({"POSITION": b.vec3_sparse(count, &p).0});
                 if with_normals {
-                    t["NORMAL"] = json!(b.vec3_sparse(count, &local(&m.normals)).0);
+                    let q = on_array(&m.normals, offset, count);
+                    t["NORMAL"] = json!(b.vec3_sparse(count, &q).0);
                 }
                 t
             })

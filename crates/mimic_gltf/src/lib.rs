@@ -29,6 +29,7 @@ mod vertices;
 
 pub use avatar_out::{AvatarGlbSummary, head_node, write_avatar_glb};
 pub use glb::{GlbSummary, GltfMaterial, GltfMesh, Scene, write_glb};
+pub use mimic_avatar as avatar;
 pub use mimic_avatar::{Avatar, AvatarError, gltf_check, load_avatar, parse_avatar};
 pub use morphs::{Morph, basis_morphs, basis_weights, control_morphs, target_morphs};
 pub use rig::{RigLookParts, rig_look_parts, write_rig_glb};
