@@ -115,9 +115,12 @@ fn by_place(
         .fold((Vec3::MAX, Vec3::MIN), |(l, h), q| (l.min(*q), h.max(*q)));
     let size = (hi - lo).max_element() / iod;
     let near = |q: Option<Vec3>, r: f32| q.is_some_and(|q| q.distance(c) < r * iod);
-    if size < 1.6
-        && (near(eye_r, 0.45) || near(eye_l, 0.45) || (near(eye_r, 1.4) && near(eye_l, 1.4)))
-    {
+    let one_eye = size < 0.8 && (near(eye_r, 0.45) || near(eye_l, 0.45));
+    let both_eyes = (0.8..1.6).contains(&size)
+        && eye_r
+            .zip(eye_l)
+            .is_some_and(|(r, l)| c.distance((r + l) / 2.0) < 0.3 * iod);
+    if one_eye || both_eyes {
         // Centred on an eye (or between both, for one mesh holding both eyes): thin along z
         // are lashes, round are eyeballs.
         let depth = (hi.z - lo.z) / iod;
