@@ -82,6 +82,14 @@ fn a_multi_mesh_avatar_comes_back_whole_with_its_targets_and_take() {
     assert_eq!(written, ["fixture.toml"]);
     let toml = std::fs::read_to_string(&rig).unwrap();
     assert!(toml.contains("[avatar]\nface = \"Head\""), "{toml}");
+    // The eyes, teeth and lashes are drawn with the face (after its vertices, frozen), the
+    // see-through layers (alpha BLEND) left out of mimic's own pictures.
+    let loaded = mimic_assets::load_rig(&rig).unwrap();
+    let face_only = FaceMesh::of(&load_avatar(&fixture).unwrap(), 0).unwrap();
+    let face_n = face_only.mesh_data.vertex_count();
+    assert!(loaded.mesh.vertex_count() > face_n);
+    assert!(loaded.frozen[face_n..].iter().all(|f| *f));
+    assert!(toml.contains("[look]\nhidden = [["), "{toml}");
 
     let rec = "recordings/a_yn_question.kinect121.jsonl";
     let glb = d.join("take.glb");

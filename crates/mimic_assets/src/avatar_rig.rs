@@ -1,6 +1,7 @@
 //! A rig whose mesh is an avatar file (`mesh = "head.glb"`, `.gltf` or `.vrm`): the `[avatar]`
 //! section of the rig file says which of its meshes is the face and what the other meshes are;
-//! the face mesh, read from the file itself, is the rig's working mesh (no copy is made).
+//! the face mesh and the parts drawn with it ([`DRAWN_PARTS`], after the face's vertices), read
+//! from the file itself, are the rig's working mesh (no copy is made).
 
 use crate::AssetError;
 use mimic_avatar::{Avatar, FaceMesh};
@@ -21,6 +22,17 @@ pub struct AvatarSection {
     #[serde(default)]
     pub parts: BTreeMap<String, String>,
 }
+
+/// The kinds of part drawn with the face in the working mesh (frozen unless something drives
+/// them); hair, body and the rest are written back but not drawn by mimic.
+pub const DRAWN_PARTS: [&str; 6] = [
+    "eyeballs",
+    "upper_teeth",
+    "lower_teeth",
+    "teeth",
+    "tongue",
+    "lashes",
+];
 
 /// A rig's avatar: the file read whole and its face mesh.
 #[derive(Clone, Debug)]
@@ -59,7 +71,25 @@ pub fn read_avatar_face(path: &Path, section: &AvatarSection) -> Result<RigAvata
             mimic_avatar::AvatarError::at(path, "/meshes", "no mesh with triangles is shown")
         })?,
     };
-    let face = FaceMesh::of(&avatar, face)?;
+    let mut meshes = vec![face];
+    let mut parts: Vec<usize> = section
+        .parts
+        .iter()
+        .filter(|(_, kind)| DRAWN_PARTS.contains(&kind.as_str()))
+        .map(|(name, _)| {
+            mimic_avatar::find_mesh(&avatar, name).ok_or_else(|| {
+                mimic_avatar::AvatarError::at(
+                    path,
+                    "/meshes",
+                    format!("no mesh `{name}` for the rig's [avatar.parts]"),
+                )
+            })
+        })
+        .collect::<Result<_, _>>()?;
+    parts.sort_unstable();
+    parts.dedup();
+    meshes.extend(parts.into_iter().filter(|m| *m != face));
+    let face = FaceMesh::of_meshes(&avatar, &meshes)?;
     Ok(RigAvatar {
         path: path.to_path_buf(),
         avatar,

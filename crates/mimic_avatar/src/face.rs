@@ -21,6 +21,10 @@ pub struct FaceMesh {
     pub mesh: usize,
     /// The node that shows it (the first in file order).
     pub node: usize,
+    /// Every mesh in the working mesh: the face first, then the parts.
+    pub meshes: Vec<usize>,
+    /// How many of `arrays` are the face mesh's (the first ones).
+    pub face_arrays: usize,
     /// Its vertex arrays in order, each with the index of its first vertex in the file vertex
     /// list (the arrays' vertices one after another).
     pub arrays: Vec<(usize, u32)>,
@@ -47,51 +51,68 @@ pub fn find_mesh(avatar: &Avatar, face: &str) -> Option<usize> {
 }
 
 impl FaceMesh {
-    /// Mesh `mesh` of `avatar` (module docs); an error when no node shows it or it has no triangles.
+    /// Mesh `mesh` of `avatar` alone (module docs).
     pub fn of(avatar: &Avatar, mesh: usize) -> Result<Self, AvatarError> {
-        let pointer = format!("/meshes/{mesh}");
-        let bad = |m: String| AvatarError::at(&avatar.path, &pointer, m);
-        let m = avatar
-            .meshes
-            .get(mesh)
-            .ok_or_else(|| bad(format!("the file has {} meshes", avatar.meshes.len())))?;
-        let node = avatar
-            .nodes_of_mesh(mesh)
-            .next()
-            .ok_or_else(|| bad("no node shows this mesh".into()))?;
+        Self::of_meshes(avatar, &[mesh])
+    }
+
+    /// Meshes `meshes` of `avatar` as one working mesh, the face (`meshes[0]`) first, then the
+    /// parts in the order given (their vertices after the face's, so the face's numbering does
+    /// not depend on the parts); an error when a mesh is shown by no node or has no triangles.
+    pub fn of_meshes(avatar: &Avatar, meshes: &[usize]) -> Result<Self, AvatarError> {
         let mut arrays: Vec<(usize, u32)> = Vec::new();
+        let mut array_mesh: Vec<usize> = Vec::new();
+        let mut nodes = Vec::with_capacity(meshes.len());
         let mut next = 0u32;
-        for p in m.primitives.iter().filter(|p| p.mode == Mode::Triangles) {
-            if !arrays.iter().any(|(a, _)| *a == p.vertices) {
-                arrays.push((p.vertices, next));
-                next += avatar.vertex_arrays[p.vertices].positions.len() as u32;
+        for &mesh in meshes {
+            let pointer = format!("/meshes/{mesh}");
+            let bad = |m: String| AvatarError::at(&avatar.path, &pointer, m);
+            let m = avatar
+                .meshes
+                .get(mesh)
+                .ok_or_else(|| bad(format!("the file has {} meshes", avatar.meshes.len())))?;
+            let node = avatar
+                .nodes_of_mesh(mesh)
+                .next()
+                .ok_or_else(|| bad("no node shows this mesh".into()))?;
+            nodes.push(node);
+            let before = arrays.len();
+            for p in m.primitives.iter().filter(|p| p.mode == Mode::Triangles) {
+                if !arrays.iter().any(|(a, _)| *a == p.vertices) {
+                    arrays.push((p.vertices, next));
+                    array_mesh.push(mesh);
+                    next += avatar.vertex_arrays[p.vertices].positions.len() as u32;
+                }
+            }
+            if arrays.len() == before && !m.primitives.iter().any(|p| p.mode == Mode::Triangles) {
+                return Err(bad("the mesh has no triangle primitives".into()));
             }
         }
-        if arrays.is_empty() {
-            return Err(bad("the mesh has no triangle primitives".into()));
-        }
+        let face_arrays = array_mesh.iter().take_while(|m| **m == meshes[0]).count();
         let n = next as usize;
-        let skin = avatar.nodes[node].skin.map(|s| &avatar.skins[s]);
-        let joint_mats: Vec<Mat4> = skin.map_or_else(Vec::new, |s| {
-            s.joints
-                .iter()
-                .zip(&s.inverse_bind_matrices)
-                .map(|(&j, ibm)| avatar.nodes[j].world * *ibm)
-                .collect()
-        });
-        let node_world = avatar.nodes[node].world;
         let mut positions = Vec::with_capacity(n);
         let mut to_file = Vec::with_capacity(n);
-        let mut uvs = Vec::new();
-        let mut colors = Vec::new();
+        let mut weld_keys = Vec::with_capacity(n);
         let any_uv = arrays
             .iter()
-            .all(|(a, _)| !avatar.vertex_arrays[*a].tex_coords.is_empty());
-        for &(a, _) in &arrays {
+            .any(|(a, _)| !avatar.vertex_arrays[*a].tex_coords.is_empty());
+        let mut uvs = Vec::new();
+        for (k, &(a, _)) in arrays.iter().enumerate() {
+            let mesh_k = meshes.iter().position(|m| *m == array_mesh[k]).unwrap_or(0);
+            let node = &avatar.nodes[nodes[mesh_k]];
+            let joint_mats: Vec<Mat4> = node.skin.map_or_else(Vec::new, |s| {
+                let s = &avatar.skins[s];
+                s.joints
+                    .iter()
+                    .zip(&s.inverse_bind_matrices)
+                    .map(|(&j, ibm)| avatar.nodes[j].world * *ibm)
+                    .collect()
+            });
             let va = &avatar.vertex_arrays[a];
             for (i, p) in va.positions.iter().enumerate() {
-                let rest = rest_transform(va, i, &joint_mats).unwrap_or(node_world);
+                let rest = rest_transform(va, i, &joint_mats).unwrap_or(node.world);
                 positions.push(rest.transform_point3(*p));
+                weld_keys.push(mesh_k as u32);
                 let linear = Mat3::from_mat4(rest);
                 let inv = if linear.determinant().abs() > f32::MIN_POSITIVE {
                     linear.inverse()
@@ -100,29 +121,35 @@ impl FaceMesh {
                 };
                 to_file.push(inv);
                 if any_uv {
-                    let t = va.tex_coords[i];
+                    let t = va.tex_coords.get(i).copied().unwrap_or_default();
                     uvs.push(Vec2::new(t.x, 1.0 - t.y));
                 }
             }
         }
-        let (weld, welded) = weld_exact(&positions);
+        let (weld, welded) = weld_exact(&positions, &weld_keys);
         let mut file_triangles = Vec::new();
         let mut triangle_material = Vec::new();
         let mut vertex_material: Vec<Option<usize>> = vec![None; n];
-        for p in m.primitives.iter().filter(|p| p.mode == Mode::Triangles) {
-            let offset = arrays
+        for &mesh in meshes {
+            for p in avatar.meshes[mesh]
+                .primitives
                 .iter()
-                .find(|(a, _)| *a == p.vertices)
-                .map_or(0, |(_, o)| *o);
-            for t in p.triangles() {
-                let t = t.map(|v| v + offset);
-                t.iter()
-                    .for_each(|&v| vertex_material[v as usize] = p.material);
-                file_triangles.push(t);
-                triangle_material.push(p.material);
+                .filter(|p| p.mode == Mode::Triangles)
+            {
+                let offset = arrays
+                    .iter()
+                    .find(|(a, _)| *a == p.vertices)
+                    .map_or(0, |(_, o)| *o);
+                for t in p.triangles() {
+                    let t = t.map(|v| v + offset);
+                    t.iter()
+                        .for_each(|&v| vertex_material[v as usize] = p.material);
+                    file_triangles.push(t);
+                    triangle_material.push(p.material);
+                }
             }
         }
-        colors.resize(welded.len(), Vec4::ONE);
+        let mut colors = vec![Vec4::ONE; welded.len()];
         for &(a, offset) in arrays.iter().rev() {
             let va = &avatar.vertex_arrays[a];
             for i in (0..va.positions.len()).rev() {
@@ -139,14 +166,15 @@ impl FaceMesh {
             .map(|t| t.map(|v| weld[v as usize]))
             .collect();
         let uv_triangles = if any_uv { file_triangles } else { Vec::new() };
-        let positions = welded;
         Ok(Self {
-            mesh,
-            node,
+            mesh: meshes[0],
+            node: nodes[0],
+            meshes: meshes.to_vec(),
             arrays,
+            face_arrays,
             weld,
             mesh_data: mimic_types::Mesh {
-                positions,
+                positions: welded,
                 triangles,
                 uvs,
                 uv_triangles,
@@ -163,17 +191,19 @@ impl FaceMesh {
     }
 }
 
-/// Each point's first exact copy: per point the index of its welded point, and the welded
-/// points in first-seen order.
-fn weld_exact(points: &[Vec3]) -> (Vec<u32>, Vec<Vec3>) {
-    let mut seen: std::collections::HashMap<[u32; 3], u32> =
+/// Each point's first exact copy with the same key (its mesh: parts are never welded to the
+/// face): per point the index of its welded point, and the welded points in first-seen order.
+fn weld_exact(points: &[Vec3], keys: &[u32]) -> (Vec<u32>, Vec<Vec3>) {
+    let mut seen: std::collections::HashMap<[u32; 4], u32> =
         std::collections::HashMap::with_capacity(points.len());
     let mut welded = Vec::with_capacity(points.len());
     let weld = points
         .iter()
-        .map(|p| {
+        .zip(keys)
+        .map(|(p, k)| {
             // +0.0 and -0.0 are one place.
-            let key = (*p + Vec3::ZERO).to_array().map(f32::to_bits);
+            let [x, y, z] = (*p + Vec3::ZERO).to_array().map(f32::to_bits);
+            let key = [x, y, z, *k];
             *seen.entry(key).or_insert_with(|| {
                 welded.push(*p);
                 (welded.len() - 1) as u32

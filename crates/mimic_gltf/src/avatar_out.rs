@@ -223,7 +223,7 @@ fn add_targets(
         out
     };
     let mut per_array: Vec<(usize, Vec<Value>)> = Vec::new();
-    for &(array, offset) in &face.arrays {
+    for &(array, offset) in &face.arrays[..face.face_arrays] {
         let count = avatar.vertex_arrays[array].positions.len();
         let targets = morphs
             .iter()

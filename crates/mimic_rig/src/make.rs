@@ -196,6 +196,22 @@ pub fn make_rig_file(
         None => crate::load_mesh(job.mesh)?,
     };
     let (marks, marks_from) = landmarks_of(job, &mesh, note)?;
+    // An avatar's parts drawn with the face join the working mesh after the face's vertices
+    // (the landmarks keep their numbers).
+    let (avatar, mesh) = match avatar {
+        Some(a) => {
+            let parts = crate::avatar_parts::classify_parts(&a.avatar, &a.face, &marks);
+            note(parts_line(&a.avatar, &a.face, &parts));
+            let section = mimic_assets::AvatarSection {
+                face: Some(mesh_name(&a.avatar, a.face.mesh)),
+                parts,
+            };
+            let whole = mimic_assets::read_avatar_face(job.mesh, &section)?;
+            let mesh = whole.face.mesh_data.clone();
+            (Some(whole), mesh)
+        }
+        None => (None, mesh),
+    };
     if let Some(out) = job.landmarks_out {
         write(out, &landmarks_json(&marks))?;
         note(format!(
@@ -215,11 +231,11 @@ pub fn make_rig_file(
         .map_err(context(format!("{}: {marks_from}", job.mesh.display())))?;
     let text = rig_text(job, &mesh, &generated)?;
     let text = match &avatar {
-        Some(a) => {
-            let parts = crate::avatar_parts::classify_parts(&a.avatar, &a.face, &marks);
-            note(parts_line(&a.avatar, &a.face, &parts));
-            format!("{text}{}", avatar_toml(&a.avatar, a.face.mesh, &parts))
-        }
+        Some(a) => format!(
+            "{text}{}{}",
+            avatar_toml(&a.avatar, a.face.mesh, &a.section.parts),
+            see_through_look(a)
+        ),
         None => text,
     };
     let merged: Vec<(&Path, &str)> = overrides.iter().map(|(p, t)| (*p, t.as_str())).collect();
@@ -295,6 +311,31 @@ fn avatar_toml(
         out.push_str(&format!("{} = {}\n", q(m), q(k)));
     }
     out
+}
+
+/// The `[look]` hiding the vertices drawn only by see-through materials (alpha BLEND: an eye's
+/// occlusion shadow, lashes), which mimic's renderer would draw solid; empty when there are none.
+fn see_through_look(a: &mimic_assets::RigAvatar) -> String {
+    let face = &a.face;
+    let n = face.mesh_data.vertex_count();
+    let (mut solid, mut blend) = (vec![false; n], vec![false; n]);
+    for (t, m) in face.mesh_data.triangles.iter().zip(&face.triangle_material) {
+        let see_through = m
+            .and_then(|k| a.avatar.materials.get(k))
+            .is_some_and(|m| m.alpha_mode == mimic_avatar::AlphaMode::Blend);
+        let mark = if see_through { &mut blend } else { &mut solid };
+        t.iter().for_each(|&v| mark[v as usize] = true);
+    }
+    let only: Vec<bool> = blend.iter().zip(&solid).map(|(b, s)| *b && !*s).collect();
+    let ranges = crate::parts::ranges(&only);
+    if ranges.is_empty() {
+        return String::new();
+    }
+    let list: Vec<String> = ranges.iter().map(|[a, b]| format!("[{a}, {b}]")).collect();
+    format!(
+        "\n# Vertices drawn only by see-through (alpha BLEND) materials: mimic's renderer would draw\n# them solid, so it leaves them out (the avatar written back keeps them).\n[look]\nhidden = [{}]\n",
+        list.join(", ")
+    )
 }
 
 /// The generated rig's TOML (the command line as its second line); an avatar's file is named
