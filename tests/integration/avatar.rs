@@ -153,8 +153,16 @@ fn a_multi_mesh_avatar_comes_back_whole_with_its_targets_and_take() {
         .unwrap();
     assert_eq!(b.nodes[weights.node].mesh, Some(0));
     targets_times_weights_are_mimics_frames(&b, weights, rec, &rig, d);
+    // `rig export` of the avatar's rig: the avatar whole with the face's targets, no animation.
+    let exported = d.join("export.glb");
+    run(&["rig", "export", s(&rig), "-o", s(&exported)]);
+    let e = load_avatar(&exported).unwrap();
+    assert_kept(&a, &e);
+    assert_eq!(e.meshes[0].target_names, fb.target_names);
+    assert_eq!(e.animations.len(), a.animations.len());
     if node_ready() {
         check(&glb, None);
+        check(&exported, None);
     }
 }
 

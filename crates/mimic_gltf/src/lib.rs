@@ -32,7 +32,7 @@ pub use glb::{GlbSummary, GltfMaterial, GltfMesh, Scene, write_glb};
 pub use mimic_avatar as avatar;
 pub use mimic_avatar::{Avatar, AvatarError, gltf_check, load_avatar, parse_avatar};
 pub use morphs::{Morph, basis_morphs, basis_weights, control_morphs, target_morphs};
-pub use rig::{RigLookParts, rig_look_parts, write_rig_glb};
+pub use rig::{RigLookParts, export_rig_glb, rig_look_parts, write_rig_glb};
 pub use sink::{GlbKeys, GlbSink};
 pub use take::{Interpolation, Take, head_translation};
 pub use units::{MODEL_UNIT_METRES, UnitsError, metres_per_unit, rig_metres_per_unit};

@@ -136,3 +136,28 @@ pub fn write_rig_glb(
     };
     write_glb(&scene, w)
 }
+
+/// `mimic rig export`: an avatar rig's avatar written back whole with `morphs` on its face
+/// ([`crate::write_avatar_glb`], no animation), any other rig as [`write_rig_glb`] writes it.
+pub fn export_rig_glb(
+    rig_path: &Path,
+    rig: &Rig,
+    morphs: &[Morph],
+    skin: [f32; 3],
+    w: &mut impl Write,
+) -> Result<GlbSummary, GltfError> {
+    let Some(a) = mimic_assets::load_rig_avatar(rig_path)? else {
+        return write_rig_glb(rig_path, rig, morphs, None, skin, w);
+    };
+    let s = crate::write_avatar_glb(&a.avatar, &a.face, morphs, None, w)?;
+    let primitives = a.avatar.meshes.iter().map(|m| m.primitives.len()).sum();
+    Ok(GlbSummary {
+        bytes: s.bytes,
+        vertices: s.vertices,
+        primitives,
+        targets: s.targets,
+        sparse_targets: 0,
+        keys: 0,
+        duration_s: 0.0,
+    })
+}

@@ -1,9 +1,10 @@
-//! `mimic rig export R -o head.glb`: a rig as one GLB, without animation.
+//! `mimic rig export R -o head.glb`: a rig as one GLB, without animation (an avatar rig's
+//! avatar whole, with the targets on its face).
 
 use crate::cmd::setup::{Mode, RigArgs, SolverChoice};
 use anyhow::Context;
 use mimic_assets::load_morph_targets;
-use mimic_gltf::{control_morphs, rig_metres_per_unit, target_morphs, write_rig_glb};
+use mimic_gltf::{control_morphs, export_rig_glb, rig_metres_per_unit, target_morphs};
 use std::fs::File;
 use std::io::{BufWriter, Write};
 use std::path::PathBuf;
@@ -59,15 +60,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let started = Instant::now();
     let file = File::create(&args.out).with_context(|| args.out.display().to_string())?;
     let mut w = BufWriter::new(file);
-    let summary = write_rig_glb(
-        &path,
-        &rig,
-        &morphs,
-        None,
-        mimic_render::SKIN_ALBEDO,
-        &mut w,
-    )
-    .with_context(|| args.out.display().to_string())?;
+    let summary = export_rig_glb(&path, &rig, &morphs, mimic_render::SKIN_ALBEDO, &mut w)
+        .with_context(|| args.out.display().to_string())?;
     w.flush().with_context(|| args.out.display().to_string())?;
     let secs = started.elapsed().as_secs_f64();
     if args.json {
