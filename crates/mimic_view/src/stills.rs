@@ -288,3 +288,35 @@ mod tests {
         assert_eq!((sheet.width, sheet.height), (16, 6));
     }
 }
+
+/// The box `mimic render` frames: the whole mesh, or with `face` the face alone (its controls'
+/// box, widened by a quarter of its size on every side, so that a bust's face fills the tile).
+pub fn framed_bounds(rig: &Rig, face: bool) -> Result<(Vec3, Vec3), ViewError> {
+    let controls = rig.control_positions();
+    if face && !controls.is_empty() {
+        let (lo, hi) = controls
+            .iter()
+            .fold((Vec3::MAX, Vec3::MIN), |(l, h), p| (l.min(*p), h.max(*p)));
+        let pad = (hi - lo) * 0.25;
+        return Ok((lo - pad, hi + pad));
+    }
+    rig.mesh.bounds().ok_or(ViewError::EmptyMesh)
+}
+
+#[cfg(test)]
+mod framing_tests {
+    use super::*;
+
+    #[test]
+    fn the_face_box_holds_the_controls_inside_the_mesh_box() {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/rigs/ict-face.toml");
+        let rig = mimic_assets::load_rig(&path).unwrap();
+        let (lo, hi) = framed_bounds(&rig, false).unwrap();
+        let (flo, fhi) = framed_bounds(&rig, true).unwrap();
+        for p in rig.control_positions() {
+            assert!(p.cmpge(flo).all() && p.cmple(fhi).all());
+        }
+        // The face's box is smaller than the bust's: the face fills more of the tile.
+        assert!((fhi - flo).y < (hi - lo).y, "{flo} {fhi} vs {lo} {hi}");
+    }
+}

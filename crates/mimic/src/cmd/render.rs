@@ -2,7 +2,7 @@
 //! drawing is `mimic_view::stills`).
 
 use crate::cmd::setup::{PipelineArgs, RigArgs, parse_size, prepare_with, quiet_headless_vulkan};
-use anyhow::{Context, bail};
+use anyhow::bail;
 use mimic_capture::RecordingReader;
 use mimic_render::{Camera, Renderer, View};
 use mimic_view::load_look;
@@ -53,6 +53,9 @@ pub struct Args {
     /// Skin colour everywhere instead of the mesh's material colours (teeth, gums, eyes, lashes).
     #[arg(long)]
     pub no_materials: bool,
+    /// What the camera frames: the `whole` mesh, or the `face` alone (a bust's face fills the tile).
+    #[arg(long, default_value = "whole", value_parser = ["whole", "face"])]
+    pub frame: String,
 }
 
 /// Runs `mimic render`.
@@ -69,7 +72,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let rig = &prepared.rig;
     let path = args.rig.rig_path();
     let look = load_look(&path, rig, args.hide.as_deref(), !args.no_materials)?;
-    let (lo, hi) = rig.mesh.bounds().context("the rig's mesh is empty")?;
+    let (lo, hi) = mimic_view::stills::framed_bounds(rig, args.frame == "face")?;
     let shading = shading_named(rig, args.heat.as_deref(), args.heat_scale)?;
     let renderer = Renderer::new(width, height)?;
     tracing::info!(adapter = renderer.adapter(), "renderer");
