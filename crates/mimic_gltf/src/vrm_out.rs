@@ -164,7 +164,7 @@ const V0_NAMES: &[(&str, &str, &str)] = &[
     ("relaxed", "fun", "Fun"),
 ];
 
-/// What [`bind_expressions`] bound.
+/// The VRM expressions [`crate::write_avatar_glb`] bound to mimic's targets.
 #[derive(Clone, Debug, Default, PartialEq, serde::Serialize)]
 pub struct VrmBinds {
     /// VRM 1.0 preset names bound to mimic's targets (presets the avatar had bound are not).
