@@ -45,6 +45,7 @@ mod shell;
 mod shipped_rigs;
 mod slots;
 mod view;
+mod vrm;
 
 use std::path::PathBuf;
 use std::process::{Command, Output};

@@ -8,11 +8,14 @@
 //!   vertex array (primitives sharing an array share the accessors), deltas turned from world
 //!   space into the file's space ([`FaceMesh::to_file`]: the bind space of a skinned mesh), and
 //!   `extras.targetNames`, `weights` extended to match.
+//! - A VRM's expressions are bound to the new targets where they carry ARKit names
+//!   ([`crate::vrm_out`]).
 //! - The take becomes one more animation: the face node's weights (its own targets held at their
 //!   defaults), and the head rotation and translation on the head joint (the VRM humanoid head,
 //!   else a node named like a head, else the face's node), as local keys under its parent.
 
 use crate::glb::{Builder, write_container};
+use crate::vrm_out::{VrmBinds, bind_expressions};
 use crate::{GltfError, Morph, Take};
 use glam::{Mat3, Vec3};
 use mimic_avatar::{Avatar, FaceMesh};
@@ -38,6 +41,9 @@ pub struct AvatarGlbSummary {
     pub duration_s: f32,
     /// The node the head pose keys move (None: no pose keys).
     pub head_node: Option<String>,
+    /// A VRM's expressions bound to mimic's targets (None: not a VRM).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub vrm_expressions: Option<VrmBinds>,
 }
 
 /// The node the head pose goes on: the VRM humanoid head bone, else a skin joint named `head`,
@@ -82,6 +88,10 @@ pub fn write_avatar_glb(
     let mut b = merged_buffers(avatar, &mut doc);
     let own = own_target_count(avatar, face.mesh);
     let added = add_targets(avatar, face, morphs, own, &mut b, &mut doc);
+    let vrm_expressions = avatar.vrm.as_ref().map(|_| {
+        let names: Vec<String> = morphs.iter().map(|m| m.name.clone()).collect();
+        bind_expressions(avatar, face, own, &names, &mut doc)
+    });
     let head = head_node(avatar, face.node);
     let (keys, duration_s) = match take.filter(|t| !t.is_empty()) {
         Some(t) => {
@@ -117,6 +127,7 @@ pub fn write_avatar_glb(
         head_node: take
             .filter(|t| t.has_pose() && !t.is_empty())
             .map(|_| node_name(avatar, head)),
+        vrm_expressions,
     })
 }
 

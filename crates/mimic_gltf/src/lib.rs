@@ -26,6 +26,7 @@ mod sink;
 mod take;
 mod units;
 mod vertices;
+mod vrm_out;
 
 pub use avatar_out::{AvatarGlbSummary, head_node, write_avatar_glb};
 pub use glb::{GlbSummary, GltfMaterial, GltfMesh, Scene, write_glb};
@@ -33,10 +34,11 @@ pub use mimic_avatar as avatar;
 pub use mimic_avatar::{Avatar, AvatarError, gltf_check, load_avatar, parse_avatar};
 pub use morphs::{Morph, basis_morphs, basis_weights, control_morphs, target_morphs};
 pub use rig::{RigLookParts, export_rig_glb, rig_look_parts, write_rig_glb};
-pub use sink::{GlbKeys, GlbSink};
+pub use sink::{GlbKeys, GlbSink, take_path};
 pub use take::{Interpolation, Take, head_translation};
 pub use units::{MODEL_UNIT_METRES, UnitsError, metres_per_unit, rig_metres_per_unit};
 pub use vertices::{SplitVertices, split_vertices};
+pub use vrm_out::{ARKIT_NAMES, PRESETS, VrmBinds, arkit_name};
 
 /// Why a GLB could not be written.
 #[derive(Debug, thiserror::Error)]

@@ -1,7 +1,8 @@
 //! A take as one GLB, behind the frame loop's seam ([`GlbSink`]): each frame becomes a key
 //! (the morph weights: the rig's fitted or given weights, or `d` in metres on the basis
 //! targets; the head rotation and translation), and `finish` writes the rig, its targets and
-//! the animation (docs/gltf.md).
+//! the animation (docs/gltf.md). A path ending in `.vrm` asks for a VRM: the rig's avatar must
+//! be one, and is written back whole as a VRM (docs/avatars.md).
 
 use crate::{Interpolation, Morph, Take, basis_weights, metres_per_unit, write_rig_glb};
 use glam::Vec3;
@@ -30,6 +31,23 @@ pub struct GlbSink {
     avatar: Option<mimic_assets::RigAvatar>,
 }
 
+/// Whether `path` names a `.vrm` file.
+fn is_vrm_path(path: &Path) -> bool {
+    path.extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("vrm"))
+}
+
+/// The file of `replay --out OUT` for a GLB (`vrm` false) or VRM: `out` itself when it ends in
+/// `.glb` (`.vrm`), else `take.glb` (`take.vrm`) in the folder `out`.
+pub fn take_path(out: &Path, vrm: bool) -> PathBuf {
+    let ext = if vrm { "vrm" } else { "glb" };
+    if out.extension().is_some_and(|e| e.eq_ignore_ascii_case(ext)) {
+        out.to_path_buf()
+    } else {
+        out.join(format!("take.{ext}"))
+    }
+}
+
 /// How a [`GlbSink`] keys its take.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct GlbKeys {
@@ -55,6 +73,18 @@ impl GlbSink {
         }
         let avatar =
             mimic_assets::load_rig_avatar(rig_path).map_err(|e| SinkError::new(path, e))?;
+        if is_vrm_path(path) && avatar.as_ref().is_none_or(|a| a.avatar.vrm.is_none()) {
+            let has = avatar.as_ref().map_or("no avatar".into(), |a| {
+                format!("the avatar {}, not a VRM", a.path.display())
+            });
+            return Err(SinkError::new(
+                path,
+                format!(
+                    "--format vrm writes the rig's VRM avatar back, and rig `{}` has {has}",
+                    rig.name
+                ),
+            ));
+        }
         // An avatar's face is in the file's own units: its targets' weights are `d` as it is.
         let scale = metres_per_unit(&rig.units)
             .filter(|_| avatar.is_none())

@@ -37,6 +37,8 @@ pub enum OutFormat {
     Bin,
     /// One GLB: the rig, its morph targets and the take as an animation (docs/gltf.md).
     Glb,
+    /// One VRM: the rig's VRM avatar as `glb`, its expressions bound (docs/avatars.md).
+    Vrm,
 }
 
 /// Arguments of `mimic replay`.
@@ -53,7 +55,7 @@ pub struct Args {
     #[command(flatten)]
     pub blend: BlendshapeArgs,
     /// Directory for the deformed frames (nothing is written without it); with `--format glb`
-    /// the GLB file (a path not ending in `.glb` is a directory, and gets `take.glb`).
+    /// (`vrm`) the file (a path not ending in `.glb` (`.vrm`) is a directory: `take.glb`).
     #[arg(long)]
     pub out: Option<PathBuf>,
     /// Leave the head pose out of the GLB (`--format glb`): the face animates in place.
@@ -110,8 +112,8 @@ impl Args {
 
 /// Runs `mimic replay`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if (args.no_pose || args.step_keys) && args.format != OutFormat::Glb {
-        bail!("--no-pose and --step-keys are options of --format glb");
+    if (args.no_pose || args.step_keys) && !matches!(args.format, OutFormat::Glb | OutFormat::Vrm) {
+        bail!("--no-pose and --step-keys are options of --format glb and vrm");
     }
     if mimic_trackers::take::is_take_file(&args.recording)? {
         return take::run(&args);

@@ -1,5 +1,5 @@
 //! The outputs `mimic replay`'s flags ask for, added to the frame loop: the frames (`--out`,
-//! `--format`: OBJ, `frames.bin` or one GLB), `--metrics`, `--controls` and `--weights`. Each
+//! `--format`: OBJ, `frames.bin` or one GLB or VRM), `--metrics`, `--controls` and `--weights`. Each
 //! output lives beside its format (mimic_assets, mimic_gltf, mimic_trackers); this table only
 //! picks them.
 
@@ -7,12 +7,11 @@ use super::{Args, OutFormat, WeightsFormat};
 use anyhow::Context;
 use mimic_assets::{BinSink, ControlsCsv, MetricsCsv, ObjSink};
 use mimic_gltf::{
-    GlbKeys, GlbSink, Interpolation, control_morphs, rig_metres_per_unit, target_morphs,
+    GlbKeys, GlbSink, Interpolation, control_morphs, rig_metres_per_unit, take_path, target_morphs,
 };
 use mimic_retarget::FrameLoop;
 use mimic_trackers::weights_csv::{WeightsCsv, WeightsLayout};
 use mimic_types::{MorphTarget, Rig};
-use std::path::PathBuf;
 
 /// Adds the outputs `args` asks for to `frames`, a loop onto `rig` whose GLB targets are the
 /// rig's morph `targets` (blend-shape mode, a take) or, when there are none, the basis columns;
@@ -28,7 +27,7 @@ pub(super) fn add(
     let every = args.every.max(1);
     match (&args.out, args.format) {
         (None, _) => {}
-        (Some(out), OutFormat::Glb) => {
+        (Some(out), OutFormat::Glb | OutFormat::Vrm) => {
             let scale = rig_metres_per_unit(rig)?;
             let morphs = if targets.is_empty() {
                 let r = frames
@@ -47,7 +46,7 @@ pub(super) fn add(
                 pose: !args.no_pose,
             };
             let glb = GlbSink::create(
-                &glb_path(out),
+                &take_path(out, args.format == OutFormat::Vrm),
                 &rig_path,
                 rig,
                 morphs,
@@ -93,16 +92,4 @@ pub(super) fn add(
         frames.add_output(Box::new(csv), 1);
     }
     Ok(())
-}
-
-/// The GLB file of `--out`: the path itself when it ends in `.glb`, else `take.glb` in it.
-pub(super) fn glb_path(out: &std::path::Path) -> PathBuf {
-    if out
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("glb"))
-    {
-        out.to_path_buf()
-    } else {
-        out.join("take.glb")
-    }
 }
