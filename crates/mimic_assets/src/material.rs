@@ -176,7 +176,7 @@ pub fn rig_mesh_path(rig_path: &Path) -> Result<PathBuf, AssetError> {
 }
 
 /// The materials of a rig's mesh (see [`parse_obj_materials`]; for an avatar, its face mesh's
-/// glTF materials, [`crate::avatar_rig::avatar_materials`]).
+/// glTF materials: `avatar_rig::avatar_materials`).
 pub fn load_rig_materials(rig_path: &Path) -> Result<MeshMaterials, AssetError> {
     if let Some(a) = crate::load_rig_avatar(rig_path)? {
         return Ok(crate::avatar_rig::avatar_materials(&a));
