@@ -234,7 +234,7 @@ fn rest_transform(va: &crate::VertexArray, i: usize, joints: &[Mat4]) -> Option<
 
 /// The mesh of `avatar` most likely the face when the caller has no registration to go by: the
 /// triangle mesh with the most vertices whose name says face or head, else the one with the most
-/// vertices.
+/// vertices; a mesh drawn only by see-through (BLEND) materials never.
 pub fn largest_mesh(avatar: &Avatar) -> Option<usize> {
     let count = |m: &crate::Mesh| -> usize {
         let mut arrays: Vec<usize> = m
@@ -251,6 +251,15 @@ pub fn largest_mesh(avatar: &Avatar) -> Option<usize> {
             .sum()
     };
     let shown = |k: usize| avatar.nodes_of_mesh(k).next().is_some();
+    // A see-through shell (every primitive alpha BLEND: an eye occlusion, a glasses lens) is
+    // never the face.
+    let solid = |m: &crate::Mesh| {
+        m.primitives.iter().any(|p| {
+            p.material
+                .and_then(|k| avatar.materials.get(k))
+                .is_none_or(|mat| mat.alpha_mode != crate::AlphaMode::Blend)
+        })
+    };
     let named = |m: &crate::Mesh| {
         m.name.as_deref().is_some_and(|n| {
             let n = n.to_ascii_lowercase();
@@ -262,7 +271,7 @@ pub fn largest_mesh(avatar: &Avatar) -> Option<usize> {
             .meshes
             .iter()
             .enumerate()
-            .filter(|(k, m)| shown(*k) && (!want_name || named(m)) && count(m) > 0)
+            .filter(|(k, m)| shown(*k) && solid(m) && (!want_name || named(m)) && count(m) > 0)
             .max_by_key(|(_, m)| count(m))
             .map(|(k, _)| k)
     };

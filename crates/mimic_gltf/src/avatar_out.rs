@@ -46,33 +46,72 @@ pub struct AvatarGlbSummary {
     pub vrm_expressions: Option<VrmBinds>,
 }
 
-/// The node the head pose goes on: the VRM humanoid head bone, else a skin joint named `head`,
-/// `Head`, `J_Bip_C_Head` or ending in `_head` / `:Head`, else a node so named that shows no
-/// mesh, else the face mesh's node.
-pub fn head_node(avatar: &Avatar, face_node: usize) -> usize {
+/// The node the head pose goes on: the VRM humanoid head bone; else the node (a skin's joint
+/// first) whose name says head best (`head`, then `*_head` / `*:head` / `*.head`, then any name
+/// holding `head` but not `end`, `top`, `tip` or `nub`), never a node that shows a mesh (a mesh
+/// named `Head` is the face itself); else, for a skinned face, the joint that carries most of its
+/// skin weight; else the face's node.
+pub fn head_node(avatar: &Avatar, face: &FaceMesh) -> usize {
     if let Some(h) = avatar.vrm.as_ref().and_then(|v| v.head()) {
         return h;
     }
-    let is_head = |k: &usize| {
-        avatar.nodes[*k].name.as_deref().is_some_and(|name| {
-            let l = name.to_ascii_lowercase();
-            l == "head" || l.ends_with("_head") || l.ends_with(":head") || l.ends_with(".head")
-        })
+    let score = |k: usize| -> u8 {
+        let Some(name) = avatar.nodes[k].name.as_deref() else {
+            return 0;
+        };
+        let l = name.to_ascii_lowercase();
+        if avatar.nodes[k].mesh.is_some() {
+            0
+        } else if l == "head" {
+            3
+        } else if ["_head", ":head", ".head", " head"]
+            .iter()
+            .any(|e| l.ends_with(e))
+        {
+            2
+        } else if l.contains("head") && !["end", "top", "tip", "nub"].iter().any(|w| l.contains(w))
+        {
+            1
+        } else {
+            0
+        }
     };
-    // A skin's joint first, then any node that shows no mesh (a mesh node named `Head` is the
-    // face itself, not its joint).
-    let joint = avatar
+    let joints: Vec<usize> = avatar
         .skins
         .iter()
         .flat_map(|s| s.joints.iter().copied())
-        .find(is_head);
-    joint
-        .or_else(|| {
-            (0..avatar.nodes.len())
-                .filter(|k| avatar.nodes[*k].mesh.is_none())
-                .find(is_head)
-        })
-        .unwrap_or(face_node)
+        .collect();
+    let candidates = joints.iter().copied().chain(0..avatar.nodes.len());
+    let best = candidates.fold((0u8, None), |(bs, bk), k| {
+        let s = score(k);
+        if s > bs { (s, Some(k)) } else { (bs, bk) }
+    });
+    if let (_, Some(k)) = best {
+        return k;
+    }
+    heaviest_joint(avatar, face).unwrap_or(face.node)
+}
+
+/// The joint of the face's skin that carries the most weight over the face's own vertices.
+fn heaviest_joint(avatar: &Avatar, face: &FaceMesh) -> Option<usize> {
+    let skin = &avatar.skins[avatar.nodes[face.node].skin?];
+    let mut total = vec![0.0f32; skin.joints.len()];
+    for &(array, _) in &face.arrays[..face.face_arrays] {
+        let va = &avatar.vertex_arrays[array];
+        for (j, w) in va.joints.iter().zip(&va.weights) {
+            for (k, weight) in w.to_array().iter().enumerate() {
+                if let Some(t) = total.get_mut(j[k] as usize) {
+                    *t += weight;
+                }
+            }
+        }
+    }
+    let (k, _) = total
+        .iter()
+        .enumerate()
+        .filter(|(_, t)| **t > 0.0)
+        .max_by(|a, b| a.1.total_cmp(b.1))?;
+    skin.joints.get(k).copied()
 }
 
 /// Writes `avatar` back as one GLB (module docs) with `morphs` (over `face`'s working vertices,
@@ -88,11 +127,12 @@ pub fn write_avatar_glb(
     let mut b = merged_buffers(avatar, &mut doc);
     let own = own_target_count(avatar, face.mesh);
     let added = add_targets(avatar, face, morphs, own, &mut b, &mut doc);
+    pad_weight_keys(avatar, face, own, added, &mut b, &mut doc);
     let vrm_expressions = avatar.vrm.as_ref().map(|_| {
         let names: Vec<String> = morphs.iter().map(|m| m.name.clone()).collect();
         bind_expressions(avatar, face, own, &names, &mut doc)
     });
-    let head = head_node(avatar, face.node);
+    let head = head_node(avatar, face);
     let (keys, duration_s) = match take.filter(|t| !t.is_empty()) {
         Some(t) => {
             if t.target_count() != morphs.len() {
@@ -305,6 +345,39 @@ fn add_targets(
         }
     }
     morphs.len()
+}
+
+/// The avatar's own animations that key the face mesh's weights get a zero for each added target
+/// in every key (and tangent), so that their keys keep the width of the mesh's targets.
+fn pad_weight_keys(
+    avatar: &Avatar,
+    face: &FaceMesh,
+    own: usize,
+    added: usize,
+    b: &mut Builder,
+    doc: &mut Value,
+) {
+    if added == 0 || own == 0 {
+        return;
+    }
+    let face_nodes: Vec<usize> = avatar.nodes_of_mesh(face.mesh).collect();
+    for (ai, a) in avatar.animations.iter().enumerate() {
+        for (ci, c) in a.channels.iter().enumerate() {
+            if c.path != mimic_avatar::ChannelPath::Weights || !face_nodes.contains(&c.node) {
+                continue;
+            }
+            let mut padded = Vec::with_capacity(c.values.len() / own * (own + added));
+            for block in c.values.chunks(own) {
+                padded.extend_from_slice(block);
+                padded.extend(std::iter::repeat_n(0.0, added));
+            }
+            let out = b.floats(&padded, 1, "SCALAR", None);
+            let sampler = &doc["animations"][ai]["channels"][ci]["sampler"];
+            if let Some(si) = sampler.as_u64() {
+                doc["animations"][ai]["samplers"][si as usize]["output"] = json!(out);
+            }
+        }
+    }
 }
 
 /// Adds the take as an animation (module docs).

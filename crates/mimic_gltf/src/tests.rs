@@ -256,3 +256,143 @@ fn mimics_ict_export_reads_its_shared_vertex_list_once() {
     assert!(a.material_named("M_Face").is_some());
     assert_eq!(a.vertex_arrays[0].colors.len(), a.vertex_count());
 }
+
+/// The ICT avatar fixture with its JSON edited by `edit` (extra bytes appended to the binary
+/// chunk), read back as an avatar.
+fn edited_fixture(edit: impl FnOnce(&mut Value, &mut Vec<u8>)) -> mimic_avatar::Avatar {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../../tests/data/avatar/ict_multimesh.glb");
+    let bytes = std::fs::read(&path).unwrap();
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let mut doc: Value = serde_json::from_slice(&bytes[20..20 + json_len]).unwrap();
+    let bin_at = 20 + json_len;
+    let bin_len = u32::from_le_bytes(bytes[bin_at..bin_at + 4].try_into().unwrap()) as usize;
+    let mut bin = bytes[bin_at + 8..bin_at + 8 + bin_len].to_vec();
+    edit(&mut doc, &mut bin);
+    doc["buffers"][0]["byteLength"] = serde_json::json!(bin.len());
+    let mut glb = Vec::new();
+    crate::glb::write_container(&doc, &bin, &mut glb).unwrap();
+    mimic_avatar::parse_avatar(std::path::Path::new("edited.glb"), &glb, None).unwrap()
+}
+
+/// Appends `values` (f32) to `bin` as a view and a SCALAR accessor; returns the accessor.
+fn add_floats(doc: &mut Value, bin: &mut Vec<u8>, values: &[f32]) -> usize {
+    while bin.len() % 4 != 0 {
+        bin.push(0);
+    }
+    let at = bin.len();
+    bin.extend(values.iter().flat_map(|v| v.to_le_bytes()));
+    let views = doc["bufferViews"].as_array_mut().unwrap();
+    views.push(serde_json::json!({"buffer": 0, "byteOffset": at, "byteLength": 4 * values.len()}));
+    let view = views.len() - 1;
+    let (lo, hi) = values
+        .iter()
+        .fold((f32::MAX, f32::MIN), |(l, h), v| (l.min(*v), h.max(*v)));
+    let accessors = doc["accessors"].as_array_mut().unwrap();
+    accessors.push(serde_json::json!({
+        "bufferView": view, "componentType": 5126, "count": values.len(), "type": "SCALAR",
+        "min": [lo], "max": [hi],
+    }));
+    accessors.len() - 1
+}
+
+#[test]
+fn the_head_pose_goes_on_the_head_joint_in_its_parents_frame_and_own_weight_keys_widen() {
+    let neck_turn = Quat::from_rotation_z(0.3) * Quat::from_rotation_x(-0.2);
+    let a = edited_fixture(|doc, bin| {
+        let nodes = doc["nodes"].as_array_mut().unwrap();
+        // Names that say head only loosely; a turned neck, so local and world keys differ.
+        nodes[3]["name"] = serde_json::json!("J_HeadBone");
+        nodes[2]["rotation"] = serde_json::json!(neck_turn.to_array());
+        // The avatar's own clip keys the face's two targets.
+        let times = add_floats(doc, bin, &[0.0, 1.0]);
+        let values = add_floats(doc, bin, &[0.0, 0.5, 1.0, 0.0]);
+        doc["animations"] = serde_json::json!([{
+            "name": "own",
+            "samplers": [{"input": times, "output": values}],
+            "channels": [{"sampler": 0, "target": {"node": 4, "path": "weights"}}],
+        }]);
+    });
+    let face = mimic_avatar::FaceMesh::of(&a, 0).unwrap();
+    let head = a.node_named("J_HeadBone").unwrap();
+    assert_eq!(head_node(&a, &face), head);
+    let morph = Morph {
+        name: "up".into(),
+        positions: vec![(0, Vec3::Y), (5, Vec3::Y)],
+        normals: Vec::new(),
+    };
+    let turns = [
+        Quat::IDENTITY,
+        Quat::from_rotation_y(0.4) * Quat::from_rotation_x(0.1),
+    ];
+    let moves = [Vec3::ZERO, Vec3::new(0.01, -0.02, 0.03)];
+    let mut take = Take::new(1, Interpolation::Linear, true);
+    for k in 0..2 {
+        take.push(k as i64 * 500_000, &[k as f32], (turns[k], moves[k]));
+    }
+    let mut out = Vec::new();
+    write_avatar_glb(&a, &face, &[morph], Some(&take), &mut out).unwrap();
+    let b = mimic_avatar::parse_avatar(std::path::Path::new("out.glb"), &out, None).unwrap();
+    // The own clip's keys widened: 2 own + 1 added per key.
+    let own = &b.animations[0].channels[0];
+    assert_eq!(own.values, [0.0, 0.5, 0.0, 1.0, 0.0, 0.0]);
+    let mimic_take = b.animations.last().unwrap();
+    let rot = mimic_take
+        .channels
+        .iter()
+        .find(|c| c.path == mimic_avatar::ChannelPath::Rotation)
+        .unwrap();
+    let tr = mimic_take
+        .channels
+        .iter()
+        .find(|c| c.path == mimic_avatar::ChannelPath::Translation)
+        .unwrap();
+    assert_eq!((rot.node, tr.node), (head, head));
+    let parent = a.nodes[a.nodes[head].parent.unwrap()].world;
+    let (_, parent_rot, _) = parent.to_scale_rotation_translation();
+    let rest_world = parent_rot * a.nodes[head].rotation;
+    for k in 0..2 {
+        let q = Quat::from_slice(&rot.values[4 * k..4 * k + 4]);
+        // The head's world rotation is the take's rotation times its rest world rotation.
+        let world = parent_rot * q;
+        assert!(
+            world.abs_diff_eq(turns[k] * rest_world, 1e-5)
+                || world.abs_diff_eq(-(turns[k] * rest_world), 1e-5)
+        );
+        let t = Vec3::from_slice(&tr.values[3 * k..3 * k + 3]);
+        let moved = parent.transform_vector3(t - a.nodes[head].translation);
+        assert!(
+            (moved - moves[k]).length() <= 1e-6,
+            "{moved} vs {}",
+            moves[k]
+        );
+    }
+}
+
+#[test]
+fn a_skeleton_without_head_names_puts_the_pose_on_the_joint_that_carries_the_face() {
+    let a = edited_fixture(|doc, _| {
+        for (k, name) in [(1, "a"), (2, "b"), (3, "c")] {
+            doc["nodes"][k]["name"] = serde_json::json!(name);
+        }
+    });
+    let face = mimic_avatar::FaceMesh::of(&a, 0).unwrap();
+    // The fixture's face is skinned mostly to its third joint (the former `head`).
+    assert_eq!(head_node(&a, &face), a.node_named("c").unwrap());
+}
+
+#[test]
+fn a_see_through_shell_named_like_a_face_is_not_taken_for_the_face() {
+    let a = edited_fixture(|doc, _| {
+        // The lashes' mesh renamed `FaceShell` and drawn only by see-through materials; the head
+        // renamed to say nothing.
+        doc["meshes"][0]["name"] = serde_json::json!("Mesh0");
+        doc["meshes"][3]["name"] = serde_json::json!("FaceShell");
+        for p in doc["meshes"][3]["primitives"].as_array_mut().unwrap() {
+            p["material"] = serde_json::json!(8);
+        }
+    });
+    assert_eq!(a.materials[8].alpha_mode, mimic_avatar::AlphaMode::Blend);
+    // Not the shell, though its name says face: the largest solid mesh, the head.
+    assert_eq!(mimic_avatar::largest_mesh(&a), Some(0));
+}
