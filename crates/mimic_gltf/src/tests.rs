@@ -277,7 +277,7 @@ fn edited_fixture(edit: impl FnOnce(&mut Value, &mut Vec<u8>)) -> mimic_avatar::
 
 /// Appends `values` (f32) to `bin` as a view and a SCALAR accessor; returns the accessor.
 fn add_floats(doc: &mut Value, bin: &mut Vec<u8>, values: &[f32]) -> usize {
-    while bin.len() % 4 != 0 {
+    while !bin.len().is_multiple_of(4) {
         bin.push(0);
     }
     let at = bin.len();
