@@ -71,7 +71,12 @@ pub fn write_shape_pack<W: Write>(mut w: W, pack: &ShapePack) -> std::io::Result
     put_varint(&mut out, pack.shapes.len() as u64);
     out.extend_from_slice(&pack.quantum.to_le_bytes());
     for s in &pack.shapes {
-        assert_eq!(s.deltas.len(), pack.vertex_count, "write_shape_pack: {}", s.name);
+        assert_eq!(
+            s.deltas.len(),
+            pack.vertex_count,
+            "write_shape_pack: {}",
+            s.name
+        );
         put_varint(&mut out, s.name.len() as u64);
         out.extend_from_slice(s.name.as_bytes());
         let rounded: Vec<(usize, [i64; 3])> = s
@@ -244,7 +249,10 @@ mod tests {
         let mut bytes = Vec::new();
         write_shape_pack(&mut bytes, &p).unwrap();
         let back = read_shape_pack(&bytes, Path::new("t.shapes")).unwrap();
-        assert_eq!((back.vertex_count, back.quantum), (p.vertex_count, p.quantum));
+        assert_eq!(
+            (back.vertex_count, back.quantum),
+            (p.vertex_count, p.quantum)
+        );
         let mut worst = 0f32;
         for (a, b) in p.shapes.iter().zip(&back.shapes) {
             assert_eq!(a.name, b.name);
@@ -267,8 +275,15 @@ mod tests {
         let mut bytes = Vec::new();
         write_shape_pack(&mut bytes, &pack()).unwrap();
         let path = Path::new("t.shapes");
-        for cut in [3, SHAPE_PACK_MAGIC.len() + 2, bytes.len() / 2, bytes.len() - 1] {
-            let e = read_shape_pack(&bytes[..cut], path).unwrap_err().to_string();
+        for cut in [
+            3,
+            SHAPE_PACK_MAGIC.len() + 2,
+            bytes.len() / 2,
+            bytes.len() - 1,
+        ] {
+            let e = read_shape_pack(&bytes[..cut], path)
+                .unwrap_err()
+                .to_string();
             assert!(e.starts_with("t.shapes: byte "), "{e}");
         }
         let mut longer = bytes.clone();
