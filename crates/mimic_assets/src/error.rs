@@ -102,6 +102,16 @@ pub enum AssetError {
         /// What was wrong.
         message: String,
     },
+    /// A shape pack (`*.shapes`) that does not hold together.
+    #[error("{}: byte {offset}: {message}", path.display())]
+    ShapePack {
+        /// The file.
+        path: PathBuf,
+        /// Byte offset of the problem.
+        offset: usize,
+        /// What was wrong.
+        message: String,
+    },
     /// A numeric setting of a layout or rig outside its documented range (docs/reliability.md).
     #[error("{}:{line}: {cause}", path.display())]
     Setting {

@@ -15,6 +15,7 @@ mod obj;
 mod obj_write;
 mod read;
 mod rig;
+mod shape_pack;
 mod sinks;
 mod span;
 mod texture;
@@ -34,5 +35,9 @@ pub use morph::{
 pub use obj::{load_obj, parse_obj, write_obj};
 pub use obj_write::{ObjExtras, ObjFrames, write_mtl, write_obj_with};
 pub use rig::{RigFile, load_rig, parse_rig};
+pub use shape_pack::{
+    PackedShape, SHAPE_PACK_MAGIC, ShapePack, load_shape_pack, pack_tolerance, read_shape_pack,
+    save_shape_pack, write_shape_pack,
+};
 pub use sinks::{BinSink, ControlsCsv, MetricsCsv, ObjSink, obj_frame_path, write_obj_frame};
 pub use texture::{decode_texture, load_rig_textures, load_texture};

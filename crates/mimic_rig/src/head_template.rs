@@ -12,6 +12,7 @@
 //! the nearest target vertex facing its way ([`crate::register::nearest_allowed`]).
 
 use crate::RigNewError;
+use crate::frame::FaceFrame;
 use crate::icp::{IcpSettings, RigidFit, similarity_icp};
 use crate::landmarks::{IBUG_POINTS, Landmarks, Numbering, load_landmarks};
 use crate::nearest::Surface;
@@ -164,8 +165,11 @@ struct Nodes {
     landmark: [Option<usize>; IBUG_POINTS],
 }
 
-fn template_nodes(template: &TemplateHead, spacing: f32) -> Result<Nodes, RigNewError> {
-    let frame = landmark_frame(&template.mesh, &template.landmarks)?;
+fn template_nodes(
+    template: &TemplateHead,
+    frame: &FaceFrame,
+    spacing: f32,
+) -> Result<Nodes, RigNewError> {
     let normals = vertex_normals(&template.mesh.positions, &template.mesh.triangles);
     let face = |v: usize| frame.to_face(template.mesh.positions[v]);
     let usable =
@@ -238,13 +242,43 @@ fn width_at(points: impl Iterator<Item = Vec3>, at: Vec3, up: Vec3, axis: Vec3, 
     (hi - lo).max(0.0)
 }
 
-/// Finds the 68 iBUG landmark vertices of `target` by registering `template` onto it.
-pub fn find_landmarks(
+/// The template registered onto a target ([`register_template`]): the similarity, then where
+/// each template node went, in the template's face frame.
+pub struct Registration {
+    /// The best similarity (template face units to target coordinates).
+    pub rigid: RigidFit,
+    /// The template's face frame (its mesh coordinates to face units).
+    pub frame: FaceFrame,
+    /// Template vertex of each node.
+    pub node_vertex: Vec<u32>,
+    /// Each node in the template's face frame.
+    pub node_at: Vec<Vec3>,
+    /// Where each node went: the target, in the template's face frame
+    /// (`rigid.pose.inverse_apply` of target coordinates).
+    pub deformed: Vec<Vec3>,
+    /// The target's vertices in the template's face frame.
+    pub local: Surface,
+    /// Target vertices in pieces large enough to match.
+    pub allowed: Vec<bool>,
+    /// Coarse starts tried.
+    pub starts: usize,
+    /// Nodes matched after the non-rigid fit.
+    pub matched: usize,
+    /// RMS point-to-plane distance of the matched nodes, face units.
+    pub residual: f32,
+    node_normal: Vec<Vec3>,
+    node_landmark: [Option<usize>; IBUG_POINTS],
+}
+
+/// Registers `template` onto `target`: coarse starts, similarity ICP, non-rigid ICP of the
+/// template's nodes.
+pub fn register_template(
     target: &Mesh,
     template: &TemplateHead,
     s: &FindSettings,
-) -> Result<FoundLandmarks, RigNewError> {
-    let nodes = template_nodes(template, s.spacing)?;
+) -> Result<Registration, RigNewError> {
+    let frame = landmark_frame(&template.mesh, &template.landmarks)?;
+    let nodes = template_nodes(template, &frame, s.spacing)?;
     let nose = nodes.landmark[30]
         .map(|i| nodes.at[i])
         .ok_or_else(|| RigNewError::Frame("the template lacks its nose tip (iBUG 30)".into()))?;
@@ -314,18 +348,41 @@ pub fn find_landmarks(
     let local = Surface::new(local, &target.triangles, |v| allowed[v]);
     let edges = knn_graph(&nodes.at, s.neighbours);
     let fit = nonrigid_icp(&nodes.at, &nodes.normal, &edges, &local, &s.nonrigid)?;
+    Ok(Registration {
+        rigid,
+        frame,
+        node_vertex: nodes.vertex,
+        node_at: nodes.at,
+        deformed: fit.deformed,
+        local,
+        allowed,
+        starts,
+        matched: fit.matched,
+        residual: fit.rms,
+        node_normal: nodes.normal,
+        node_landmark: nodes.landmark,
+    })
+}
+
+/// Finds the 68 iBUG landmark vertices of `target` by registering `template` onto it.
+pub fn find_landmarks(
+    target: &Mesh,
+    template: &TemplateHead,
+    s: &FindSettings,
+) -> Result<FoundLandmarks, RigNewError> {
+    let r = register_template(target, template, s)?;
     let mut landmarks = Landmarks {
         vertex: [None; IBUG_POINTS],
     };
     let mut landmark_distance = [f32::NAN; IBUG_POINTS];
-    for (k, node) in nodes.landmark.iter().enumerate() {
+    for (k, node) in r.node_landmark.iter().enumerate() {
         let Some(i) = *node else { continue };
         if let Some((v, d)) = nearest_allowed(
-            fit.deformed[i],
-            Some(nodes.normal[i]),
-            &local.positions,
-            &local.normals,
-            &allowed,
+            r.deformed[i],
+            Some(r.node_normal[i]),
+            &r.local.positions,
+            &r.local.normals,
+            &r.allowed,
             s.min_normal_dot,
         ) {
             landmarks.vertex[k] = Some(v);
@@ -334,11 +391,11 @@ pub fn find_landmarks(
     }
     Ok(FoundLandmarks {
         landmarks,
-        rigid,
-        starts,
-        nodes: nodes.vertex.len(),
-        coverage: fit.matched as f32 / nodes.vertex.len().max(1) as f32,
-        residual: fit.rms,
+        rigid: r.rigid,
+        starts: r.starts,
+        nodes: r.node_vertex.len(),
+        coverage: r.matched as f32 / r.node_vertex.len().max(1) as f32,
+        residual: r.residual,
         landmark_distance,
     })
 }

@@ -23,6 +23,7 @@ pub mod picture;
 pub mod place;
 pub mod register;
 pub mod summary;
+pub mod transfer;
 pub mod write;
 
 /// The glTF structure checks, now in `mimic_gltf` (shared with its avatar reader).
@@ -30,7 +31,9 @@ pub use mimic_avatar::gltf_check;
 
 pub use check::{Warning, check_rig};
 pub use frame::{FaceFrame, FramePoints};
-pub use head_template::{FindSettings, FoundLandmarks, TemplateHead, find_landmarks};
+pub use head_template::{
+    FindSettings, FoundLandmarks, Registration, TemplateHead, find_landmarks, register_template,
+};
 pub use landmarks::{
     IBUG_POINTS, LandmarkBase, Landmarks, Numbering, landmarks_json, load_landmarks,
     parse_landmarks,
