@@ -90,6 +90,19 @@ fn a_multi_mesh_avatar_comes_back_whole_with_its_targets_and_take() {
     assert!(loaded.mesh.vertex_count() > face_n);
     assert!(loaded.frozen[face_n..].iter().all(|f| *f));
     assert!(toml.contains("[look]\nhidden = [["), "{toml}");
+    // A part kind mimic does not know is a one-line error naming the file and the kinds.
+    let bad = d.join("bad.toml");
+    std::fs::write(
+        &bad,
+        toml.replace("\"Eyes\" = \"eyeballs\"", "\"Eyes\" = \"eyes\""),
+    )
+    .unwrap();
+    let o = mimic(&["info", s(&bad)]);
+    let err = text(&o).1;
+    assert!(
+        !o.status.success() && err.contains("`Eyes` `eyes`, which is not one of eyeballs"),
+        "{err}"
+    );
 
     let rec = "recordings/a_yn_question.kinect121.jsonl";
     let glb = d.join("take.glb");

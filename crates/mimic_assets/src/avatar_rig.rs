@@ -23,6 +23,19 @@ pub struct AvatarSection {
     pub parts: BTreeMap<String, String>,
 }
 
+/// Every kind of part a rig's `[avatar.parts]` may name.
+pub const PART_KINDS: [&str; 9] = [
+    "eyeballs",
+    "upper_teeth",
+    "lower_teeth",
+    "teeth",
+    "tongue",
+    "lashes",
+    "hair",
+    "body",
+    "head",
+];
+
 /// The kinds of part drawn with the face in the working mesh (frozen unless something drives
 /// them); hair, body and the rest are written back but not drawn by mimic.
 pub const DRAWN_PARTS: [&str; 6] = [
@@ -71,6 +84,21 @@ pub fn read_avatar_face(path: &Path, section: &AvatarSection) -> Result<RigAvata
             mimic_avatar::AvatarError::at(path, "/meshes", "no mesh with triangles is shown")
         })?,
     };
+    if let Some((name, kind)) = section
+        .parts
+        .iter()
+        .find(|(_, kind)| !PART_KINDS.contains(&kind.as_str()))
+    {
+        return Err(mimic_avatar::AvatarError::at(
+            path,
+            "/meshes",
+            format!(
+                "the rig's [avatar.parts] calls `{name}` `{kind}`, which is not one of {}",
+                PART_KINDS.join(", ")
+            ),
+        )
+        .into());
+    }
     let mut meshes = vec![face];
     let mut parts: Vec<usize> = section
         .parts

@@ -20,7 +20,9 @@ mod sinks;
 mod span;
 mod texture;
 
-pub use avatar_rig::{AvatarSection, DRAWN_PARTS, RigAvatar, load_rig_avatar, read_avatar_face};
+pub use avatar_rig::{
+    AvatarSection, DRAWN_PARTS, PART_KINDS, RigAvatar, load_rig_avatar, read_avatar_face,
+};
 pub use error::AssetError;
 pub use frames::{FRAMES_MAGIC, FRAMES_VERSION, FrameRecord, FramesReader, FramesWriter};
 pub use layout::{ConfigDirs, load_layout, parse_layout};

@@ -11,17 +11,7 @@ use mimic_avatar::{Avatar, FaceMesh, Mode};
 use std::collections::BTreeMap;
 
 /// The kinds of part, as the rig file names them.
-pub const PART_KINDS: [&str; 9] = [
-    "eyeballs",
-    "upper_teeth",
-    "lower_teeth",
-    "teeth",
-    "tongue",
-    "lashes",
-    "hair",
-    "body",
-    "head",
-];
+pub use mimic_assets::PART_KINDS;
 
 /// The kind a mesh's name says, if it says one.
 pub fn kind_by_name(name: &str) -> Option<&'static str> {
