@@ -37,15 +37,9 @@ pub const PART_KINDS: [&str; 9] = [
 ];
 
 /// The kinds of part drawn with the face in the working mesh (frozen unless something drives
-/// them); hair, body and the rest are written back but not drawn by mimic.
-pub const DRAWN_PARTS: [&str; 6] = [
-    "eyeballs",
-    "upper_teeth",
-    "lower_teeth",
-    "teeth",
-    "tongue",
-    "lashes",
-];
+/// them): the first six of [`PART_KINDS`]; hair, body and the rest are written back but not drawn
+/// by mimic.
+pub const DRAWN_PARTS: &[&str] = PART_KINDS.as_slice().split_at(6).0;
 
 /// A rig's avatar: the file read whole and its face mesh.
 #[derive(Clone, Debug)]

@@ -160,40 +160,35 @@ impl FrameSink for GlbSink {
         let path = &self.path;
         let file = File::create(path).map_err(|e| SinkError::new(path, e))?;
         let mut w = BufWriter::new(file);
-        if let Some(a) = &self.avatar {
-            let written =
-                crate::write_avatar_glb(&a.avatar, &a.face, &self.morphs, Some(&self.take), &mut w)
+        // The avatar written back whole, else the rig as one GLB: the summary either way.
+        let (bytes, summary) = match &self.avatar {
+            Some(a) => {
+                let take = Some(&self.take);
+                let s = crate::write_avatar_glb(&a.avatar, &a.face, &self.morphs, take, &mut w)
                     .map_err(|e| SinkError::new(path, e))?;
-            w.flush().map_err(|e| SinkError::new(path, e))?;
-            return Ok(SinkReport {
-                kind: "glb",
-                path: self.path.clone(),
-                frames: self.take.len(),
-                bytes: written.bytes as u64,
-                detail: json!({
-                    "summary": written,
-                    "skipped_frames": self.take.skipped(),
-                    "write_s": started.elapsed().as_secs_f64(),
-                }),
-            });
-        }
-        let written = write_rig_glb(
-            &self.rig_path,
-            &self.rig,
-            &self.morphs,
-            Some(&self.take),
-            self.skin,
-            &mut w,
-        )
-        .map_err(|e| SinkError::new(path, e))?;
+                (s.bytes, json!(s))
+            }
+            None => {
+                let s = write_rig_glb(
+                    &self.rig_path,
+                    &self.rig,
+                    &self.morphs,
+                    Some(&self.take),
+                    self.skin,
+                    &mut w,
+                )
+                .map_err(|e| SinkError::new(path, e))?;
+                (s.bytes, json!(s))
+            }
+        };
         w.flush().map_err(|e| SinkError::new(path, e))?;
         Ok(SinkReport {
             kind: "glb",
             path: self.path.clone(),
             frames: self.take.len(),
-            bytes: written.bytes as u64,
+            bytes: bytes as u64,
             detail: json!({
-                "summary": written,
+                "summary": summary,
                 "skipped_frames": self.take.skipped(),
                 "write_s": started.elapsed().as_secs_f64(),
             }),
