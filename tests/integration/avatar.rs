@@ -340,3 +340,56 @@ fn diagonal(p: &[Vec3]) -> f32 {
         .fold((Vec3::MAX, Vec3::MIN), |(l, h), q| (l.min(*q), h.max(*q)));
     lo.distance(hi)
 }
+
+/// The fixture as a `.gltf` with its buffer and its texture as files beside it.
+fn fixture_as_gltf(dir: &Path) -> std::path::PathBuf {
+    let bytes = std::fs::read(repo().join(FIXTURE)).unwrap();
+    let json_len = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+    let mut doc: serde_json::Value = serde_json::from_slice(&bytes[20..20 + json_len]).unwrap();
+    let at = 20 + json_len;
+    let bin_len = u32::from_le_bytes(bytes[at..at + 4].try_into().unwrap()) as usize;
+    let bin = &bytes[at + 8..at + 8 + bin_len];
+    std::fs::write(dir.join("avatar.bin"), bin).unwrap();
+    doc["buffers"][0]["uri"] = serde_json::json!("avatar.bin");
+    // The texture as a PNG file (its buffer view stays, unused, in the buffer).
+    let view = doc["images"][0]["bufferView"].as_u64().unwrap() as usize;
+    let v = &doc["bufferViews"][view];
+    let (off, len) = (
+        v["byteOffset"].as_u64().unwrap_or(0) as usize,
+        v["byteLength"].as_u64().unwrap() as usize,
+    );
+    std::fs::write(dir.join("skin texture.png"), &bin[off..off + len]).unwrap();
+    doc["images"][0] = serde_json::json!({"name": "skin", "uri": "skin%20texture.png"});
+    let path = dir.join("avatar.gltf");
+    std::fs::write(&path, serde_json::to_vec_pretty(&doc).unwrap()).unwrap();
+    path
+}
+
+#[test]
+fn a_gltf_with_its_files_beside_it_comes_back_as_one_glb() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let gltf = fixture_as_gltf(d);
+    let rig = d.join("rig.toml");
+    run(&["rig", "new", s(&gltf), "-o", s(&rig)]);
+    let glb = d.join("take.glb");
+    let rec = "recordings/a_doubt_question.kinect121.jsonl";
+    run(&[
+        "replay",
+        rec,
+        "--rig",
+        s(&rig),
+        "--format",
+        "glb",
+        "--out",
+        s(&glb),
+    ]);
+    let (a, b) = (load_avatar(&gltf).unwrap(), load_avatar(&glb).unwrap());
+    assert_kept(&a, &b);
+    // One GLB: no file names left in it, the texture's bytes inside.
+    assert!(b.images.iter().all(|i| i.uri.is_none()));
+    assert_eq!(b.buffers.len(), 1);
+    if node_ready() {
+        check(&glb, None);
+    }
+}
