@@ -168,6 +168,44 @@ fn make_vrm(path: &Path) {
     std::fs::write(path, join_glb(&doc, &bin)).unwrap();
 }
 
+/// The same avatar as a VRM 0.x (`extensions.VRM`: humanoid bones as a list, the expressions as
+/// blend shape groups with weights 0..100 on the face's mesh), written to `path`.
+fn make_vrm0(path: &Path) {
+    make_vrm(path);
+    let (mut doc, bin) = split_glb(&std::fs::read(path).unwrap());
+    let v1 = doc["extensions"]["VRMC_vrm"].take();
+    let bones: Vec<Value> = v1["humanoid"]["humanBones"]
+        .as_object()
+        .unwrap()
+        .iter()
+        .map(|(bone, n)| json!({"bone": bone, "node": n["node"], "useDefaultValues": true}))
+        .collect();
+    let bind = |index: usize, weight: f32| json!({"mesh": 0, "index": index, "weight": weight});
+    doc["extensions"] = json!({"VRM": {
+        "exporterVersion": "mimic tests",
+        "specVersion": "0.0",
+        "meta": {
+            "title": "mimic ICT test VRM",
+            "version": "1",
+            "author": "mimic tests",
+            "allowedUserName": "OnlyAuthor",
+            "violentUssageName": "Disallow",
+            "sexualUssageName": "Disallow",
+            "commercialUssageName": "Disallow",
+            "licenseName": "Other",
+            "otherLicenseUrl": "https://vrm.dev/licenses/1.0/",
+        },
+        "humanoid": {"humanBones": bones},
+        "blendShapeMaster": {"blendShapeGroups": [
+            {"name": "A", "presetName": "a", "binds": [bind(0, 100.0)]},
+            {"name": "Blink_L", "presetName": "blink_l", "binds": [bind(1, 100.0)]},
+            {"name": "jawHalfOpen", "presetName": "unknown", "binds": [bind(0, 50.0)]},
+        ]},
+    }});
+    doc["extensionsUsed"] = json!(["VRM"]);
+    std::fs::write(path, join_glb(&doc, &bin)).unwrap();
+}
+
 /// Whether Chromium, Node and tools/browser-check's packages (three, three-vrm) are there;
 /// prints why the test skips when not.
 fn three_vrm_ready() -> bool {
@@ -240,10 +278,21 @@ fn strings(v: &Value) -> Vec<String> {
 
 #[test]
 fn a_vrm_written_by_mimic_loads_in_three_vrm_with_its_expressions_and_looks_the_same() {
+    round_trip(make_vrm, VrmVersion::V1, "VRMC_vrm", "1");
+}
+
+#[test]
+fn a_vrm_0_written_by_mimic_loads_in_three_vrm_with_its_expressions_and_looks_the_same() {
+    round_trip(make_vrm0, VrmVersion::V0, "VRM", "0");
+}
+
+/// A VRM made by `make` (its extension `ext`, three-vrm's meta version `meta_version`) through
+/// `rig new` and `replay --format vrm`, read back by mimic and by three-vrm.
+fn round_trip(make: fn(&Path), version: VrmVersion, ext: &str, meta_version: &str) {
     let dir = tempfile::tempdir().unwrap();
     let d = dir.path();
     let avatar = d.join("avatar.vrm");
-    make_vrm(&avatar);
+    make(&avatar);
     let rig = d.join("rig.toml");
     let o = mimic(&["rig", "new", s(&avatar), "-o", s(&rig)]);
     assert!(o.status.success(), "{:?}", text(&o));
@@ -266,7 +315,7 @@ fn a_vrm_written_by_mimic_loads_in_three_vrm_with_its_expressions_and_looks_the_
     // mimic's reader: a VRM 1.0 with the input's bones and expressions, binds unchanged.
     let (a, b) = (load_avatar(&avatar).unwrap(), load_avatar(&take).unwrap());
     let (va, vb) = (a.vrm.as_ref().unwrap(), b.vrm.as_ref().unwrap());
-    assert_eq!(vb.version, VrmVersion::V1);
+    assert_eq!(vb.version, version);
     assert_eq!(va.bones, vb.bones);
     for e in &va.expressions {
         assert_eq!(vb.expression(&e.name), Some(e), "{}", e.name);
@@ -277,8 +326,8 @@ fn a_vrm_written_by_mimic_loads_in_three_vrm_with_its_expressions_and_looks_the_
     let added = b.meshes[0].target_names.len() - a.meshes[0].target_names.len();
     assert_eq!(added, 3 * 38);
     assert_eq!(
-        b.document["extensions"]["VRMC_vrm"]["meta"],
-        a.document["extensions"]["VRMC_vrm"]["meta"]
+        b.document["extensions"][ext]["meta"],
+        a.document["extensions"][ext]["meta"]
     );
 
     // A rig whose avatar is not a VRM is refused, in one line.
@@ -328,7 +377,7 @@ fn a_vrm_written_by_mimic_loads_in_three_vrm_with_its_expressions_and_looks_the_
     assert_eq!(report["console_errors"], json!([]), "{report}");
     assert_eq!(report["page_errors"], json!([]), "{report}");
     for r in [ra, rb] {
-        assert_eq!(r["meta_version"], "1", "{r}");
+        assert_eq!(r["meta_version"], meta_version, "{r}");
         assert_eq!(r["meta_name"], "mimic ICT test VRM", "{r}");
         // The expressions drive the face's targets in three-vrm.
         for e in ["aa", "blinkLeft", "jawHalfOpen"] {
