@@ -19,6 +19,22 @@ use std::path::Path;
 /// ICT's skin: face, head and neck.
 const SKIN: usize = 11248;
 
+/// The expressions `mimic eval --solver blendshapes` is measured on (true meshes of the head).
+const EVAL_SHAPES: [&str; 12] = [
+    "jawOpen",
+    "mouthSmileLeft",
+    "mouthSmileRight",
+    "eyeBlinkLeft",
+    "browInnerUp",
+    "mouthFunnel",
+    "mouthPucker",
+    "cheekPuff",
+    "browDownRight",
+    "noseSneerLeft",
+    "mouthLeft",
+    "mouthRollLower",
+];
+
 /// Standard normal draws from a fixed seed (xorshift64*, Box-Muller).
 fn normals(seed: u64, count: usize) -> Vec<f32> {
     let mut state = seed.max(1);
@@ -242,6 +258,57 @@ fn rig_new_makes_the_arkit_shapes_for_an_unshipped_head_and_a_live_link_take_dri
     assert!(scores.len() >= 45, "{} scored", scores.len());
     assert!(median <= 0.20, "median {median}");
     assert!(max <= 0.50, "max {max}");
+
+    // `mimic eval --solver blendshapes` on true expression meshes of the head: the rig's 38
+    // controls moved as the expression moves them, the weights of its targets fitted to them.
+    let mut args: Vec<String> = ["eval", "--rig", rig.to_str().unwrap()]
+        .into_iter()
+        .chain(["--solver", "blendshapes", "--json", "--shapes"])
+        .map(String::from)
+        .collect();
+    for name in EVAL_SHAPES {
+        let k = ARKIT_NAMES.iter().position(|n| *n == name).unwrap();
+        let mesh = Mesh {
+            positions: head
+                .positions
+                .iter()
+                .zip(&truth[k])
+                .map(|(p, d)| *p + *d)
+                .collect(),
+            triangles: head.triangles.clone(),
+            ..Mesh::default()
+        };
+        let path = tmp.path().join(format!("{name}.obj"));
+        std::fs::write(&path, obj_text(&mesh)).unwrap();
+        args.push(path.display().to_string());
+    }
+    let args: Vec<&str> = args.iter().map(String::as_str).collect();
+    let o = mimic(&args);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stderr}");
+    let v: Value = serde_json::from_str(&stdout).unwrap();
+    let eval_median = v["median_ratio"].as_f64().unwrap();
+    let per: Vec<String> = v["shapes"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|s| format!("{:.3}", s["all"]["ratio"].as_f64().unwrap()))
+        .collect();
+    println!("eval --solver blendshapes on {EVAL_SHAPES:?}: median {eval_median:.3} ({per:?})");
+    // The target for the blend-shape solver on expression meshes.
+    assert!(eval_median <= 0.35, "eval median {eval_median}");
+    // The rig's own solver on the same meshes, for comparison.
+    let own: Vec<&str> = args
+        .iter()
+        .copied()
+        .filter(|a| *a != "--solver" && *a != "blendshapes")
+        .collect();
+    let o = mimic(&own);
+    let v: Value = serde_json::from_slice(&o.stdout).unwrap();
+    println!(
+        "eval with the rig's own solver: median {:.3}",
+        v["median_ratio"].as_f64().unwrap()
+    );
 
     // A Live Link Face take onto the rig: its curves drive the shapes in the GLB.
     let take = repo().join("tests/data/livelinkface/S07-001.csv");
