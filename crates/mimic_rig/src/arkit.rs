@@ -2,14 +2,16 @@
 //! expression set, combined into ARKit's shapes on the template ([`arkit_from_ict`]: `_L` is
 //! `...Left`, ICT's split `browInnerUp` and `cheekPuff` halves summed), transferred onto the
 //! registered head ([`crate::transfer`]) and written beside the rig as one shape pack that the
-//! rig's `[[morph_targets]]` entries name ([`write_arkit_targets`]).
+//! rig's `[[morph_targets]]` entries name ([`write_arkit_targets`]); [`add_arkit`] is the step of
+//! `rig new`.
 
-use crate::RigNewError;
 use crate::head_template::{Registration, TemplateHead};
+use crate::make::{context, write};
 use crate::transfer::{TransferSettings, correspond, transfer_shapes};
+use crate::{FindSettings, NewRig, RigNewError, register_template};
 use glam::Vec3;
 use mimic_assets::{PackedShape, ShapePack};
-use mimic_types::Mesh;
+use mimic_types::{Mesh, Rig};
 use std::path::{Path, PathBuf};
 
 /// ICT's expression set, relative to `configs/`.
@@ -225,6 +227,48 @@ pub fn arkit_line(made: &ArkitShapes, pack: &Path) -> String {
             made.missing.join(", ")
         }
     )
+}
+
+/// `rig new --blendshapes arkit`: makes the ARKit shapes for `face` (the registered mesh; `rig`'s working mesh is it and then
+/// an avatar's frozen parts), writes them beside the rig and appends their entries to the rig
+/// file, which is then read back with its morph targets.
+pub fn add_arkit(
+    job: &NewRig<'_>,
+    face: &Mesh,
+    rig: &Rig,
+    registration: Option<Registration>,
+    note: &mut dyn FnMut(String),
+) -> Result<(), RigNewError> {
+    let template =
+        TemplateHead::ict(job.configs).map_err(context("loading the ICT template head"))?;
+    let reg = match registration {
+        Some(r) => r,
+        None => register_template(face, &template, &FindSettings::default()).map_err(context(
+            format!(
+                "{}: registering the ICT template head for the ARKit shapes",
+                job.mesh.display()
+            ),
+        ))?,
+    };
+    let expressions = mimic_assets::load_shape_pack(&job.configs.join(ICT_EXPRESSIONS))?;
+    let made = make_arkit_shapes(face, rig.mesh.vertex_count(), &template, &reg, &expressions)
+        .map_err(context("--blendshapes arkit"))?;
+    // Deltas kept to 2e-5 of the eye distance (ICT's own pack: 1e-4 cm, about 1.6e-5 IOD).
+    let entries = write_arkit_targets(job.output, &made, 2e-5 * reg.rigid.pose.scale)?;
+    let text = mimic_types::limits::read_capped(job.output, &mimic_types::limits::RIG_FILE)
+        .map_err(|cause| RigNewError::Read {
+            path: job.output.to_path_buf(),
+            cause,
+        })?;
+    write(job.output, &format!("{}\n{entries}", text.trim_end()))?;
+    mimic_assets::load_morph_targets(job.output, rig)
+        .map_err(RigNewError::from)
+        .map_err(context(format!(
+            "{}: the ARKit shapes do not load",
+            job.output.display()
+        )))?;
+    note(arkit_line(&made, &arkit_pack_path(job.output)));
+    Ok(())
 }
 
 #[cfg(test)]

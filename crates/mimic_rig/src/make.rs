@@ -125,7 +125,7 @@ impl MadeRig {
 }
 
 /// A context line in front of an error of the rig code.
-fn context(what: impl Into<String>) -> impl FnOnce(RigNewError) -> RigNewError {
+pub(crate) fn context(what: impl Into<String>) -> impl FnOnce(RigNewError) -> RigNewError {
     let context = what.into();
     move |cause| RigNewError::Context {
         context,
@@ -134,7 +134,7 @@ fn context(what: impl Into<String>) -> impl FnOnce(RigNewError) -> RigNewError {
 }
 
 /// Writes `text` to `path`.
-fn write(path: &Path, text: &str) -> Result<(), RigNewError> {
+pub(crate) fn write(path: &Path, text: &str) -> Result<(), RigNewError> {
     std::fs::write(path, text).map_err(|cause| RigNewError::Write {
         path: path.to_path_buf(),
         cause,
@@ -256,62 +256,9 @@ pub fn make_rig_file(
     write(job.output, &text)?;
     let loaded = read_back(job, &text, &marks)?;
     if job.blendshapes.is_some() {
-        add_arkit(job, &face, &loaded, registration, note)?;
+        crate::arkit::add_arkit(job, &face, &loaded, registration, note)?;
     }
     Ok(MadeRig { generated, loaded })
-}
-
-/// Makes the ARKit shapes for `face` (the registered mesh; `rig`'s working mesh is it and then
-/// an avatar's frozen parts), writes them beside the rig and appends their entries to the rig
-/// file, which is then read back with its morph targets.
-fn add_arkit(
-    job: &NewRig<'_>,
-    face: &Mesh,
-    rig: &Rig,
-    registration: Option<Registration>,
-    note: &mut dyn FnMut(String),
-) -> Result<(), RigNewError> {
-    let template =
-        TemplateHead::ict(job.configs).map_err(context("loading the ICT template head"))?;
-    let reg = match registration {
-        Some(r) => r,
-        None => register_template(face, &template, &FindSettings::default()).map_err(context(
-            format!(
-                "{}: registering the ICT template head for the ARKit shapes",
-                job.mesh.display()
-            ),
-        ))?,
-    };
-    let expressions =
-        mimic_assets::load_shape_pack(&job.configs.join(crate::arkit::ICT_EXPRESSIONS))?;
-    let made = crate::arkit::make_arkit_shapes(
-        face,
-        rig.mesh.vertex_count(),
-        &template,
-        &reg,
-        &expressions,
-    )
-    .map_err(context("--blendshapes arkit"))?;
-    // Deltas kept to 2e-5 of the eye distance (ICT's own pack: 1e-4 cm, about 1.6e-5 IOD).
-    let entries =
-        crate::arkit::write_arkit_targets(job.output, &made, 2e-5 * reg.rigid.pose.scale)?;
-    let text = mimic_types::limits::read_capped(job.output, &mimic_types::limits::RIG_FILE)
-        .map_err(|cause| RigNewError::Read {
-            path: job.output.to_path_buf(),
-            cause,
-        })?;
-    write(job.output, &format!("{}\n{entries}", text.trim_end()))?;
-    mimic_assets::load_morph_targets(job.output, rig)
-        .map_err(RigNewError::from)
-        .map_err(context(format!(
-            "{}: the ARKit shapes do not load",
-            job.output.display()
-        )))?;
-    note(crate::arkit::arkit_line(
-        &made,
-        &crate::arkit::arkit_pack_path(job.output),
-    ));
-    Ok(())
 }
 
 /// For an avatar file: the file read whole and its face mesh (said in a progress line).
