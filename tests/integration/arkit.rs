@@ -4,7 +4,8 @@
 //! shapes are ICT's expressions combined as the rig combines them (`browInnerUp_L + _R`), averaged
 //! over each cluster as its vertices are; the written shapes are scored against them
 //! (`mean |made - true| / mean |true|` over the vertices the true shape moves), and a Live Link
-//! Face take replayed onto the rig must animate most of them in the written GLB.
+//! Face take replayed onto the rig must animate most of them in the written GLB. And on an
+//! avatar (a GLB), the parts after the face (eyeballs, teeth, lashes) get zero deltas.
 
 use crate::{mimic, repo, text};
 use glam::{Quat, Vec3};
@@ -396,4 +397,63 @@ fn animated_targets(glb: &Path) -> Vec<(String, bool)> {
             (name, any)
         })
         .collect()
+}
+
+#[test]
+fn an_avatars_frozen_parts_get_zero_deltas_and_the_take_replays_onto_it() {
+    let tmp = tempfile::tempdir().unwrap();
+    let glb = tmp.path().join("avatar.glb");
+    std::fs::copy(repo().join("tests/data/avatar/ict_multimesh.glb"), &glb).unwrap();
+    let rig = tmp.path().join("avatar.toml");
+    let o = mimic(&[
+        "rig",
+        "new",
+        glb.to_str().unwrap(),
+        "-o",
+        rig.to_str().unwrap(),
+        "--blendshapes",
+        "arkit",
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}{stderr}");
+    // "...: face mesh `Head` (N vertices) of M meshes": the face's own vertices come first.
+    let face: usize = stderr
+        .split_once("face mesh `")
+        .and_then(|(_, rest)| rest.split_once("` ("))
+        .and_then(|(_, rest)| rest.split_once(" vertices"))
+        .map(|(n, _)| n.parse().unwrap())
+        .unwrap();
+    let loaded = mimic_assets::load_rig(&rig).unwrap();
+    assert!(loaded.mesh.vertex_count() > face, "{stderr}");
+    let targets = mimic_assets::load_morph_targets(&rig, &loaded).unwrap();
+    assert_eq!(targets.len(), 51);
+    for t in &targets {
+        assert!(
+            t.position_deltas[face..].iter().all(|d| *d == Vec3::ZERO),
+            "{} moves a frozen part",
+            t.name
+        );
+    }
+    let jaw = targets.iter().find(|t| t.name == "jawOpen").unwrap();
+    let most = jaw.position_deltas[..face]
+        .iter()
+        .map(|d| d.length())
+        .fold(0.0, f32::max);
+    // ICT's jawOpen drops the chin by about 1.5 cm; the avatar is in metres.
+    assert!(most > 0.005, "jawOpen moves at most {most}");
+    let out = tmp.path().join("take.glb");
+    let take = repo().join("tests/data/livelinkface/S88-001.csv");
+    let o = mimic(&[
+        "replay",
+        take.to_str().unwrap(),
+        "--rig",
+        rig.to_str().unwrap(),
+        "--format",
+        "glb",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}{stderr}");
+    assert!(stdout.contains("(51 morph targets)"), "{stdout}{stderr}");
 }
