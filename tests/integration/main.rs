@@ -5,6 +5,7 @@
     reason = "a test: a failed unwrap is the failure report"
 )]
 
+mod arkit;
 mod avatar;
 mod browser;
 mod churn;

@@ -32,7 +32,8 @@ pub use material::{
 };
 pub use morph::{
     MORPH_FILE_DECIMALS, MorphTargetEntry, compare_deltas, load_morph_file, load_morph_targets,
-    morph_target, read_morph_file, round_trip_tolerance, save_morph_file, write_morph_file,
+    morph_target, packed_target, read_morph_file, round_trip_tolerance, save_morph_file,
+    write_morph_file,
 };
 pub use obj::{load_obj, parse_obj, write_obj};
 pub use obj_write::{ObjExtras, ObjFrames, write_mtl, write_obj_with};

@@ -1,4 +1,5 @@
-//! Morph targets: loading a rig's `[[morph_targets]]` OBJs as deltas, and the morph data file.
+//! Morph targets: loading a rig's `[[morph_targets]]` (an OBJ each, or a shape of a shape pack)
+//! as deltas, and the morph data file.
 //!
 //! The morph data file (`docs/morph-format.md`) is the GPU morph-target method's text format: XYZ
 //! rows, the position delta and the normal delta of a vertex alternating, vertex by vertex, target
@@ -22,8 +23,13 @@ pub const MORPH_FILE_DECIMALS: usize = 6;
 pub struct MorphTargetEntry {
     /// Target name (ARKit names where they apply, e.g. `jawOpen`).
     pub name: String,
-    /// OBJ on the neutral's topology, relative to the rig file.
-    pub obj: PathBuf,
+    /// OBJ on the neutral's topology, relative to the rig file (or `shapes`).
+    #[serde(default)]
+    pub obj: Option<PathBuf>,
+    /// A shape pack (`*.shapes`, relative to the rig file) holding the target under its name,
+    /// on the rig mesh's vertices (`mimic rig new --blendshapes arkit` writes one).
+    #[serde(default)]
+    pub shapes: Option<PathBuf>,
 }
 
 /// The deltas of `target` against `neutral`; `path` names the target in errors.
@@ -80,12 +86,14 @@ pub fn morph_target(
 /// The morph targets listed in the rig file at `rig_path`, as deltas against `rig`'s mesh.
 ///
 /// `rig` is the rig loaded from the same file ([`crate::load_rig`]); a rig without
-/// `[[morph_targets]]` gives an empty list. Errors name the rig file, the entry's line and the OBJ.
+/// `[[morph_targets]]` gives an empty list. An entry names an OBJ (`obj`) or a shape pack
+/// (`shapes`, each pack read once). Errors name the rig file, the entry's line and the OBJ or pack.
 pub fn load_morph_targets(rig_path: &Path, rig: &Rig) -> Result<Vec<MorphTarget>, AssetError> {
     let text = crate::read::read_text(rig_path, &limits::RIG_FILE)?;
     let file: crate::RigFile = toml::from_str(&text).map_err(|e| toml_error(rig_path, &text, e))?;
     let dir = rig_path.parent().unwrap_or(Path::new("."));
     let mut seen = std::collections::HashSet::new();
+    let mut packs: std::collections::HashMap<PathBuf, crate::ShapePack> = Default::default();
     let mut targets = Vec::with_capacity(file.morph_targets.len().min(limits::MAX_MORPH_TARGETS));
     for (k, entry) in file.morph_targets.iter().enumerate() {
         let line = line_of(&text, entry.span().start);
@@ -120,11 +128,73 @@ pub fn load_morph_targets(rig_path: &Path, rig: &Rig) -> Result<Vec<MorphTarget>
                 message: format!("morph target `{}` appears twice", e.name),
             });
         }
-        let obj = dir.join(&e.obj);
-        let mesh = crate::load_obj(&obj).map_err(wrap)?;
-        targets.push(morph_target(&e.name, &rig.mesh, &mesh, &obj).map_err(wrap)?);
+        let target = match (&e.obj, &e.shapes) {
+            (Some(obj), None) => {
+                let obj = dir.join(obj);
+                let mesh = crate::load_obj(&obj).map_err(wrap)?;
+                morph_target(&e.name, &rig.mesh, &mesh, &obj).map_err(wrap)?
+            }
+            (None, Some(pack)) => {
+                let pack = dir.join(pack);
+                if !packs.contains_key(&pack) {
+                    let loaded = crate::load_shape_pack(&pack).map_err(wrap)?;
+                    packs.insert(pack.clone(), loaded);
+                }
+                packed_target(&e.name, &rig.mesh, &packs[&pack], &pack).map_err(wrap)?
+            }
+            _ => {
+                return Err(AssetError::Toml {
+                    path: rig_path.to_path_buf(),
+                    line,
+                    message: format!(
+                        "morph target `{}` needs one of `obj` (an OBJ) and `shapes` (a shape pack)",
+                        e.name
+                    ),
+                });
+            }
+        };
+        targets.push(target);
     }
     Ok(targets)
+}
+
+/// The target named `name` of shape pack `pack` (read from `path`) on `neutral`: its position
+/// deltas and the normal deltas they make.
+pub fn packed_target(
+    name: &str,
+    neutral: &Mesh,
+    pack: &crate::ShapePack,
+    path: &Path,
+) -> Result<MorphTarget, AssetError> {
+    let topology = |message: String| AssetError::MorphTopology {
+        path: path.to_path_buf(),
+        message,
+    };
+    let n = neutral.vertex_count();
+    if pack.vertex_count != n {
+        return Err(topology(format!(
+            "{} vertices, the neutral has {n}",
+            pack.vertex_count
+        )));
+    }
+    let shape = pack
+        .get(name)
+        .ok_or_else(|| topology(format!("no shape `{name}` in the pack")))?;
+    let moved: Vec<Vec3> = neutral
+        .positions
+        .iter()
+        .zip(&shape.deltas)
+        .map(|(p, d)| *p + *d)
+        .collect();
+    let mut n0 = vec![Vec3::ZERO; n];
+    let mut n1 = vec![Vec3::ZERO; n];
+    vertex_normals(&neutral.positions, &neutral.triangles, &mut n0);
+    vertex_normals(&moved, &neutral.triangles, &mut n1);
+    Ok(MorphTarget {
+        name: name.to_string(),
+        position_deltas: shape.deltas.clone(),
+        normal_deltas: n1.iter().zip(&n0).map(|(a, b)| *a - *b).collect(),
+    })
 }
 
 /// Writes targets as a morph data file; `comment` lines go into the header.
@@ -522,6 +592,49 @@ mod tests {
                 && e.ends_with("tri.obj: 3 vertices, the neutral has 4"),
             "{e}"
         );
+    }
+
+    #[test]
+    fn rig_targets_load_from_a_shape_pack_and_an_entry_names_one_source() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path();
+        let quad_obj = |z: f32| format!("v 0 0 0\nv 1 0 0\nv 1 1 {z}\nv 0 1 0\nf 1 2 3\nf 1 3 4\n");
+        std::fs::write(d.join("n.obj"), quad_obj(0.0)).unwrap();
+        std::fs::write(d.join("up.obj"), quad_obj(2.0)).unwrap();
+        let shape = |name: &str, z: f32| crate::PackedShape {
+            name: name.into(),
+            deltas: vec![Vec3::ZERO, Vec3::ZERO, Vec3::new(0.0, 0.0, z), Vec3::ZERO],
+        };
+        let pack = crate::ShapePack {
+            vertex_count: 4,
+            quantum: 1e-3,
+            shapes: vec![shape("jawOpen", 2.0), shape("eyeBlinkLeft", -1.0)],
+        };
+        crate::save_shape_pack(&d.join("q.arkit.shapes"), &pack).unwrap();
+        let head = "name = \"q\"\nunits = \"cm\"\nmesh = \"n.obj\"\n[regions]\ntop_from = 0.7\nbottom_below = 0.3\nband = 0.1\n\n[[controls]]\nfdp = \"8.3\"\nvertex = 2\nregion = \"bottom\"\n";
+        let path = d.join("q.toml");
+        let entries = "[[morph_targets]]\nname = \"up\"\nobj = \"up.obj\"\n\n[[morph_targets]]\nname = \"eyeBlinkLeft\"\nshapes = \"q.arkit.shapes\"\n\n[[morph_targets]]\nname = \"jawOpen\"\nshapes = \"q.arkit.shapes\"\n";
+        std::fs::write(&path, format!("{head}\n{entries}")).unwrap();
+        let rig = crate::load_rig(&path).unwrap();
+        let t = load_morph_targets(&path, &rig).unwrap();
+        let names: Vec<&str> = t.iter().map(|t| t.name.as_str()).collect();
+        assert_eq!(names, ["up", "eyeBlinkLeft", "jawOpen"]);
+        assert_eq!(t[2].position_deltas, t[0].position_deltas);
+        assert_eq!(t[2].normal_deltas, t[0].normal_deltas);
+        assert_eq!(t[1].position_deltas[2], Vec3::new(0.0, 0.0, -1.0));
+        // A name the pack lacks, and an entry naming both sources or neither.
+        let bad = "[[morph_targets]]\nname = \"tongueOut\"\nshapes = \"q.arkit.shapes\"\n";
+        std::fs::write(&path, format!("{head}\n{bad}")).unwrap();
+        let e = load_morph_targets(&path, &rig).unwrap_err().to_string();
+        assert!(
+            e.contains("q.toml:14: morph target `tongueOut`: ")
+                && e.ends_with("q.arkit.shapes: no shape `tongueOut` in the pack"),
+            "{e}"
+        );
+        let both = "[[morph_targets]]\nname = \"jawOpen\"\nobj = \"up.obj\"\nshapes = \"q.arkit.shapes\"\n";
+        std::fs::write(&path, format!("{head}\n{both}")).unwrap();
+        let e = load_morph_targets(&path, &rig).unwrap_err().to_string();
+        assert!(e.contains("needs one of `obj`"), "{e}");
     }
 
     #[test]

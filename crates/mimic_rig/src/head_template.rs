@@ -371,6 +371,11 @@ pub fn find_landmarks(
     s: &FindSettings,
 ) -> Result<FoundLandmarks, RigNewError> {
     let r = register_template(target, template, s)?;
+    Ok(landmarks_of_registration(&r, s))
+}
+
+/// The 68 iBUG landmark vertices a registration ([`register_template`]) puts on its target.
+pub fn landmarks_of_registration(r: &Registration, s: &FindSettings) -> FoundLandmarks {
     let mut landmarks = Landmarks {
         vertex: [None; IBUG_POINTS],
     };
@@ -389,7 +394,7 @@ pub fn find_landmarks(
             landmark_distance[k] = d;
         }
     }
-    Ok(FoundLandmarks {
+    FoundLandmarks {
         landmarks,
         rigid: r.rigid,
         starts: r.starts,
@@ -397,5 +402,5 @@ pub fn find_landmarks(
         coverage: r.matched as f32 / r.node_vertex.len().max(1) as f32,
         residual: r.residual,
         landmark_distance,
-    })
+    }
 }

@@ -3,6 +3,7 @@
 //! in face units (`mimic rig new`), landmarks found by registering a template head when none are
 //! given, and the checks of `mimic rig check`.
 
+pub mod arkit;
 pub mod avatar_parts;
 pub mod avatar_summary;
 pub mod check;
@@ -32,7 +33,8 @@ pub use mimic_avatar::gltf_check;
 pub use check::{Warning, check_rig};
 pub use frame::{FaceFrame, FramePoints};
 pub use head_template::{
-    FindSettings, FoundLandmarks, Registration, TemplateHead, find_landmarks, register_template,
+    FindSettings, FoundLandmarks, Registration, TemplateHead, find_landmarks,
+    landmarks_of_registration, register_template,
 };
 pub use landmarks::{
     IBUG_POINTS, LandmarkBase, Landmarks, Numbering, landmarks_json, load_landmarks,

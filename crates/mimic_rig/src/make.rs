@@ -1,11 +1,12 @@
 //! The whole of `mimic rig new` as one call ([`make_rig_file`]): the output folder checked
 //! before the work, landmarks given or found by template registration, the rig made, written
-//! (with an OBJ copy of a glTF mesh), overrides merged, read back, a dense control set registered.
+//! (with an OBJ copy of a glTF mesh), overrides merged, read back, a dense control set registered,
+//! and with `--blendshapes arkit` the ARKit shapes made through the registration ([`crate::arkit`]).
 
 use crate::landmarks::{IBUG_POINTS, Landmarks, Numbering, landmarks_json, load_landmarks};
 use crate::{
-    Defaults, FindSettings, GeneratedRig, RigNewError, TemplateHead, find_landmarks, make_rig,
-    relative_path, write_rig_toml,
+    Defaults, FindSettings, GeneratedRig, Registration, RigNewError, TemplateHead, make_rig,
+    register_template, relative_path, write_rig_toml,
 };
 use mimic_types::{Mesh, Rig};
 use std::path::{Path, PathBuf};
@@ -40,6 +41,9 @@ pub struct NewRig<'a> {
     pub configs: &'a Path,
     /// The command line that makes the rig again, written into its header.
     pub command_line: String,
+    /// Blend shapes made for the head as the rig's morph targets: `arkit` (ARKit's 52 from
+    /// ICT-FaceKit's expressions, [`crate::arkit`]) or none.
+    pub blendshapes: Option<&'a str>,
 }
 
 /// What [`make_rig_file`] made.
@@ -93,6 +97,9 @@ impl NewRig<'_> {
         for o in self.overrides {
             words.push(format!("--overrides {}", o.display()));
         }
+        if let Some(b) = self.blendshapes {
+            words.push(format!("--blendshapes {b}"));
+        }
         words.join(" ")
     }
 }
@@ -118,7 +125,7 @@ impl MadeRig {
 }
 
 /// A context line in front of an error of the rig code.
-fn context(what: impl Into<String>) -> impl FnOnce(RigNewError) -> RigNewError {
+pub(crate) fn context(what: impl Into<String>) -> impl FnOnce(RigNewError) -> RigNewError {
     let context = what.into();
     move |cause| RigNewError::Context {
         context,
@@ -127,7 +134,7 @@ fn context(what: impl Into<String>) -> impl FnOnce(RigNewError) -> RigNewError {
 }
 
 /// Writes `text` to `path`.
-fn write(path: &Path, text: &str) -> Result<(), RigNewError> {
+pub(crate) fn write(path: &Path, text: &str) -> Result<(), RigNewError> {
     std::fs::write(path, text).map_err(|cause| RigNewError::Write {
         path: path.to_path_buf(),
         cause,
@@ -167,15 +174,20 @@ pub fn make_rig_file(
     job: &NewRig<'_>,
     note: &mut dyn FnMut(String),
 ) -> Result<MadeRig, RigNewError> {
-    prepare_output(job.output)?;
-    if let Some(out) = job.landmarks_out {
-        prepare_output(out)?;
-    }
     if !(job.defaults.back_of_head.is_finite() && job.defaults.back_of_head > 0.0) {
         return Err(RigNewError::Frame(format!(
             "--frozen-beyond {}: a distance in inter-ocular distances above 0",
             job.defaults.back_of_head
         )));
+    }
+    if let Some(b) = job.blendshapes.filter(|b| *b != "arkit") {
+        return Err(RigNewError::Frame(format!(
+            "--blendshapes {b}: the one set made is `arkit`"
+        )));
+    }
+    prepare_output(job.output)?;
+    if let Some(out) = job.landmarks_out {
+        prepare_output(out)?;
     }
     let overrides = job
         .overrides
@@ -195,7 +207,8 @@ pub fn make_rig_file(
         Some(a) => a.face.mesh_data.clone(),
         None => crate::load_mesh(job.mesh)?,
     };
-    let (marks, marks_from) = landmarks_of(job, &mesh, note)?;
+    let (marks, marks_from, registration) = landmarks_of(job, &mesh, note)?;
+    let face = mesh.clone();
     // An avatar's parts drawn with the face join the working mesh after the face's vertices
     // (the landmarks keep their numbers).
     let (avatar, mesh) = match avatar {
@@ -242,6 +255,9 @@ pub fn make_rig_file(
     let text = crate::apply_overrides(&text, &merged, job.output)?;
     write(job.output, &text)?;
     let loaded = read_back(job, &text, &marks)?;
+    if job.blendshapes.is_some() {
+        crate::arkit::add_arkit(job, &face, &loaded, registration, note)?;
+    }
     Ok(MadeRig { generated, loaded })
 }
 
@@ -438,10 +454,11 @@ fn landmarks_of(
     job: &NewRig<'_>,
     mesh: &Mesh,
     note: &mut dyn FnMut(String),
-) -> Result<(Landmarks, String), RigNewError> {
+) -> Result<(Landmarks, String, Option<Registration>), RigNewError> {
     let Some((path, numbering)) = job.landmarks else {
-        let found = found_landmarks(job.mesh, mesh, job.configs, note)?;
-        return Ok((found, "landmarks found by template registration".into()));
+        let (found, reg) = found_landmarks(job.mesh, mesh, job.configs, note)?;
+        let from = "landmarks found by template registration".to_string();
+        return Ok((found, from, Some(reg)));
     };
     let given = load_landmarks(path, numbering)?;
     let marks = if given.count() < IBUG_POINTS && !job.keep_missing {
@@ -449,7 +466,7 @@ fn landmarks_of(
     } else {
         given
     };
-    Ok((marks, path.display().to_string()))
+    Ok((marks, path.display().to_string(), None))
 }
 
 /// `[0, 1, 2]`: a list of iBUG point numbers as the messages print it.
@@ -476,7 +493,7 @@ fn fill_missing(
         point_list(&missing)
     ));
     let found = match found_landmarks(path, mesh, configs, note) {
-        Ok(f) => f,
+        Ok((f, _)) => f,
         Err(e) => {
             note(format!(
                 "warning: no registration, the missing landmarks stay missing: {e}"
@@ -521,17 +538,21 @@ fn fill_missing(
     given
 }
 
-/// The landmarks of `mesh` found by registering the ICT head onto it, with the fit as a note.
+/// The landmarks of `mesh` found by registering the ICT head onto it, with the fit as a note,
+/// and the registration.
 fn found_landmarks(
     path: &Path,
     mesh: &Mesh,
     configs: &Path,
     note: &mut dyn FnMut(String),
-) -> Result<Landmarks, RigNewError> {
+) -> Result<(Landmarks, Registration), RigNewError> {
     let template = TemplateHead::ict(configs).map_err(context("loading the ICT template head"))?;
-    let found = find_landmarks(mesh, &template, &FindSettings::default()).map_err(context(
-        format!("{}: registering the ICT template head", path.display()),
-    ))?;
+    let settings = FindSettings::default();
+    let reg = register_template(mesh, &template, &settings).map_err(context(format!(
+        "{}: registering the ICT template head",
+        path.display()
+    )))?;
+    let found = crate::landmarks_of_registration(&reg, &settings);
     let worst = found
         .landmark_distance
         .iter()
@@ -554,7 +575,7 @@ fn found_landmarks(
             "warning: the template registration probably failed ({why}): check the rig with `mimic rig check`, and give --landmarks (docs/rigging.md)"
         ));
     }
-    Ok(found.landmarks)
+    Ok((found.landmarks, reg))
 }
 
 #[cfg(test)]

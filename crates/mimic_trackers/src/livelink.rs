@@ -88,11 +88,21 @@ pub const CURVE_NAMES: [&str; CURVES] = [
     "RightEyeRoll",
 ];
 
-/// The stream index of curve `name` (ASCII case ignored).
+/// The stream index of curve `name` (ASCII case ignored; ICT-FaceKit's spelling of a sided
+/// curve too: `eyeBlink_L` is `EyeBlinkLeft`).
 pub fn curve_index(name: &str) -> Option<usize> {
-    CURVE_NAMES
-        .iter()
-        .position(|n| n.eq_ignore_ascii_case(name))
+    let find = |name: &str| {
+        CURVE_NAMES
+            .iter()
+            .position(|n| n.eq_ignore_ascii_case(name))
+    };
+    find(name).or_else(|| {
+        let (base, side) = match name.strip_suffix("_L") {
+            Some(b) => (b, "Left"),
+            None => (name.strip_suffix("_R")?, "Right"),
+        };
+        find(&format!("{base}{side}"))
+    })
 }
 
 /// The head rotation of yaw, pitch and roll (radians, as Live Link sends them):
@@ -277,6 +287,17 @@ mod tests {
             rate_denominator: 1,
             curves,
         }
+    }
+
+    #[test]
+    fn ict_spellings_name_sided_curves() {
+        let at = |n: &str| curve_index(n).map(|k| CURVE_NAMES[k]);
+        assert_eq!(at("eyeBlink_L"), Some("EyeBlinkLeft"));
+        assert_eq!(at("mouthSmile_R"), Some("MouthSmileRight"));
+        assert_eq!(at("jawLeft"), Some("JawLeft"));
+        // ARKit's one browInnerUp has no sided curve; a half is no curve.
+        assert_eq!(at("browInnerUp_L"), None);
+        assert_eq!(at("_L"), None);
     }
 
     #[test]

@@ -8,9 +8,10 @@ const MAX_NAME: usize = 64;
 /// rig's targets.
 ///
 /// Besides each target's own name it accepts the other side convention (`mouthSmile_L` <->
-/// `mouthSmileLeft`), and a name whose `_L` and `_R` halves are both targets drives both
-/// (ARKit's single `browInnerUp` -> ICT's `browInnerUp_L` and `browInnerUp_R`). Names match
-/// regardless of ASCII case.
+/// `mouthSmileLeft`), a name whose `_L` and `_R` halves are both targets drives both
+/// (ARKit's single `browInnerUp` -> ICT's `browInnerUp_L` and `browInnerUp_R`), and ICT's halves
+/// drive a target without a side (`browInnerUp_L`, `browInnerUp_R` -> ARKit's `browInnerUp`, the
+/// larger weight winning). Names match regardless of ASCII case.
 #[derive(Clone, Debug)]
 pub struct WeightMap {
     targets: usize,
@@ -38,6 +39,13 @@ impl WeightMap {
                     add(base.to_string(), k);
                 }
             }
+            if !["_L", "_R", "Left", "Right"]
+                .iter()
+                .any(|s| name.ends_with(s))
+            {
+                add(format!("{name}_L"), k);
+                add(format!("{name}_R"), k);
+            }
         }
         // A base name stands for both halves only where no target carries it exactly.
         for (k, name) in names.iter().enumerate() {
@@ -50,8 +58,8 @@ impl WeightMap {
     }
 
     /// Writes `pairs` into `out` in target order: known names get their value clamped to [0, 1]
-    /// (non-finite values count as 0), targets not named get 0. Returns how many pairs named no
-    /// target. Allocates nothing.
+    /// (non-finite values count as 0; a target two names reach gets the larger), targets not
+    /// named get 0. Returns how many pairs named no target. Allocates nothing.
     ///
     /// # Panics
     /// If `out` is not one weight per target.
@@ -80,10 +88,50 @@ impl WeightMap {
                 })
                 .and_then(|b| std::str::from_utf8(b).ok());
             match key.and_then(|k| self.index.get(k)) {
-                Some(ks) => ks.iter().for_each(|&k| out[k] = v),
+                Some(ks) => ks.iter().for_each(|&k| out[k] = out[k].max(v)),
                 None => unknown += 1,
             }
         }
         unknown
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn map(names: &[&str]) -> WeightMap {
+        WeightMap::new(&names.iter().map(|s| s.to_string()).collect::<Vec<_>>())
+    }
+
+    #[test]
+    fn ict_style_names_drive_arkit_named_targets() {
+        let m = map(&[
+            "eyeBlinkLeft",
+            "browInnerUp",
+            "cheekPuff",
+            "jawLeft",
+            "mouthLeft",
+        ]);
+        let mut w = [9.0f32; 5];
+        let unknown = m.apply(
+            [
+                ("eyeBlink_L", 0.5),
+                ("browInnerUp_L", 0.25),
+                ("browInnerUp_R", 0.75),
+                ("cheekPuff_R", 0.4),
+                ("jawLeft", 0.3),
+                ("mouthLeft", 0.2),
+                ("eyeBlink_R", 1.0),
+            ],
+            &mut w,
+        );
+        assert_eq!(w, [0.5, 0.75, 0.4, 0.3, 0.2]);
+        assert_eq!(unknown, 1);
+        // A target carrying a half's name exactly keeps it.
+        let m = map(&["browInnerUp", "browInnerUp_L"]);
+        let mut w = [0.0f32; 2];
+        m.apply([("browInnerUp_L", 0.5)], &mut w);
+        assert_eq!(w, [0.0, 0.5]);
     }
 }

@@ -66,16 +66,14 @@ pub struct Args {
     /// a registration of the ICT head (which the given points check).
     #[arg(long)]
     pub keep_missing: bool,
+    /// Also make ARKit's 52 blend shapes for the head as the rig's morph targets (ICT-FaceKit's
+    /// expressions transferred through the registration; docs/rigging.md, "ARKit shapes").
+    #[arg(long, value_parser = ["arkit"])]
+    pub blendshapes: Option<String>,
 }
 
-/// Runs `mimic rig new`: the output folder is made and checked before the work.
+/// Runs `mimic rig new`: the options are checked and the output folder made before the work.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    if !(args.frozen_beyond.is_finite() && args.frozen_beyond > 0.0) {
-        anyhow::bail!(
-            "--frozen-beyond {}: a distance in inter-ocular distances above 0",
-            args.frozen_beyond
-        );
-    }
     let configs = mimic_assets::ConfigDirs::locate(None).root;
     let job = NewRig {
         mesh: &args.mesh,
@@ -104,6 +102,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         },
         configs: &configs,
         command_line: String::new(),
+        blendshapes: args.blendshapes.as_deref(),
     };
     let job = NewRig {
         command_line: job.repeat_command(),
