@@ -15,61 +15,7 @@
 use mimic_avatar::{Avatar, FaceMesh, VrmVersion};
 use serde_json::{Value, json};
 
-/// ARKit's 52 blendshape names, as ARKit spells them.
-pub const ARKIT_NAMES: [&str; 52] = [
-    "browDownLeft",
-    "browDownRight",
-    "browInnerUp",
-    "browOuterUpLeft",
-    "browOuterUpRight",
-    "cheekPuff",
-    "cheekSquintLeft",
-    "cheekSquintRight",
-    "eyeBlinkLeft",
-    "eyeBlinkRight",
-    "eyeLookDownLeft",
-    "eyeLookDownRight",
-    "eyeLookInLeft",
-    "eyeLookInRight",
-    "eyeLookOutLeft",
-    "eyeLookOutRight",
-    "eyeLookUpLeft",
-    "eyeLookUpRight",
-    "eyeSquintLeft",
-    "eyeSquintRight",
-    "eyeWideLeft",
-    "eyeWideRight",
-    "jawForward",
-    "jawLeft",
-    "jawOpen",
-    "jawRight",
-    "mouthClose",
-    "mouthDimpleLeft",
-    "mouthDimpleRight",
-    "mouthFrownLeft",
-    "mouthFrownRight",
-    "mouthFunnel",
-    "mouthLeft",
-    "mouthLowerDownLeft",
-    "mouthLowerDownRight",
-    "mouthPressLeft",
-    "mouthPressRight",
-    "mouthPucker",
-    "mouthRight",
-    "mouthRollLower",
-    "mouthRollUpper",
-    "mouthShrugLower",
-    "mouthShrugUpper",
-    "mouthSmileLeft",
-    "mouthSmileRight",
-    "mouthStretchLeft",
-    "mouthStretchRight",
-    "mouthUpperUpLeft",
-    "mouthUpperUpRight",
-    "noseSneerLeft",
-    "noseSneerRight",
-    "tongueOut",
-];
+pub use mimic_types::arkit::ARKIT_NAMES;
 
 /// The VRM 1.0 presets mimic binds and the ARKit shapes each is made of, with their weights
 /// (0..1). ARKit's Left is the subject's, as VRM's `blinkLeft` is the avatar's own left.
@@ -173,24 +119,7 @@ pub struct VrmBinds {
     pub custom: Vec<String>,
 }
 
-/// The ARKit name a morph target's `name` stands for: ARKit's own spelling in any case
-/// (`jawOpen`, `JawOpen`), or ICT-FaceKit's `_L` / `_R` form (`eyeBlink_L` -> `eyeBlinkLeft`,
-/// `browInnerUp_L` -> `browInnerUp`, its one shape split in two).
-pub fn arkit_name(name: &str) -> Option<&'static str> {
-    let find = |n: &str| {
-        ARKIT_NAMES
-            .iter()
-            .copied()
-            .find(|a| a.eq_ignore_ascii_case(n))
-    };
-    find(name).or_else(|| {
-        let (base, side) = name
-            .strip_suffix("_L")
-            .map(|b| (b, "Left"))
-            .or_else(|| name.strip_suffix("_R").map(|b| (b, "Right")))?;
-        find(&format!("{base}{side}")).or_else(|| find(base))
-    })
-}
+pub use mimic_types::arkit::arkit_name;
 
 /// The ARKit shapes among `names` (mimic's added targets, from index `own` on), in first-seen
 /// order, each with the target indices that carry it.

@@ -6,6 +6,7 @@
 //! whole-file reads of [`limits`] (shared by every loader); loading these values from files is
 //! `mimic_assets`' job, producing frames is `mimic_capture`'s.
 
+pub mod arkit;
 pub mod correspondence;
 pub mod fdp;
 pub mod frame;
