@@ -54,9 +54,15 @@ pub struct RigAvatar {
     pub section: AvatarSection,
 }
 
-/// Reads the avatar at `path` and the face mesh `section` names.
+/// Reads the avatar at `path` and the face mesh `section` names ([`avatar_face`]).
 pub fn read_avatar_face(path: &Path, section: &AvatarSection) -> Result<RigAvatar, AssetError> {
-    let avatar = mimic_avatar::load_avatar(path)?;
+    avatar_face(mimic_avatar::load_avatar(path)?, section)
+}
+
+/// The face mesh `section` names (and its drawn parts) of `avatar`, already read.
+pub fn avatar_face(avatar: Avatar, section: &AvatarSection) -> Result<RigAvatar, AssetError> {
+    let path = avatar.path.clone();
+    let path = path.as_path();
     let face = match &section.face {
         Some(name) => mimic_avatar::find_mesh(&avatar, name).ok_or_else(|| {
             let names: Vec<String> = avatar

@@ -21,7 +21,8 @@ mod span;
 mod texture;
 
 pub use avatar_rig::{
-    AvatarSection, DRAWN_PARTS, PART_KINDS, RigAvatar, load_rig_avatar, read_avatar_face,
+    AvatarSection, DRAWN_PARTS, PART_KINDS, RigAvatar, avatar_face, load_rig_avatar,
+    read_avatar_face,
 };
 pub use error::AssetError;
 pub use frames::{FRAMES_MAGIC, FRAMES_VERSION, FrameRecord, FramesReader, FramesWriter};

@@ -17,10 +17,10 @@ pub fn obj(data: &[u8]) {
     }
 }
 
-/// The avatar file readers (glTF / GLB / VRM bytes): `mimic rig new`'s mesh reader (an accepted
-/// mesh's triangles index its vertices, each triangle has its material) and the whole-avatar
-/// reader (each primitive's indices lie in its vertex array, every attribute as long as the
-/// positions, one-line errors).
+/// The avatar file readers (glTF / GLB / VRM bytes): the whole-avatar reader (each primitive's
+/// indices lie in its vertex array, every attribute as long as the positions, one-line errors)
+/// and, on what it accepts, `mimic rig new`'s working mesh of each mesh (its triangles index
+/// its vertices, each triangle has its material, each file vertex its working vertex).
 pub fn avatar(data: &[u8]) {
     match mimic_gltf::parse_avatar(Path::new("fuzz.glb"), data, None) {
         Ok(a) => {
@@ -43,17 +43,20 @@ pub fn avatar(data: &[u8]) {
                     );
                 }
             }
+            for k in 0..a.meshes.len() {
+                if let Ok(face) = mimic_gltf::avatar::FaceMesh::of(&a, k) {
+                    let mesh = &face.mesh_data;
+                    let n = mesh.vertex_count();
+                    assert!(
+                        mesh.triangles.iter().flatten().all(|&i| (i as usize) < n),
+                        "triangle index out of range"
+                    );
+                    assert_eq!(face.triangle_material.len(), mesh.triangles.len());
+                    assert!(face.weld.iter().all(|&w| (w as usize) < n));
+                }
+            }
         }
         Err(e) => assert!(!e.to_string().contains('\n'), "error over several lines"),
-    }
-    let read = mimic_rig::gltf_mesh::parse_gltf_look(Path::new("fuzz.glb"), data, None);
-    if let Ok((mesh, look)) = read {
-        let n = mesh.vertex_count();
-        assert!(
-            mesh.triangles.iter().flatten().all(|&i| (i as usize) < n),
-            "triangle index out of range"
-        );
-        assert_eq!(look.triangle_material.len(), mesh.triangles.len());
     }
 }
 

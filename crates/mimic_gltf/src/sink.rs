@@ -86,18 +86,20 @@ impl GlbSink {
             ));
         }
         // An avatar's face is in the file's own units: its targets' weights are `d` as it is.
-        let scale = metres_per_unit(&rig.units)
-            .filter(|_| avatar.is_none())
-            .or(avatar.as_ref().map(|_| 1.0))
-            .ok_or_else(|| {
-                SinkError::new(
-                    path,
-                    format!(
-                        "rig `{}`: units `{}` have no length in metres for glTF",
-                        rig.name, rig.units
-                    ),
-                )
-            })?;
+        let scale = if avatar.is_some() {
+            Some(1.0)
+        } else {
+            metres_per_unit(&rig.units)
+        }
+        .ok_or_else(|| {
+            SinkError::new(
+                path,
+                format!(
+                    "rig `{}`: units `{}` have no length in metres for glTF",
+                    rig.name, rig.units
+                ),
+            )
+        })?;
         let targets = morphs.len();
         Ok(Self {
             path: path.to_path_buf(),

@@ -48,13 +48,9 @@ pub use write::{relative_path, write_rig_toml};
 
 use std::path::{Path, PathBuf};
 
-/// Loads a face mesh: glTF / GLB by extension ([`gltf_mesh::load_gltf`]), else OBJ.
+/// Loads an OBJ face mesh (an avatar's face is `mimic_assets::read_avatar_face`'s).
 pub fn load_mesh(path: &Path) -> Result<mimic_types::Mesh, RigNewError> {
-    if gltf_mesh::is_gltf(path) {
-        gltf_mesh::load_gltf(path)
-    } else {
-        Ok(mimic_assets::load_obj(path)?)
-    }
+    Ok(mimic_assets::load_obj(path)?)
 }
 
 /// Why a rig could not be made.

@@ -33,7 +33,7 @@ enum Kind {
 fn kind_of(path: &Path) -> anyhow::Result<Kind> {
     match path.extension().and_then(|e| e.to_str()) {
         Some("jsonl") | Some("json") => Ok(Kind::Recording),
-        _ if mimic_rig::gltf_mesh::is_gltf(path) => Ok(Kind::Avatar),
+        _ if mimic_gltf::avatar::is_avatar_path(path) => Ok(Kind::Avatar),
         Some("toml") => {
             let text = mimic_types::limits::read_capped(path, &mimic_types::limits::RIG_FILE)
                 .with_context(|| path.display().to_string())?;
