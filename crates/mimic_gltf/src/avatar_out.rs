@@ -35,6 +35,8 @@ pub struct AvatarGlbSummary {
     pub targets: usize,
     /// Of them, added by mimic.
     pub added_targets: usize,
+    /// Of the added targets, those whose positions are sparse accessors (on every vertex array).
+    pub sparse_targets: usize,
     /// Animation keys (0: no animation).
     pub keys: usize,
     /// Seconds from the first key to the last.
@@ -126,7 +128,7 @@ pub fn write_avatar_glb(
     let mut doc = avatar.document.clone();
     let mut b = merged_buffers(avatar, &mut doc);
     let own = own_target_count(avatar, face.mesh);
-    let added = add_targets(avatar, face, morphs, own, &mut b, &mut doc);
+    let (added, sparse_targets) = add_targets(avatar, face, morphs, own, &mut b, &mut doc);
     pad_weight_keys(avatar, face, own, added, &mut b, &mut doc);
     let vrm_expressions = avatar.vrm.as_ref().map(|_| {
         let names: Vec<String> = morphs.iter().map(|m| m.name.clone()).collect();
@@ -162,6 +164,7 @@ pub fn write_avatar_glb(
         meshes: avatar.meshes.len(),
         targets: own + added,
         added_targets: added,
+        sparse_targets,
         keys,
         duration_s,
         head_node: take
@@ -236,7 +239,8 @@ fn own_target_count(avatar: &Avatar, mesh: usize) -> usize {
         .map_or(0, |p| p.targets.len())
 }
 
-/// Adds `morphs` to every primitive of the face mesh; returns how many were added.
+/// Adds `morphs` to every primitive of the face mesh; returns how many were added and how many
+/// of them are sparse.
 fn add_targets(
     avatar: &Avatar,
     face: &FaceMesh,
@@ -244,10 +248,11 @@ fn add_targets(
     own: usize,
     b: &mut Builder,
     doc: &mut Value,
-) -> usize {
+) -> (usize, usize) {
     if morphs.is_empty() {
-        return 0;
+        return (0, 0);
     }
+    let mut sparse = vec![true; morphs.len()];
     let with_normals = morphs.iter().any(|m| !m.normals.is_empty());
     // Per vertex array of the face: one accessor pair per morph; every file copy of a welded
     // working vertex gets its delta.
@@ -278,9 +283,12 @@ fn add_targets(
         let count = avatar.vertex_arrays[array].positions.len();
         let targets = morphs
             .iter()
-            .map(|m| {
+            .zip(sparse.iter_mut())
+            .map(|(m, all_sparse)| {
                 let p = on_array(&m.positions, offset, count);
-                let mut t = json!({"POSITION": b.vec3_sparse(count, &p).0});
+                let (position, is_sparse) = b.vec3_sparse(count, &p);
+                *all_sparse &= is_sparse;
+                let mut t = json!({"POSITION": position});
                 if with_normals {
                     let q = on_array(&m.normals, offset, count);
                     t["NORMAL"] = json!(b.vec3_sparse(count, &q).0);
@@ -344,7 +352,7 @@ fn add_targets(
             ws.extend(std::iter::repeat_n(json!(0.0), morphs.len()));
         }
     }
-    morphs.len()
+    (morphs.len(), sparse.iter().filter(|s| **s).count())
 }
 
 /// The avatar's own animations that key the face mesh's weights get a zero for each added target

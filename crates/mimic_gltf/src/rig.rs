@@ -156,7 +156,7 @@ pub fn export_rig_glb(
         vertices: s.vertices,
         primitives,
         targets: s.targets,
-        sparse_targets: 0,
+        sparse_targets: s.sparse_targets,
         keys: 0,
         duration_s: 0.0,
     })
