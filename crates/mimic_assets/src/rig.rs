@@ -39,6 +39,9 @@ pub struct RigFile {
     /// How the rig is drawn; loaded by [`crate::load_rig_look`].
     #[serde(default)]
     pub look: mimic_types::RigLook,
+    /// Rigid parts: the jaw's passengers and the eyeballs (docs/parts.md).
+    #[serde(default)]
+    pub parts: Option<Spanned<mimic_types::RigParts>>,
 }
 
 /// Where a rig's numeric settings sit in its text: a second, lenient read (unknown keys
@@ -195,7 +198,21 @@ pub fn parse_rig(path: &Path, text: &str) -> Result<Rig, AssetError> {
         regions: file.regions,
         frozen,
         solver: file.solver,
+        parts: file
+            .parts
+            .as_ref()
+            .map(|p| p.get_ref().clone())
+            .unwrap_or_default(),
     };
+    if let Some(parts) = &file.parts
+        && let Err(e) = parts.get_ref().validate(rig.mesh.vertex_count())
+    {
+        return Err(AssetError::Toml {
+            path: path.to_path_buf(),
+            line: line_of(text, parts.span().start),
+            message: e.to_string(),
+        });
+    }
     if let Err(source) = rig.validate() {
         let control_line =
             |fdp, nth: usize| line_of_nth(text, &file.controls, |c| c.fdp == fdp, nth);

@@ -234,6 +234,8 @@ pub struct ControlsCsv {
     path: PathBuf,
     w: BufWriter<File>,
     rows: usize,
+    /// The rig's control count: the entries of `d` after them (rigid parts) are not controls.
+    controls: usize,
 }
 
 impl ControlsCsv {
@@ -250,6 +252,7 @@ impl ControlsCsv {
             path: path.to_path_buf(),
             w,
             rows: 0,
+            controls: rig.controls.len(),
         })
     }
 
@@ -261,7 +264,7 @@ impl ControlsCsv {
             f.view.timestamp_us,
             f.view.status.code()
         )?;
-        for d in f.view.displacements {
+        for d in f.view.displacements.iter().take(self.controls) {
             write!(self.w, ",{:.5},{:.5},{:.5}", d.x, d.y, d.z)?;
         }
         writeln!(self.w)

@@ -19,9 +19,15 @@ pub struct Morph {
 
 const AXES: [(&str, Vec3); 3] = [("x", Vec3::X), ("y", Vec3::Y), ("z", Vec3::Z)];
 
-/// [`basis_morphs`] named by the rig's controls (its FDPs or layout points).
+/// [`basis_morphs`] named by the rig's controls (its FDPs or layout points), then its rigid
+/// parts' columns ([`mimic_types::RigParts::column_names`]).
 pub fn control_morphs(basis: &Basis, rig: &mimic_types::Rig) -> Vec<Morph> {
-    let names: Vec<String> = rig.controls.iter().map(|c| c.fdp.to_string()).collect();
+    let names: Vec<String> = rig
+        .controls
+        .iter()
+        .map(|c| c.fdp.to_string())
+        .chain(rig.parts.column_names())
+        .collect();
     basis_morphs(basis, &names)
 }
 

@@ -215,15 +215,15 @@ impl BlendshapeFitter {
     /// them, and returns them; allocates nothing.
     ///
     /// # Panics
-    /// If `d` does not have one entry per rig control.
+    /// If `d` has fewer entries than the rig has controls (entries after the controls', the
+    /// rigid parts' columns, are not read).
     pub fn fit(&mut self, d: &[Vec3], timestamp_us: i64) -> &[f32] {
         let m = self.d_padded.len() - self.names.len().div_ceil(3);
-        assert_eq!(
-            d.len(),
-            m,
+        assert!(
+            d.len() >= m,
             "BlendshapeFitter::fit: one displacement per control"
         );
-        self.d_padded[..m].copy_from_slice(d);
+        self.d_padded[..m].copy_from_slice(&d[..m]);
         self.fit
             .fit(&self.d_padded, &mut self.scratch, &mut self.raw);
         let dt = self
@@ -371,6 +371,7 @@ mod tests {
             },
             frozen: vec![false; 16],
             solver: SolverSettings::default(),
+            parts: Default::default(),
         }
     }
 

@@ -64,6 +64,7 @@ pub fn rig_and_layout() -> (Rig, Layout) {
         },
         frozen: vec![false; GRID * GRID],
         solver: SolverSettings::default(),
+        parts: Default::default(),
     };
     // Layout points: the 6 controls, then 6 stable points (corners and sides of the grid).
     let stable_vertices = [v(0, 14), v(14, 14), v(0, 7), v(14, 7), v(0, 0), v(14, 0)];

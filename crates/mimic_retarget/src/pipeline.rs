@@ -6,6 +6,7 @@ use crate::patch::MovingPatch;
 mod hold;
 mod neutral;
 mod output;
+mod parts;
 mod pose;
 use crate::{Neutral, OneEuro, OneEuroStep, RetargetSettings, SourceToTarget};
 use glam::{Quat, Vec3};
@@ -31,7 +32,7 @@ pub enum RetargetError {
     },
     /// The basis was built for another mesh or control set.
     #[error(
-        "basis is {rows} x {cols}, but the rig has {vertices} vertices and {controls} controls"
+        "basis is {rows} x {cols}, but the rig has {vertices} vertices and {controls} columns (controls and rigid parts)"
     )]
     BasisShape {
         /// Basis rows.
@@ -40,7 +41,7 @@ pub enum RetargetError {
         cols: usize,
         /// Rig vertices.
         vertices: usize,
-        /// Rig controls.
+        /// Rig controls plus four per rigid part.
         controls: usize,
     },
     /// A given neutral frame does not fit the layout or lacks controls.
@@ -179,6 +180,10 @@ pub struct Retargeter {
     pub(crate) stable_sorted: Vec<f32>,
     pub(crate) controls_now: Vec<Option<Vec3>>,
     pub(crate) stats: Stats,
+    /// The rigid parts' columns of `d` (jaw, eyeballs), after the controls'.
+    pub(crate) parts: parts::PartMotion,
+    /// The eyes' turn (left, right), once a gaze is read.
+    pub(crate) eye_turn: Option<[parts::EyeTurn; 2]>,
 }
 
 impl Retargeter {
@@ -193,12 +198,14 @@ impl Retargeter {
         let basis: Arc<Basis> = basis.into();
         let n = rig.mesh.vertex_count();
         let m = rig.controls.len();
-        if basis.vertex_count() != n || basis.control_count() != m {
+        let fdps: Vec<Option<Fdp>> = rig.controls.iter().map(|c| layout.fdp_of(c.fdp)).collect();
+        let part_motion = parts::PartMotion::new(rig, &fdps);
+        if basis.vertex_count() != n || basis.control_count() != m + part_motion.column_count() {
             return Err(RetargetError::BasisShape {
                 rows: basis.vertex_count(),
                 cols: basis.control_count(),
                 vertices: n,
-                controls: m,
+                controls: m + part_motion.column_count(),
             });
         }
         let source_points = rig
@@ -214,9 +221,9 @@ impl Retargeter {
             })
             .collect::<Result<Vec<_>, _>>()?;
         let p = layout.point_count;
-        // The FDP each control stands for (a point control: the FDP that is that point alone in
-        // the layout, e.g. kinect121:20 is 3.7), for the face size and the gate's bounds.
-        let fdps: Vec<Option<Fdp>> = rig.controls.iter().map(|c| layout.fdp_of(c.fdp)).collect();
+        // `fdps`: the FDP each control stands for (a point control: the FDP that is that point
+        // alone in the layout, e.g. kinect121:20 is 3.7), for the face size, the gate's bounds
+        // and the jaw.
         let target_controls = rig.control_positions();
         // A rig too degenerate to measure has no face size: the gate then never holds a frame.
         let face = face_size(&fdps, &target_controls).unwrap_or(f32::INFINITY);
@@ -238,7 +245,7 @@ impl Retargeter {
                 )
             } else {
                 // No positions: an empty patch, so no per-retargeter copy of the moving rows.
-                let empty = Basis::from_row_major(0, m, Vec::new())
+                let empty = Basis::from_row_major(0, basis.control_count(), Vec::new())
                     .unwrap_or_else(|| unreachable!("0 x m from no values"));
                 MovingPatch::new(&empty, &[], &[])
             },
@@ -278,6 +285,8 @@ impl Retargeter {
             stable_sorted: Vec::with_capacity(layout.stable.len()),
             controls_now: vec![None; m],
             stats: Stats::default(),
+            parts: part_motion,
+            eye_turn: None,
             settings: settings.clone(),
         };
         match settings.neutral {
@@ -331,7 +340,7 @@ impl Retargeter {
             } else {
                 Vec::new()
             },
-            displacements: vec![Vec3::ZERO; self.target_controls.len()],
+            displacements: vec![Vec3::ZERO; self.basis.control_count()],
             pose: HeadPose::IDENTITY,
             target_rotation: Quat::IDENTITY,
             filled: 0,
@@ -535,6 +544,7 @@ impl Retargeter {
 
     /// `positions = rest + B d` and normals, over the moving part only; returns the instants after each.
     fn deform(&mut self, out: &mut FrameOutput) -> (Instant, Instant) {
+        self.parts.fill(&mut out.displacements, self.eye_turn);
         if !self.settings.positions {
             let t = Instant::now();
             return (t, t);

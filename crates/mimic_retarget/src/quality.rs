@@ -241,7 +241,9 @@ pub fn evaluate(
     shape: &[Vec3],
     measured: &[bool],
 ) -> Result<Evaluated, BlendshapeError> {
-    let d = control_displacements(rig, shape);
+    let mut d = control_displacements(rig, shape);
+    // The rigid parts' columns (after the controls') at rest: the shapes measure the skin.
+    d.resize(basis.control_count().max(d.len()), Vec3::ZERO);
     let mut u = vec![Vec3::ZERO; rig.mesh.vertex_count()];
     let weights = match blend {
         Some(b) => {

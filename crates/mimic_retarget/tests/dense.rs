@@ -66,6 +66,7 @@ fn rig_and_layout() -> (Rig, Layout, Vec<u32>) {
         regions,
         frozen: vec![false; GRID * GRID],
         solver: SolverSettings::default(),
+        parts: Default::default(),
     };
     let layout = Layout {
         name: "grid87".into(),

@@ -23,6 +23,7 @@ pub mod parts;
 pub mod picture;
 pub mod place;
 pub mod register;
+pub mod rigid_parts;
 pub mod summary;
 pub mod transfer;
 pub mod write;

@@ -83,6 +83,10 @@ pub struct GeneratedRig {
     pub eyes: Option<EyeOpening>,
     /// Things the user should know (missing controls, a tilted head, ...).
     pub warnings: Vec<String>,
+    /// The rigid parts found (jaw, eyeballs; [`crate::rigid_parts`]).
+    pub parts: mimic_types::RigParts,
+    /// What [`crate::rigid_parts::find_parts`] found, in words.
+    pub parts_note: String,
 }
 
 /// The unit whose typical inter-ocular distance is nearest (by ratio) to `iod` mesh units;
@@ -189,6 +193,8 @@ pub fn make_rig(
         .map(|(p, _)| *p)
         .ok_or_else(|| RigNewError::Frame("no landmark lies on a triangle of the mesh".into()))?;
     let skin: Vec<bool> = piece.iter().map(|p| *p == Some(skin_piece)).collect();
+    let (parts, parts_note) =
+        crate::rigid_parts::find_parts(&face, &piece, skin_piece, &frame, marks);
     let surface = Surface {
         face: &face,
         skin: &skin,
@@ -271,6 +277,8 @@ pub fn make_rig(
         defaults,
         eyes,
         warnings,
+        parts,
+        parts_note,
     })
 }
 

@@ -200,6 +200,7 @@ IOD (eye centre distance) {iod:.4} {units}. Lengths in face units (IOD): region 
         d.shell_stiffness
     );
     let _ = iod;
+    write_parts(&mut t, &rig.parts, &rig.parts_note);
     for c in &rig.controls {
         let _ = write!(
             t,
@@ -211,6 +212,51 @@ IOD (eye centre distance) {iod:.4} {units}. Lengths in face units (IOD): region 
         );
     }
     t
+}
+
+/// The `[parts]` table (docs/parts.md), nothing for a rig without rigid parts.
+fn write_parts(t: &mut String, parts: &mimic_types::RigParts, note: &str) {
+    if parts.is_empty() {
+        return;
+    }
+    let v3 = |v: glam::Vec3| {
+        format!(
+            "[{}, {}, {}]",
+            num(f64::from(v.x)),
+            num(f64::from(v.y)),
+            num(f64::from(v.z))
+        )
+    };
+    let rs = |r: &[[u32; 2]]| {
+        let inner: Vec<String> = r.iter().map(|[a, b]| format!("[{a}, {b}]")).collect();
+        format!("[{}]", inner.join(", "))
+    };
+    let _ = writeln!(t, "\n[parts]\n# {note} (docs/parts.md)");
+    if let Some(j) = &parts.jaw {
+        let _ = writeln!(
+            t,
+            "jaw = {{ vertices = {}, ramped = {}, cut = {}, band = {}, hinge = {}, axis = {} }}",
+            rs(&j.vertices),
+            rs(&j.ramped),
+            num(f64::from(j.cut)),
+            num(f64::from(j.band)),
+            v3(j.hinge),
+            v3(j.axis)
+        );
+    }
+    if let Some(eyes) = &parts.eyes {
+        let e: Vec<String> = eyes
+            .iter()
+            .map(|e| {
+                format!(
+                    "{{ vertices = {}, centre = {} }}",
+                    rs(&e.vertices),
+                    v3(e.centre)
+                )
+            })
+            .collect();
+        let _ = writeln!(t, "eyes = [{}]", e.join(", "));
+    }
 }
 
 #[cfg(test)]

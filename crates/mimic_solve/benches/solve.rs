@@ -99,6 +99,7 @@ fn rig(side: usize) -> Rig {
         regions,
         frozen: vec![false; n],
         solver: SolverSettings::default(),
+        parts: Default::default(),
     }
 }
 

@@ -30,7 +30,16 @@ const LAPLACIAN_BAND_SCALE: f32 = 2.0;
 /// [`SolverSettings::top_split`] (RBF only) the top region is two solves (controls above / below
 /// the split height), blended within the top region's weight (see [`regions::Part`]), each with
 /// its own kernel if the split names one.
+///
+/// A rig with rigid parts ([`mimic_types::RigParts`]: jaw, eyeballs) gets four more columns per
+/// part after the controls' ([`crate::rigid`]).
 pub fn build_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveError> {
+    let controls = control_basis(rig, settings)?;
+    crate::rigid::with_parts(controls, rig)
+}
+
+/// The controls' columns of [`build_basis`] (`n x m`, no rigid part).
+fn control_basis(rig: &Rig, settings: &SolverSettings) -> Result<Basis, SolveError> {
     rig.validate()?;
     let m = rig.controls.len();
     if m == 0 {
@@ -237,7 +246,7 @@ fn blend_shell(
     weights: &[[f32; 3]],
     b: &mut [f64],
 ) -> Result<(), SolveError> {
-    let shell = build_basis(
+    let shell = control_basis(
         rig,
         &SolverSettings {
             kind: SolverKind::Shell,

@@ -22,6 +22,7 @@ pub mod morph_fit;
 pub mod normals;
 pub mod rbf;
 pub mod regions;
+pub mod rigid;
 pub mod shell;
 pub mod stats;
 #[cfg(test)]

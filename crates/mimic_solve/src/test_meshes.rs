@@ -115,6 +115,7 @@ pub fn rig(mesh: Mesh, vertices: &[u32], band: f32) -> Rig {
         regions,
         frozen: vec![false; n],
         solver: SolverSettings::default(),
+        parts: Default::default(),
     }
 }
 

@@ -114,6 +114,7 @@ impl Case {
             regions,
             frozen,
             solver: SolverSettings::default(),
+            parts: Default::default(),
         }
     }
 

@@ -15,7 +15,7 @@ use std::sync::Arc;
 pub enum CatalogError {
     /// The basis was built for another mesh or control set.
     #[error(
-        "rig `{rig}`: basis is {rows} x {cols}, the rig has {vertices} vertices and {controls} controls"
+        "rig `{rig}`: basis is {rows} x {cols}, the rig has {vertices} vertices and {controls} columns (controls and rigid parts)"
     )]
     BasisShape {
         /// Rig name.
@@ -112,7 +112,8 @@ pub struct RigEntry {
 impl RigEntry {
     /// Prepares `rig` with its basis.
     pub fn new(rig: Rig, basis: Basis) -> Result<Self, CatalogError> {
-        let (n, m) = (rig.mesh.vertex_count(), rig.controls.len());
+        let n = rig.mesh.vertex_count();
+        let m = rig.controls.len() + rig.parts.column_count();
         if basis.vertex_count() != n || basis.control_count() != m {
             return Err(CatalogError::BasisShape {
                 rig: rig.name.clone(),

@@ -18,6 +18,7 @@ pub mod mesh;
 pub mod morph;
 pub mod overrides;
 pub mod parse;
+pub mod parts;
 pub mod pose;
 pub mod recording;
 pub mod region;
@@ -37,6 +38,7 @@ pub use look::{
 };
 pub use mesh::{Mesh, MeshError};
 pub use morph::MorphTarget;
+pub use parts::{EyePart, JawPart, PartError, RigParts};
 pub use pose::HeadPose;
 pub use recording::{FORMAT_NAME, FORMAT_VERSION, RecordingHeader, UNITS_METRES};
 pub use region::{Region, RegionBands};

@@ -23,6 +23,8 @@ pub struct Rig {
     pub frozen: Vec<bool>,
     /// Default solver settings.
     pub solver: SolverSettings,
+    /// Rigid parts (jaw, eyeballs), each four more basis columns after the controls'.
+    pub parts: crate::RigParts,
 }
 
 /// One control point of a rig.
