@@ -8,9 +8,9 @@
 //! - **Axes** (fixed at [`GazeTracker::set_neutral`], from the neutral): *lateral* `L` from the
 //!   subject's right outer eye corner to the left one; *up* `U` the sum of both eyes' lid vectors
 //!   (upper-lid middle minus lower-lid middle), made perpendicular to `L`; *forward* `F = L x U`,
-//!   flipped if needed so that it points from the eye corners toward the pupils (the iris sits in
-//!   front of the corners), so the estimate does not depend on how the source's axes point or
-//!   whether it is mirrored. The labels left/right come from the layout, so a yaw toward the
+//!   flipped if needed so that it points toward the camera (+z in a recording's space: x image
+//!   right, y up, z toward the camera; the neutral faces the camera), so the estimate does not
+//!   depend on the source's handedness (a mirrored camera). The labels left/right come from the layout, so a yaw toward the
 //!   subject's left is positive whatever the source's handedness.
 //! - **Eyeball** (per eye): radius `R = 0.45 w`, `w` the neutral's corner-to-corner distance. On
 //!   MediaPipe's life-size canonical model (its iris is 1.2 cm across, a human iris 11.7 mm) `w`
@@ -19,18 +19,21 @@
 //!   ahead, which is what "relative to the neutral" means) and is carried by the eye corners: it
 //!   is stored as an offset from their midpoint, so in each frame the centre is the corners'
 //!   midpoint plus that offset.
-//! - **Direction**: `d` = pupil - centre; with `a = d.L`, `b = d.U` (the pupil's motion across the
-//!   face, which every tracker measures best; depth is the weakest coordinate of a camera
-//!   tracker and is not used) and `f = sqrt(R^2 - a^2 - b^2)` (0 when the pupil is further out
-//!   than `R`), the gaze is the unit vector `(a, b, f) / R` in (L, U, F): `yaw = atan2(a, f)`,
-//!   `pitch = atan2(b, sqrt(a^2 + f^2))`. So the direction is `(sin yaw cos pitch, sin pitch,
-//!   cos yaw cos pitch)`: the eye turned by `pitch` up about the lateral axis, then by `yaw`
+//! - **Direction**: the pupil's depth is the weakest coordinate of a camera tracker, so it is
+//!   not used: the pupil is taken where the camera sees it, on the line through the tracked pupil
+//!   along the camera's depth axis (the recording convention's z, toward the camera, mapped by
+//!   `back`), at that line's intersection with the eyeball nearer the camera (where the line
+//!   misses the eyeball, the eyeball's point nearest it). With `d` = that point - centre and
+//!   `a = d.L`, `b = d.U`, `f = d.F`: `yaw = atan2(a, f)`, `pitch = atan2(b, sqrt(a^2 + f^2))`.
+//!   So the gaze direction is `(sin yaw cos pitch, sin pitch, cos yaw cos pitch)` in (L, U, F)
+//!   ([`EyeGaze::direction`]): the eye turned by `pitch` up about the lateral axis, then by `yaw`
 //!   about the up axis (Fick's gimbal). The neutral reads (0, 0) exactly.
 //! - **Trust**: an eye's reading is trusted when its corners, lids and every pupil point are valid
 //!   and its openness (lid gap along `U` over `w`) is at least [`GazeSettings::closed_below`]
 //!   (0.5) of the neutral's. A closing lid drags the tracked pupil down (MediaPipe's iris does),
 //!   so a blink would read as looking down; an untrusted eye is not read at all. One eye trusted
 //!   (a wink, or one pupil lost): both eyes take its gaze. Neither: both hold the last gaze.
+//!   Both: each keeps its own (vergence), drawn toward their mean by [`GazeSettings::binocular`].
 //! - **Limits**: yaw within +-35 degrees, pitch within -30 (down) .. +25 (up) degrees, the range a
 //!   human eye turns in its orbit (about 35-45 degrees horizontally, 25 up and 35 down at most;
 //!   the ends are kept a little inside it, since a tracker's wildest readings are its errors).
@@ -127,6 +130,9 @@ pub struct GazeSettings {
     pub filter: Option<OneEuroSettings>,
     /// An eye whose openness is under this fraction of the neutral's is closed: not read.
     pub closed_below: f32,
+    /// How far each eye's gaze is drawn toward the two eyes' mean when both are read: 0 keeps
+    /// each eye's own (vergence), 1 gives both the mean (less noise, no vergence).
+    pub binocular: f32,
     /// Largest yaw either way (radians).
     pub yaw_limit: f32,
     /// Largest pitch up (radians).
@@ -148,6 +154,7 @@ impl Default for GazeSettings {
                 derivative_cutoff: 1.0,
             }),
             closed_below: 0.5,
+            binocular: 0.0,
             yaw_limit: 35.0 * deg,
             pitch_up_limit: 25.0 * deg,
             pitch_down_limit: 30.0 * deg,
@@ -226,6 +233,24 @@ fn mean_neutral(points: &[usize], neutral: &[Vec3], valid: &[bool]) -> Option<Ve
         sum += q;
     }
     (!points.is_empty()).then(|| sum / points.len() as f32)
+}
+
+/// The point of the sphere of radius `radius` about the origin that the pupil at `w` (relative to
+/// the eyeball's centre) is seen as along the camera's depth axis `view` (head frame, toward the
+/// camera): the intersection of the line `w + t view` with the sphere nearer the camera, or where
+/// the line misses the sphere, the sphere's point nearest it. Relative to the centre.
+fn on_sphere(w: Vec3, view: Vec3, radius: f32) -> Vec3 {
+    let Some(v) = view.try_normalize() else {
+        return w;
+    };
+    let wv = w.dot(v);
+    let across = w - wv * v;
+    let disc = radius * radius - across.length_squared();
+    if disc >= 0.0 {
+        across + disc.sqrt() * v
+    } else {
+        across.normalize_or_zero() * radius
+    }
 }
 
 /// An eye's corners, lid middles and pupil in one frame of reference.
@@ -316,12 +341,8 @@ impl GazeTracker {
             return;
         };
         let mut forward = lateral.cross(up);
-        let ahead: f32 = eyes
-            .iter()
-            .flatten()
-            .filter_map(|e| e.pupil.map(|p| (p - e.mid()).dot(forward)))
-            .sum();
-        if ahead < 0.0 {
+        // The neutral faces the camera, which is toward +z in a recording's space.
+        if forward.z < 0.0 {
             forward = -forward;
         }
         self.axes = Some(Axes {
@@ -364,9 +385,9 @@ impl GazeTracker {
         let openness = at.openness(axes.up) / r.openness;
         let open = openness >= self.settings.closed_below;
         let gaze = at.pupil.filter(|_| open).and_then(|p| {
-            let d = p - (at.mid() + r.offset);
-            let (a, b) = (d.dot(axes.lateral), d.dot(axes.up));
-            let f = (r.radius * r.radius - a * a - b * b).max(0.0).sqrt();
+            let view = back.transform_vector3(Vec3::Z);
+            let d = on_sphere(p - (at.mid() + r.offset), view, r.radius);
+            let (a, b, f) = (d.dot(axes.lateral), d.dot(axes.up), d.dot(axes.forward));
             let s = &self.settings;
             let g = EyeGaze {
                 yaw: a.atan2(f).clamp(-s.yaw_limit, s.yaw_limit),
@@ -397,7 +418,18 @@ impl GazeTracker {
             readings[RIGHT].gaze.is_some(),
         ];
         self.target = match (readings[LEFT].gaze, readings[RIGHT].gaze) {
-            (Some(l), Some(r)) => [l, r],
+            (Some(l), Some(r)) => {
+                let k = self.settings.binocular.clamp(0.0, 1.0);
+                let mean = EyeGaze {
+                    yaw: 0.5 * (l.yaw + r.yaw),
+                    pitch: 0.5 * (l.pitch + r.pitch),
+                };
+                let mix = |g: EyeGaze| EyeGaze {
+                    yaw: (1.0 - k) * g.yaw + k * mean.yaw,
+                    pitch: (1.0 - k) * g.pitch + k * mean.pitch,
+                };
+                [mix(l), mix(r)]
+            }
             (Some(g), None) | (None, Some(g)) => [g, g],
             (None, None) => self.target,
         };

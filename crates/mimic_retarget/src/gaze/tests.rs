@@ -401,3 +401,20 @@ fn direction_matches_the_documented_convention() {
     };
     assert!((up.direction() - Vec3::Y).length() < 1e-6);
 }
+
+#[test]
+fn binocular_draws_the_eyes_toward_their_mean() {
+    let (mut t, neutral) = tracker(false);
+    let want = [both(-10.0, 4.0)[0], both(10.0, -4.0)[0]];
+    let f = posed(&neutral, want, &Affine3A::IDENTITY);
+    let own = t.step(&f, &Affine3A::IDENTITY, 1.0 / 30.0);
+    t.settings.binocular = 1.0;
+    let shared = t.step(&f, &Affine3A::IDENTITY, 1.0 / 30.0);
+    assert_eq!(shared[LEFT], shared[RIGHT]);
+    let mean = 0.5 * (own[LEFT].yaw + own[RIGHT].yaw);
+    assert!((shared[LEFT].yaw - mean).abs() < 1e-6, "{own:?} {shared:?}");
+    assert!(
+        own[LEFT].yaw < -7.0 * DEG && own[RIGHT].yaw > 7.0 * DEG,
+        "{own:?}"
+    );
+}
