@@ -2,7 +2,7 @@
 
 use crate::AssetError;
 use crate::span::{line_of, line_of_nth, toml_error};
-use mimic_types::{Layout, LayoutControl, LayoutError, ModelCorrespondence};
+use mimic_types::{EyePoints, GazeLayout, Layout, LayoutControl, LayoutError, ModelCorrespondence};
 use serde::Deserialize;
 use std::path::{Path, PathBuf};
 use toml::Spanned;
@@ -23,6 +23,16 @@ struct LayoutFile {
     point_names: Option<Spanned<Vec<String>>>,
     #[serde(default)]
     candide_correspondences: Vec<Spanned<ModelCorrespondence>>,
+    #[serde(default)]
+    gaze: Option<GazeFile>,
+}
+
+/// The on-disk `[gaze]` table, each eye with its position.
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct GazeFile {
+    left: Spanned<EyePoints>,
+    right: Spanned<EyePoints>,
 }
 
 /// Loads and validates a layout file; errors name the file and the offending line.
@@ -58,6 +68,10 @@ pub fn parse_layout(path: &Path, text: &str) -> Result<Layout, AssetError> {
             .iter()
             .map(|c| c.get_ref().clone())
             .collect(),
+        gaze: file.gaze.as_ref().map(|g| GazeLayout {
+            left: g.left.get_ref().clone(),
+            right: g.right.get_ref().clone(),
+        }),
     };
     if let Err(source) = layout.validate() {
         let line = match &source {
@@ -78,6 +92,10 @@ pub fn parse_layout(path: &Path, text: &str) -> Result<Layout, AssetError> {
                 .candide_correspondences
                 .get(*index)
                 .map_or(1, |c| line_of(text, c.span().start)),
+            LayoutError::BadGaze { eye, .. } => line_of_opt(file.gaze.as_ref().map(|g| {
+                let e = if *eye == "left" { &g.left } else { &g.right };
+                e.span().start
+            })),
         };
         return Err(AssetError::Layout {
             path: path.to_path_buf(),
@@ -284,6 +302,46 @@ region = "top"
             &text.replace("weight = -1.0", "weight = 2.0"),
         )
         .unwrap();
+    }
+
+    #[test]
+    fn gaze_table_parses_and_its_errors_name_the_line() {
+        let text = format!(
+            "{GOOD}\n[gaze]\nleft = {{ pupil = [0], outer = 1, inner = 2, upper = [3], lower = [3] }}\nright = {{ pupil = [3], outer = 2, inner = 1, upper = [0], lower = [0] }}\n"
+        );
+        let l = parse_layout(Path::new("tiny.toml"), &text).unwrap();
+        let g = l.gaze.unwrap();
+        assert_eq!((g.left.pupil, g.left.outer, g.right.inner), (vec![0], 1, 1));
+        assert!(
+            parse_layout(Path::new("tiny.toml"), GOOD)
+                .unwrap()
+                .gaze
+                .is_none()
+        );
+        let e = parse_layout(
+            Path::new("tiny.toml"),
+            &text.replace("outer = 2", "outer = 7"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert_eq!(
+            e,
+            "tiny.toml:18: gaze: the right eye of layout `tiny` names point 7, but the layout has 4 points"
+        );
+        let e = parse_layout(
+            Path::new("tiny.toml"),
+            &text.replace("pupil = [0]", "pupil = []"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("left eye") && e.contains("pupil"), "{e}");
+        let e = parse_layout(
+            Path::new("tiny.toml"),
+            &text.replace("lower = [3] }", "lower = [3], iris = 1 }"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("iris"), "{e}");
     }
 
     #[test]

@@ -94,6 +94,7 @@ pub fn rig_and_layout() -> (Rig, Layout) {
             .map(|v| format!("vertex {v}"))
             .collect(),
         candide_correspondences: vec![],
+        gaze: None,
     };
     (rig, layout)
 }

@@ -13,7 +13,8 @@
 //! median / p99 per stage. [`Checkpoint`] is a retargeter's learned state (neutral, scale,
 //! filters), serialisable, so another process can continue a session. [`FrameLoop`] is the one
 //! frame loop every command and session runs: frames in, then every output
-//! ([`FrameSink`](mimic_types::FrameSink)) in turn.
+//! ([`FrameSink`](mimic_types::FrameSink)) in turn. [`gaze`] estimates each eye's gaze from a
+//! layout's pupils, eye corners and lids, and ARKit's `eyeLook*` weights from it.
 //! No tokio, no wgpu, no file formats: sources and sinks live in other crates.
 
 mod blendshape;
@@ -24,6 +25,7 @@ pub mod fixtures;
 mod frame_loop;
 pub use mimic_types::frame_metrics;
 mod gate;
+pub mod gaze;
 mod patch;
 mod pipeline;
 pub mod quality;

@@ -77,6 +77,7 @@ fn rig_and_layout() -> (Rig, Layout, Vec<u32>) {
         undocumented: vec![],
         point_names: vec![],
         candide_correspondences: vec![],
+        gaze: None,
     };
     layout.validate().unwrap();
     rig.validate().unwrap();

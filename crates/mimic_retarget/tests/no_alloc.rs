@@ -1,7 +1,8 @@
 //! "The per-frame step allocates nothing" (docs/ARCHITECTURE.md, "Invariants"), checked: a
 //! counting global allocator around the system one, in its own test binary, counts every
 //! allocation the current thread makes while `Retargeter::step` (positions and normals on) and
-//! `Basis::apply` run on the real ICT-FaceKit rig and a real Kinect recording, after a warm-up.
+//! `Basis::apply` run on the real ICT-FaceKit rig and a real Kinect recording, and while
+//! `GazeTracker::step` runs on the real MediaPipe recording, after a warm-up.
 
 #![allow(
     clippy::unwrap_used,
@@ -146,4 +147,42 @@ fn step_and_apply_allocate_nothing_on_the_ict_rig() {
     });
     assert!(u.iter().any(|v| *v != Vec3::ZERO));
     assert_eq!(n, 0, "{n} allocations in 20 Basis::apply calls");
+}
+
+#[test]
+fn gaze_step_allocates_nothing_on_a_real_take() {
+    use mimic_retarget::gaze::{GazePoints, GazeSettings, GazeTracker};
+    let layout =
+        mimic_assets::load_layout(&repo().join("configs/layouts/mediapipe478.toml")).unwrap();
+    let path = repo().join("recordings/megamind_mediapipe.jsonl");
+    let reader = mimic_capture::RecordingReader::open(&path, Some(layout.point_count)).unwrap();
+    let frames: Vec<LandmarkFrame> = reader
+        .read_all()
+        .frames
+        .into_iter()
+        .map(|f| f.frame)
+        .filter(|f| f.tracked)
+        .collect();
+    assert!(frames.len() > 100, "{} frames", frames.len());
+    let mut t = GazeTracker::new(GazePoints::of(&layout).unwrap(), GazeSettings::default());
+    t.set_neutral(&frames[0].points, &frames[0].valid);
+    // A small head turn for `back` (the step's cost does not depend on it).
+    let back = glam::Affine3A::from_rotation_y(0.1);
+    let (warm, measured) = frames.split_at(5);
+    for f in warm {
+        t.step(f, &back, 0.04);
+    }
+    let mut lost = measured[0].clone();
+    lost.tracked = false;
+    let mut read = 0;
+    let n = allocations_during(|| {
+        for f in measured.iter().chain([&lost]) {
+            t.step(f, &back, 0.04);
+            read += usize::from(t.trusted()[0]);
+        }
+        t.hold(0.5);
+        t.reset();
+    });
+    assert!(read > measured.len() / 2, "{read} frames read");
+    assert_eq!(n, 0, "{n} allocations in {} gaze steps", measured.len() + 1);
 }

@@ -1,5 +1,6 @@
 //! Landmark layouts: what each tracked point is, and which points make the MPEG-4 controls;
-//! [`ControlName`], the name of a rig control (an FDP, or a layout's own point `layout:index`).
+//! [`ControlName`], the name of a rig control (an FDP, or a layout's own point `layout:index`);
+//! [`GazeLayout`], which points are the eyes' pupils, corners and lids (for gaze).
 
 use crate::{Fdp, LandmarkFrame, ModelCorrespondence, Region};
 use glam::Vec3;
@@ -171,6 +172,48 @@ pub struct Layout {
     /// Which CANDIDE-3 vertex or edge point each tracked point corresponds to (for the model fitter).
     #[serde(default)]
     pub candide_correspondences: Vec<ModelCorrespondence>,
+    /// Which points are each eye's pupil, corners and lids; `None`: the layout has no pupils and
+    /// gives no gaze.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub gaze: Option<GazeLayout>,
+}
+
+/// The eyes' points of a layout (its `[gaze]` table), by the subject's left and right.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GazeLayout {
+    /// The subject's left eye.
+    pub left: EyePoints,
+    /// The subject's right eye.
+    pub right: EyePoints,
+}
+
+/// One eye's points in a layout.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct EyePoints {
+    /// Points whose mean is the pupil (or iris) centre.
+    pub pupil: Vec<usize>,
+    /// The outer (temporal) eye corner.
+    pub outer: usize,
+    /// The inner (nasal) eye corner.
+    pub inner: usize,
+    /// Points whose mean is the middle of the upper lid.
+    pub upper: Vec<usize>,
+    /// Points whose mean is the middle of the lower lid.
+    pub lower: Vec<usize>,
+}
+
+impl EyePoints {
+    /// Every point this eye names, pupil first.
+    pub fn all(&self) -> impl Iterator<Item = usize> + '_ {
+        self.pupil
+            .iter()
+            .copied()
+            .chain([self.outer, self.inner])
+            .chain(self.upper.iter().copied())
+            .chain(self.lower.iter().copied())
+    }
 }
 
 /// One MPEG-4 control point of a layout.
@@ -273,6 +316,16 @@ pub enum LayoutError {
         /// What is wrong.
         reason: String,
     },
+    /// A `[gaze]` eye names a point out of range, or an empty pupil or lid list.
+    #[error("gaze: the {eye} eye of layout `{layout}` {reason}")]
+    BadGaze {
+        /// Layout name.
+        layout: String,
+        /// `left` or `right`.
+        eye: &'static str,
+        /// What is wrong.
+        reason: String,
+    },
     /// Fewer than three stable points: head motion cannot be removed.
     #[error("layout `{layout}` has {count} stable points; removing head motion needs at least 3")]
     TooFewStablePoints {
@@ -286,7 +339,8 @@ pub enum LayoutError {
 impl Layout {
     /// Checks `point_count` against [`crate::limits::MAX_LAYOUT_POINTS`], every index against
     /// `point_count`, that controls are unique and non-empty, and the CANDIDE-3 correspondences
-    /// (a point in range, one vertex or an edge with `t` in [0, 1], a finite weight > 0).
+    /// (a point in range, one vertex or an edge with `t` in [0, 1], a finite weight > 0), and the
+    /// `[gaze]` eyes (points in range, a pupil and both lids named).
     pub fn validate(&self) -> Result<(), LayoutError> {
         if self.point_count > crate::limits::MAX_LAYOUT_POINTS {
             return Err(LayoutError::TooManyPoints {
@@ -364,6 +418,29 @@ impl Layout {
                 return Err(bad(
                     "needs either `vertex`, or `vertices` (two) with `t` in [0, 1]".to_string(),
                 ));
+            }
+        }
+        if let Some(g) = &self.gaze {
+            for (eye, e) in [("left", &g.left), ("right", &g.right)] {
+                let bad = |reason: String| LayoutError::BadGaze {
+                    layout: self.name.clone(),
+                    eye,
+                    reason,
+                };
+                if e.pupil.is_empty() || e.upper.is_empty() || e.lower.is_empty() {
+                    return Err(bad(
+                        "needs at least one pupil, upper and lower lid point".into()
+                    ));
+                }
+                if let Some(p) = e.all().find(|&p| p >= self.point_count) {
+                    return Err(bad(format!(
+                        "names point {p}, but the layout has {} points",
+                        self.point_count
+                    )));
+                }
+                if e.outer == e.inner {
+                    return Err(bad(format!("has one point ({}) for both corners", e.outer)));
+                }
             }
         }
         Ok(())

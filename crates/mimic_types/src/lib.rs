@@ -31,7 +31,9 @@ pub mod weight_map;
 pub use correspondence::ModelCorrespondence;
 pub use fdp::{Fdp, FdpError};
 pub use frame::LandmarkFrame;
-pub use layout::{ControlName, ControlNameError, Layout, LayoutControl, LayoutError};
+pub use layout::{
+    ControlName, ControlNameError, EyePoints, GazeLayout, Layout, LayoutControl, LayoutError,
+};
 pub use limits::{FileKind, ReadError, SettingError};
 pub use look::{
     Eyeball, MAX_TEXTURE_SIDE, MeshTextures, RigLook, TEXTURE_FILE, TextureImage, TriangleTexture,

@@ -17,6 +17,7 @@ fn layout() -> Layout {
         undocumented: vec![],
         point_names: vec![],
         candide_correspondences: vec![],
+        gaze: None,
     }
 }
 
