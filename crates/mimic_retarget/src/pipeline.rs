@@ -8,6 +8,7 @@ mod neutral;
 mod output;
 mod parts;
 mod pose;
+use crate::gaze::{GazePoints, GazeSettings, GazeTracker};
 use crate::{Neutral, OneEuro, OneEuroStep, RetargetSettings, SourceToTarget};
 use glam::{Quat, Vec3};
 use mimic_solve::VectorKernel;
@@ -184,6 +185,8 @@ pub struct Retargeter {
     pub(crate) parts: parts::PartMotion,
     /// The eyes' turn (left, right), once a gaze is read.
     pub(crate) eye_turn: Option<[parts::EyeTurn; 2]>,
+    /// The gaze, for a layout with pupils (`[gaze]`) driving a rig with eyeballs.
+    pub(crate) gaze: Option<GazeTracker>,
 }
 
 impl Retargeter {
@@ -285,6 +288,9 @@ impl Retargeter {
             stable_sorted: Vec::with_capacity(layout.stable.len()),
             controls_now: vec![None; m],
             stats: Stats::default(),
+            gaze: GazePoints::of(layout)
+                .filter(|_| rig.parts.eyes.is_some())
+                .map(|p| GazeTracker::new(p, GazeSettings::default())),
             parts: part_motion,
             eye_turn: None,
             settings: settings.clone(),
@@ -520,6 +526,9 @@ impl Retargeter {
         }
         for (l, d) in self.last_d.iter_mut().zip(&out.displacements) {
             *l = *d;
+        }
+        if let Some(g) = self.gaze.as_mut().filter(|g| g.has_neutral()) {
+            self.eye_turn = Some(parts::eye_turns(g.step(frame, &back, dt)));
         }
         let t3 = Instant::now();
         self.stats.tracked += 1;

@@ -22,13 +22,16 @@ impl Retargeter {
     }
 
     /// `out.displacements`: the last accepted `d`, held `lost_hold_secs` after `since`, then eased
-    /// to neutral over `lost_ease_secs`.
-    pub(super) fn hold_and_ease(&self, since: i64, t_us: i64, out: &mut FrameOutput) {
+    /// to neutral over `lost_ease_secs`; the gaze likewise.
+    pub(super) fn hold_and_ease(&mut self, since: i64, t_us: i64, out: &mut FrameOutput) {
         let elapsed = t_us.saturating_sub(since) as f32 * 1e-6;
         let ease = self.settings.lost_ease_secs.max(1e-6);
         let k = 1.0 - ((elapsed - self.settings.lost_hold_secs) / ease).clamp(0.0, 1.0);
         for (o, d) in out.displacements.iter_mut().zip(&self.last_d) {
             *o = *d * k;
+        }
+        if let Some(g) = self.gaze.as_mut().filter(|g| g.has_neutral()) {
+            self.eye_turn = Some(super::parts::eye_turns(g.hold(k)));
         }
     }
 

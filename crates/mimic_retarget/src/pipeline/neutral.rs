@@ -128,6 +128,9 @@ impl Retargeter {
             / m)
             .sqrt();
         self.outlier_limit = self.settings.outlier_fraction * rms_radius;
+        if let Some(g) = self.gaze.as_mut() {
+            g.set_neutral(&self.neutral_points, &self.neutral_valid);
+        }
         stable_ok && self.to_target.is_some()
     }
 }

@@ -119,6 +119,11 @@ fn write(d: &mut [Vec3], col: usize, values: [Vec3; PART_COLUMNS]) {
     }
 }
 
+/// The eyes' turns from a gaze reading (left, right).
+pub(crate) fn eye_turns(g: [crate::gaze::EyeGaze; 2]) -> [EyeTurn; 2] {
+    g.map(|e| (e.yaw, e.pitch))
+}
+
 /// The eye's rotation in the rig's frame (x the subject's left, y up, z out of the face): turned
 /// by `yaw` about y, then raised by `pitch` (about -x, so that the front goes up).
 pub(crate) fn eye_rotation(yaw: f32, pitch: f32) -> Mat3 {
