@@ -455,8 +455,9 @@ fn http_routes_serve_the_page_the_glb_and_want_the_token() {
     let (status, js) = serve.get("/static/three/three.core.js");
     assert_eq!(status, 200);
     assert!(String::from_utf8_lossy(&js[..200]).contains("Three.js Authors"));
-    // The GLB: glTF 2.0's binary container, 114 morph targets (38 controls x 3 axes), then the
-    // number keys' targets: the rig's first nine `[[morph_targets]]` (ict-face has eight).
+    // The GLB: glTF 2.0's binary container, 150 morph targets (38 controls and 12 rigid-part
+    // columns, the jaw and both eyeballs, x 3 axes), then the number keys' targets: the rig's
+    // first nine `[[morph_targets]]` (ict-face has eight).
     let (status, glb) = serve.get(&format!("/rig/tok.glb{q}"));
     assert_eq!(status, 200);
     assert_eq!(&glb[..4], b"glTF");
@@ -468,12 +469,14 @@ fn http_routes_serve_the_page_the_glb_and_want_the_token() {
         .as_array()
         .unwrap();
     let keys = rig_target_names("ict-face");
-    assert_eq!(names.len(), 114 + keys.len().min(9));
-    for (j, name) in names[..114].iter().enumerate() {
+    let columns = 3 * (38 + 12);
+    assert_eq!(names.len(), columns + keys.len().min(9));
+    for (j, name) in names[..columns].iter().enumerate() {
         let axis = ["x", "y", "z"][j % 3];
         assert!(name.as_str().unwrap().ends_with(axis), "{j}: {name}");
     }
-    for (name, key) in names[114..].iter().zip(&keys) {
+    assert!(names[3 * 38].as_str().unwrap().starts_with("jaw."));
+    for (name, key) in names[columns..].iter().zip(&keys) {
         assert_eq!(name, key);
     }
     // Positions only, as the basis columns (a NORMAL on some targets would make three.js take

@@ -79,11 +79,13 @@ fn seams(rig: &Rig, u: &[Vec3]) -> Seams {
 fn deform(rig: &Rig, basis: &mimic_solve::Basis, shape: &str) -> Vec<Vec3> {
     let s = mimic_assets::load_obj(&repo().join(format!("configs/meshes/ict-facekit/{shape}.obj")))
         .unwrap();
-    let d: Vec<Vec3> = rig
+    let mut d: Vec<Vec3> = rig
         .controls
         .iter()
         .map(|c| s.positions[c.vertex as usize] - rig.mesh.positions[c.vertex as usize])
         .collect();
+    // The rigid parts' columns (jaw, eyeballs) at rest: the skin is what is measured.
+    d.resize(basis.control_count(), Vec3::ZERO);
     let mut u = vec![Vec3::ZERO; rig.mesh.positions.len()];
     basis.apply(&d, &mut u);
     u
@@ -244,6 +246,10 @@ fn largest_recorded_frames_have_no_seam_no_hard_edge_and_no_folded_lower_lip() {
         s.regions = false;
         let off = mimic_solve::build_basis(&rig, &s).unwrap();
         for (rec, k, d) in &frames {
+            // The rigid parts' columns at rest: the skin is what is measured.
+            let mut d = d.clone();
+            d.resize(basis.control_count(), Vec3::ZERO);
+            let d = &d;
             let mut u = vec![Vec3::ZERO; rig.mesh.positions.len()];
             off.apply(d, &mut u);
             let o = seams(&rig, &u);

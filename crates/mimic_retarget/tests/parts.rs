@@ -215,3 +215,63 @@ fn a_known_gaze_turns_the_ict_eyeballs_by_that_angle() {
         assert!((got.1 - pitch).abs() < 3.0 * DEG, "pitch {}", got.1 / DEG);
     }
 }
+
+#[test]
+fn the_jaw_never_pushes_the_lower_teeth_through_the_lower_lip() {
+    let (rig, basis) = ict();
+    let lower = vertices(&rig.parts.jaw.as_ref().unwrap().vertices);
+    let lip = rig
+        .controls
+        .iter()
+        .find(|c| c.fdp.to_string() == "8.2")
+        .expect("lower lip control")
+        .vertex as usize;
+    let rest = &rig.mesh.positions;
+    let front = |p: &[Vec3]| lower.iter().map(|&v| p[v].z).fold(f32::MIN, f32::max);
+    // At rest the lower lip's middle stands this far in front of the lower teeth.
+    let margin = rest[lip].z - front(rest);
+    assert!(margin > 0.5, "{margin}");
+    for name in [
+        "a_yn_question.jsonl",
+        "a_doubt_question.kinect121.jsonl",
+        "megamind_mediapipe.jsonl",
+    ] {
+        let reader =
+            mimic_capture::RecordingReader::open(&root().join("recordings").join(name), None)
+                .unwrap();
+        let layout = layout(&reader.header().layout);
+        let frames: Vec<LandmarkFrame> = reader
+            .read_all()
+            .frames
+            .into_iter()
+            .map(|f| f.frame)
+            .collect();
+        let mut rt =
+            Retargeter::new(rig, &layout, basis.clone(), RetargetSettings::default()).unwrap();
+        let mut out = rt.new_output();
+        // Frames where the lip stands in front of teeth left at rest but behind the moved
+        // teeth: the jaw pushed them through it. (A raw capture's lip can go behind the teeth
+        // on its own, issue 45's tears; that is the skin's fault, counted apart.)
+        let (mut pushed, mut on_its_own, mut closest) = (0, 0, f32::MAX);
+        for f in &frames {
+            rt.step(f, &mut out);
+            let lip_z = out.positions[lip].z;
+            let lead = lip_z - front(&out.positions);
+            closest = closest.min(lead);
+            if lip_z - front(rest) > 0.0 && lead <= 0.0 {
+                pushed += 1;
+            }
+            if lip_z - front(rest) <= 0.0 {
+                on_its_own += 1;
+            }
+        }
+        println!(
+            "{name}: {pushed} frames with the teeth pushed through the lip, {on_its_own} with the lip behind teeth at rest of {}; least lead {closest:.3} cm (rest {margin:.3})",
+            frames.len()
+        );
+        assert_eq!(
+            pushed, 0,
+            "{name}: the jaw pushed the lower teeth through the lip"
+        );
+    }
+}
