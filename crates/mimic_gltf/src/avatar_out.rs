@@ -7,13 +7,16 @@
 //! - The face mesh gains the morph targets after its own: each primitive the targets of its
 //!   vertex array (primitives sharing an array share the accessors), deltas turned from world
 //!   space into the file's space ([`FaceMesh::to_file`]: the bind space of a skinned mesh), and
-//!   `extras.targetNames`, `weights` extended to match.
+//!   `extras.targetNames`, `weights` extended to match. Targets that move only a drawn part (the
+//!   jaw's and the eyeballs' columns) go on that part's mesh instead, the same way
+//!   ([`crate::avatar_placement`]), and the take keys its node's weights too.
 //! - A VRM's expressions are bound to the new targets where they carry ARKit names
 //!   ([`crate::vrm_out`]).
 //! - The take becomes one more animation: the face node's weights (its own targets held at their
 //!   defaults), and the head rotation and translation on the head joint (the VRM humanoid head,
 //!   else a node named like a head, else the face's node), as local keys under its parent.
 
+use crate::avatar_placement::{MeshTargets, place};
 use crate::glb::{Builder, write_container};
 use crate::vrm_out::{VrmBinds, bind_expressions};
 use crate::{GltfError, Morph, Take};
@@ -37,6 +40,9 @@ pub struct AvatarGlbSummary {
     pub added_targets: usize,
     /// Of the added targets, those whose positions are sparse accessors (on every vertex array).
     pub sparse_targets: usize,
+    /// Targets added to the drawn parts' meshes (the eyeballs, the lower teeth and tongue: the
+    /// rigid parts' columns, which move no face vertex).
+    pub part_targets: usize,
     /// Animation keys (0: no animation).
     pub keys: usize,
     /// Seconds from the first key to the last.
@@ -127,11 +133,28 @@ pub fn write_avatar_glb(
 ) -> Result<AvatarGlbSummary, GltfError> {
     let mut doc = avatar.document.clone();
     let mut b = merged_buffers(avatar, &mut doc);
+    let placed = place(avatar, face, morphs);
     let own = own_target_count(avatar, face.mesh);
-    let (added, sparse_targets) = add_targets(avatar, face, morphs, own, &mut b, &mut doc);
-    pad_weight_keys(avatar, face, own, added, &mut b, &mut doc);
+    let (mut added, mut sparse_targets, mut part_targets) = (0, 0, 0);
+    let mut owns = Vec::with_capacity(placed.len());
+    for (i, mt) in placed.iter().enumerate() {
+        let own_here = own_target_count(avatar, mt.mesh);
+        let subset: Vec<&Morph> = mt.morphs.iter().map(|&k| &morphs[k]).collect();
+        let (a, sparse) = add_targets(avatar, face, mt, &subset, own_here, &mut b, &mut doc);
+        pad_weight_keys(avatar, mt.mesh, own_here, a, &mut b, &mut doc);
+        if i == 0 {
+            (added, sparse_targets) = (a, sparse);
+        } else {
+            part_targets += a;
+        }
+        owns.push(own_here);
+    }
     let vrm_expressions = avatar.vrm.as_ref().map(|_| {
-        let names: Vec<String> = morphs.iter().map(|m| m.name.clone()).collect();
+        let names: Vec<String> = placed[0]
+            .morphs
+            .iter()
+            .map(|&k| morphs[k].name.clone())
+            .collect();
         bind_expressions(avatar, face, own, &names, &mut doc)
     });
     let head = head_node(avatar, face);
@@ -143,7 +166,7 @@ pub fn write_avatar_glb(
                     mesh: morphs.len(),
                 });
             }
-            add_animation(avatar, face, own, head, t, &mut b, &mut doc);
+            add_animation(avatar, face, (&placed, &owns), head, t, &mut b, &mut doc);
             (t.len(), t.duration_s())
         }
         None => (0, 0.0),
@@ -165,6 +188,7 @@ pub fn write_avatar_glb(
         targets: own + added,
         added_targets: added,
         sparse_targets,
+        part_targets,
         keys,
         duration_s,
         head_node: take
@@ -239,12 +263,13 @@ fn own_target_count(avatar: &Avatar, mesh: usize) -> usize {
         .map_or(0, |p| p.targets.len())
 }
 
-/// Adds `morphs` to every primitive of the face mesh; returns how many were added and how many
-/// of them are sparse.
+/// Adds `morphs` to every primitive of `mt`'s mesh (the face or a part); returns how many were
+/// added and how many of them are sparse.
 fn add_targets(
     avatar: &Avatar,
     face: &FaceMesh,
-    morphs: &[Morph],
+    mt: &MeshTargets,
+    morphs: &[&Morph],
     own: usize,
     b: &mut Builder,
     doc: &mut Value,
@@ -279,7 +304,7 @@ fn add_targets(
         out
     };
     let mut per_array: Vec<(usize, Vec<Value>)> = Vec::new();
-    for &(array, offset) in &face.arrays[..face.face_arrays] {
+    for &(array, offset) in &mt.arrays {
         let count = avatar.vertex_arrays[array].positions.len();
         let targets = morphs
             .iter()
@@ -298,7 +323,7 @@ fn add_targets(
             .collect();
         per_array.push((array, targets));
     }
-    let mesh = &avatar.meshes[face.mesh];
+    let mesh = &avatar.meshes[mt.mesh];
     for (k, p) in mesh.primitives.iter().enumerate() {
         let ours = match per_array.iter().find(|(a, _)| *a == p.vertices) {
             Some((_, t)) => t.clone(),
@@ -312,7 +337,7 @@ fn add_targets(
                 vec![json!({"POSITION": zero}); morphs.len()]
             }
         };
-        let prim = &mut doc["meshes"][face.mesh]["primitives"][k];
+        let prim = &mut doc["meshes"][mt.mesh]["primitives"][k];
         let mut targets = prim
             .get("targets")
             .and_then(Value::as_array)
@@ -321,7 +346,7 @@ fn add_targets(
         targets.extend(ours);
         prim["targets"] = Value::Array(targets);
     }
-    let gl_mesh = &mut doc["meshes"][face.mesh];
+    let gl_mesh = &mut doc["meshes"][mt.mesh];
     let mut names: Vec<Value> = (0..own)
         .map(|k| {
             json!(
@@ -343,7 +368,7 @@ fn add_targets(
     }
     gl_mesh["extras"]["targetNames"] = Value::Array(names);
     // Nodes that override the mesh's weights keep theirs and get zeros for the new targets.
-    for n in avatar.nodes_of_mesh(face.mesh) {
+    for n in avatar.nodes_of_mesh(mt.mesh) {
         // `get_mut`, not indexing: an index would insert a null `weights`.
         if let Some(ws) = doc["nodes"][n]
             .get_mut("weights")
@@ -355,11 +380,11 @@ fn add_targets(
     (morphs.len(), sparse.iter().filter(|s| **s).count())
 }
 
-/// The avatar's own animations that key the face mesh's weights get a zero for each added target
-/// in every key (and tangent), so that their keys keep the width of the mesh's targets.
+/// The avatar's own animations that key `mesh`'s weights get a zero for each added target in
+/// every key (and tangent), so that their keys keep the width of the mesh's targets.
 fn pad_weight_keys(
     avatar: &Avatar,
-    face: &FaceMesh,
+    mesh: usize,
     own: usize,
     added: usize,
     b: &mut Builder,
@@ -368,7 +393,7 @@ fn pad_weight_keys(
     if added == 0 || own == 0 {
         return;
     }
-    let face_nodes: Vec<usize> = avatar.nodes_of_mesh(face.mesh).collect();
+    let face_nodes: Vec<usize> = avatar.nodes_of_mesh(mesh).collect();
     for (ai, a) in avatar.animations.iter().enumerate() {
         for (ci, c) in a.channels.iter().enumerate() {
             if c.path != mimic_avatar::ChannelPath::Weights || !face_nodes.contains(&c.node) {
@@ -392,7 +417,7 @@ fn pad_weight_keys(
 fn add_animation(
     avatar: &Avatar,
     face: &FaceMesh,
-    own: usize,
+    (placed, owns): (&[MeshTargets], &[usize]),
     head: usize,
     take: &Take,
     b: &mut Builder,
@@ -409,14 +434,23 @@ fn add_animation(
             .push(json!({"sampler": samplers.len() - 1, "target": {"node": node, "path": path}}));
     };
     let added = take.target_count();
-    if added > 0 {
-        let defaults = &avatar.meshes[face.mesh].weights;
-        let mut out = Vec::with_capacity(take.len() * (own + added));
+    // Each mesh that gained targets: its node's weights, its own targets at their defaults.
+    for (i, (mt, &own)) in placed.iter().zip(owns).enumerate() {
+        let node = if i == 0 {
+            Some(face.node)
+        } else {
+            avatar.nodes_of_mesh(mt.mesh).next()
+        };
+        let Some(node) = node.filter(|_| added > 0 && !mt.morphs.is_empty()) else {
+            continue;
+        };
+        let defaults = &avatar.meshes[mt.mesh].weights;
+        let mut out = Vec::with_capacity(take.len() * (own + mt.morphs.len()));
         for key in take.weights().chunks_exact(added) {
             out.extend((0..own).map(|k| defaults.get(k).copied().unwrap_or(0.0)));
-            out.extend_from_slice(key);
+            out.extend(mt.morphs.iter().map(|&k| key[k]));
         }
-        channel(b, &out, 1, "SCALAR", face.node, "weights");
+        channel(b, &out, 1, "SCALAR", node, "weights");
     }
     if take.has_pose() {
         let node = &avatar.nodes[head];

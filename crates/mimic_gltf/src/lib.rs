@@ -19,6 +19,7 @@
 //! docs/avatars.md), after the structure checks of [`gltf_check`] (both re-exported here).
 
 mod avatar_out;
+mod avatar_placement;
 mod glb;
 mod morphs;
 mod rig;

@@ -4,7 +4,7 @@ use crate::server::state::Shared;
 use crate::settings::HttpSettings;
 use crate::sync::lock;
 use axum::body::Bytes;
-use mimic_gltf::{basis_morphs, target_morphs, write_rig_glb};
+use mimic_gltf::{control_morphs, target_morphs, write_rig_glb};
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 use tokio::sync::OnceCell;
@@ -108,8 +108,7 @@ fn build(shared: &Shared, web: &HttpSettings, rig: &str, weights: bool) -> Resul
         let targets = mimic_assets::load_morph_targets(path, r).map_err(|e| e.to_string())?;
         target_morphs(&targets, scale)
     } else {
-        let names: Vec<String> = r.controls.iter().map(|c| c.fdp.to_string()).collect();
-        let mut morphs = basis_morphs(&entry.basis, &names);
+        let mut morphs = control_morphs(&entry.basis, r);
         morphs.extend(expression_morphs(entry, r)?);
         morphs
     };
