@@ -96,6 +96,11 @@ pub struct BlendshapeFitter {
     ridges: Vec<f64>,
     /// `d` followed by zeros at the ridge's pseudo-controls (see [`BlendshapeFitter::new`]).
     d_padded: Vec<Vec3>,
+    /// The target of each of ARKit's eight `eyeLook*` shapes ([`crate::gaze::EYE_LOOK_NAMES`]),
+    /// by ARKit or ICT name, if the rig has it.
+    eye_look_targets: [Option<usize>; 8],
+    /// The gaze's `eyeLook*` weights for the next [`BlendshapeFitter::apply`], if any.
+    eye_look: Option<[f32; 8]>,
 }
 
 impl BlendshapeFitter {
@@ -174,7 +179,25 @@ impl BlendshapeFitter {
             normal_deltas,
             ridges,
             d_padded: vec![Vec3::ZERO; m + pseudo],
+            eye_look_targets: crate::gaze::EYE_LOOK_NAMES.map(|look| {
+                targets
+                    .iter()
+                    .position(|t| mimic_types::arkit::arkit_name(&t.name) == Some(look))
+            }),
+            eye_look: None,
         })
+    }
+
+    /// The gaze's ARKit `eyeLook*` weights ([`crate::gaze::eye_look_weights`]) that the next
+    /// [`BlendshapeFitter::apply`] puts on the rig's `eyeLook*` targets in place of the fit's
+    /// (the controls barely see where the eyes look); `None` leaves the fit's.
+    pub fn set_eye_look(&mut self, weights: Option<[f32; 8]>) {
+        self.eye_look = weights;
+    }
+
+    /// How many of ARKit's eight `eyeLook*` shapes the rig has as targets.
+    pub fn eye_look_target_count(&self) -> usize {
+        self.eye_look_targets.iter().flatten().count()
     }
 
     /// Target names, in weight order.
@@ -315,6 +338,13 @@ impl BlendshapeFitter {
             FrameStatus::Calibrating => self.reset(),
             FrameStatus::Tracked | FrameStatus::Lost => {
                 self.fit(&out.displacements, out.timestamp_us);
+                if let Some(look) = self.eye_look {
+                    for (target, w) in self.eye_look_targets.iter().zip(look) {
+                        if let Some(slot) = target.and_then(|k| self.weights.get_mut(k)) {
+                            *slot = w;
+                        }
+                    }
+                }
             }
         }
         let weights = std::mem::take(&mut self.weights);
@@ -420,6 +450,46 @@ mod tests {
                     .sum()
             })
             .collect()
+    }
+
+    #[test]
+    fn the_gaze_sets_the_eye_look_targets_and_the_fit_the_rest() {
+        let rig = grid_rig();
+        let mut t = targets(&rig);
+        // Targets 1 and 2 named as two of ARKit's eyeLook shapes (one in ICT's spelling).
+        t[1].name = "eyeLookOutLeft".into();
+        t[2].name = "eyeLookUp_R".into();
+        let settings = BlendshapeSettings {
+            ridge: 0.0,
+            smoothing: None,
+        };
+        let mut f = BlendshapeFitter::new(&rig, &t, &settings).unwrap();
+        assert_eq!(f.eye_look_target_count(), 2);
+        let d = control_d(&rig, &t, &[0.6, 0.3, 0.2]);
+        let mut out = FrameOutput {
+            timestamp_us: 0,
+            status: FrameStatus::Tracked,
+            positions: rig.mesh.positions.clone(),
+            normals: Vec::new(),
+            displacements: d,
+            pose: mimic_types::HeadPose::IDENTITY,
+            target_rotation: glam::Quat::IDENTITY,
+            filled: 0,
+            times: Default::default(),
+        };
+        let look = [0.0, 0.0, 0.7, 0.0, 0.0, 0.0, 0.0, 0.4];
+        f.set_eye_look(Some(look));
+        let w = f.apply(&mut out).to_vec();
+        // The fit's weight for target 0 (exact data), the gaze's for the eyeLook targets:
+        // eyeLookOutLeft is EYE_LOOK_NAMES[2], eyeLookUpRight [7].
+        assert!((w[0] - 0.6).abs() < 1e-5, "{w:?}");
+        assert_eq!((w[1], w[2]), (0.7, 0.4));
+        f.set_eye_look(None);
+        let w = f.apply(&mut out).to_vec();
+        assert!(
+            (w[1] - 0.3).abs() < 1e-5 && (w[2] - 0.2).abs() < 1e-5,
+            "{w:?}"
+        );
     }
 
     #[test]

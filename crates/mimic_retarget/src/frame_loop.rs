@@ -167,6 +167,11 @@ impl FrameLoop {
         let weights = match self.blend.as_mut() {
             Some(b) => {
                 let fitted = Instant::now();
+                b.fitter.set_eye_look(r.gaze().map(|g| {
+                    let mut w = [0.0; 8];
+                    crate::gaze::eye_look_weights(g, &mut w);
+                    w
+                }));
                 let w = b.fitter.apply(&mut self.out);
                 if self.out.status == FrameStatus::Tracked {
                     b.stats.push(w, elapsed_ns(fitted));

@@ -185,7 +185,7 @@ pub struct Retargeter {
     pub(crate) parts: parts::PartMotion,
     /// The eyes' turn (left, right), once a gaze is read.
     pub(crate) eye_turn: Option<[parts::EyeTurn; 2]>,
-    /// The gaze, for a layout with pupils (`[gaze]`) driving a rig with eyeballs.
+    /// The gaze, for a layout with pupils (`[gaze]`).
     pub(crate) gaze: Option<GazeTracker>,
 }
 
@@ -288,9 +288,9 @@ impl Retargeter {
             stable_sorted: Vec::with_capacity(layout.stable.len()),
             controls_now: vec![None; m],
             stats: Stats::default(),
-            gaze: GazePoints::of(layout)
-                .filter(|_| rig.parts.eyes.is_some())
-                .map(|p| GazeTracker::new(p, GazeSettings::default())),
+            // Read whenever the layout has pupils: it turns the rig's eyeballs if it has some,
+            // and gives the ARKit `eyeLook*` weights (blend-shape mode, forwarding) either way.
+            gaze: GazePoints::of(layout).map(|p| GazeTracker::new(p, GazeSettings::default())),
             parts: part_motion,
             eye_turn: None,
             settings: settings.clone(),
@@ -564,6 +564,13 @@ impl Retargeter {
             self.patch.normals(&mut out.normals);
         }
         (t4, Instant::now())
+    }
+
+    /// The eyes' gaze (left, right) the last frame turned the eyeballs by, once one is read (a
+    /// layout with pupils driving a rig with eyeballs).
+    pub fn gaze(&self) -> Option<[crate::gaze::EyeGaze; 2]> {
+        self.eye_turn
+            .map(|t| t.map(|(yaw, pitch)| crate::gaze::EyeGaze { yaw, pitch }))
     }
 
     /// Number of vertices that can move (non-zero rows of `B`); 0 when positions are off.

@@ -1,5 +1,10 @@
 //! The rigid parts on the shipped ICT rig (issue 45, items 3 and 4): the jaw carries the lower
 //! teeth, gums and tongue; the eyeballs turn with the gaze, rigidly, by the gaze they are given.
+//! `cargo test -p mimic_retarget --test parts -- --nocapture` prints the figures docs/parts.md quotes.
+#![allow(
+    clippy::unwrap_used,
+    reason = "a test: a failed unwrap is the failure report"
+)]
 
 use std::path::PathBuf;
 use std::sync::OnceLock;

@@ -113,8 +113,8 @@ mod tests {
         let want = eye_turn * (p[n - 1] - centre) + centre;
         assert!((p[n - 1] + u[n - 1] - want).length() < tol);
         // The face (controls' rows) does not see the part columns.
-        for i in 0..n - 2 {
-            assert_eq!(u[i], Vec3::ZERO, "vertex {i}");
+        for (i, ui) in u.iter().enumerate().take(n - 2) {
+            assert_eq!(*ui, Vec3::ZERO, "vertex {i}");
         }
     }
 

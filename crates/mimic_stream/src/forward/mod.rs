@@ -17,8 +17,10 @@ pub mod vmc;
 
 use glam::Quat;
 use mimic_retarget::WeightMap;
+use mimic_retarget::gaze::{EYE_LOOK_NAMES, EyeGaze, eye_look_weights};
 use mimic_trackers::livelink::{
-    BLENDSHAPES, CURVE_NAMES, CURVES, HEAD_YAW, LiveLinkPacket, encode_packet, head_angles,
+    BLENDSHAPES, CURVE_NAMES, CURVES, HEAD_YAW, LEFT_EYE_YAW, LiveLinkPacket, encode_packet,
+    head_angles,
 };
 use mimic_trackers::namemap::{Inverse, Mapping, NameMap};
 use std::net::{SocketAddr, UdpSocket};
@@ -144,6 +146,27 @@ pub struct Forwarder {
     buf: Vec<u8>,
     /// The first forwarded frame's time: Live Link frame times count from it.
     first_us: Option<i64>,
+    /// The gaze of the next [`Forwarder::weights`] frame (left, right), if the tracker gives one.
+    gaze: Option<[EyeGaze; 2]>,
+}
+
+/// Writes gaze `g` into Live Link `curves`: ARKit's eight `eyeLook*` weights by name, and each
+/// eye's yaw and pitch (radians, as the head's angles) into `LeftEyeYaw` .. `RightEyePitch`.
+fn put_gaze(g: [EyeGaze; 2], curves: &mut [f32; CURVES]) {
+    let mut look = [0.0; 8];
+    eye_look_weights(g, &mut look);
+    for (name, w) in EYE_LOOK_NAMES.iter().zip(look) {
+        if let Some(k) = CURVE_NAMES[..BLENDSHAPES]
+            .iter()
+            .position(|c| c.eq_ignore_ascii_case(name))
+        {
+            curves[k] = w;
+        }
+    }
+    for (eye, e) in g.iter().enumerate() {
+        curves[LEFT_EYE_YAW + 3 * eye] = e.yaw;
+        curves[LEFT_EYE_YAW + 3 * eye + 1] = e.pitch;
+    }
 }
 
 /// A non-blocking UDP socket to send to `addr` from (loopback for a loopback receiver).
@@ -217,6 +240,7 @@ impl Forwarder {
             subject: subject.to_string(),
             buf: Vec::new(),
             first_us: None,
+            gaze: None,
         }))
     }
 
@@ -234,7 +258,16 @@ impl Forwarder {
         }
         self.curves[BLENDSHAPES..].fill(0.0);
         self.curves[HEAD_YAW..HEAD_YAW + 3].copy_from_slice(&head_angles(head));
+        if let Some(g) = self.gaze {
+            put_gaze(g, &mut self.curves);
+        }
         self.send(t_us, head)
+    }
+
+    /// The gaze (left, right eye) the next [`Forwarder::weights`] frames carry: the eight
+    /// `eyeLook*` curves (in place of the rig's) and the eyes' yaw and pitch; `None`: none.
+    pub fn set_gaze(&mut self, gaze: Option<[EyeGaze; 2]>) {
+        self.gaze = gaze;
     }
 
     /// Forwards a frame given as the 61 Live Link curves (as they came) and the head rotation.
@@ -285,6 +318,29 @@ impl Forwarder {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_gaze_goes_out_as_eye_look_curves_and_eye_angles() {
+        let mut curves = [0.0; CURVES];
+        // The left eye looks toward the subject's left (out) and up, the right one down.
+        let g = [
+            EyeGaze {
+                yaw: 0.2,
+                pitch: 0.1,
+            },
+            EyeGaze {
+                yaw: 0.0,
+                pitch: -0.2,
+            },
+        ];
+        put_gaze(g, &mut curves);
+        let at = |name: &str| curves[CURVE_NAMES.iter().position(|c| *c == name).unwrap()];
+        assert!(at("EyeLookOutLeft") > 0.3 && at("EyeLookUpLeft") > 0.1);
+        assert_eq!((at("EyeLookInLeft"), at("EyeLookDownLeft")), (0.0, 0.0));
+        assert!(at("EyeLookDownRight") > 0.3 && at("EyeLookOutRight") == 0.0);
+        assert_eq!((at("LeftEyeYaw"), at("LeftEyePitch")), (0.2, 0.1));
+        assert_eq!((at("RightEyeYaw"), at("RightEyePitch")), (0.0, -0.2));
+    }
 
     #[test]
     fn targets_parse_and_sessions_may_forward_only_to_loopback_or_allowed() {

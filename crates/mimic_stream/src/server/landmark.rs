@@ -146,6 +146,7 @@ impl Landmark {
         self.viewers.broadcast(s, s.next_seq(udp), out, arrival);
         if let Some(f) = self.forward.as_mut() {
             let (forwarder, fitter) = &mut **f;
+            forwarder.set_gaze(self.frames.retargeter().and_then(|r| r.gaze()));
             let w = fitter.fit(&out.displacements, out.timestamp_us);
             let sent = forwarder.weights(out.timestamp_us, w, out.pose.rotation);
             count_forward(s, sent);
