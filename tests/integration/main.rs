@@ -7,6 +7,7 @@
 
 mod arkit;
 mod avatar;
+mod avatar_parts;
 mod browser;
 mod churn;
 mod clock;

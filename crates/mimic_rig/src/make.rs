@@ -107,11 +107,12 @@ impl NewRig<'_> {
 }
 
 impl MadeRig {
-    /// The line `mimic rig new` prints: controls, frozen vertices and why, units, IOD.
+    /// The line `mimic rig new` prints: controls, frozen vertices and why, units, IOD, and the
+    /// rigid parts found.
     pub fn summary(&self, output: &Path) -> String {
         let (c, loaded) = (self.generated.frozen_counts, &self.loaded);
         format!(
-            "wrote {}: {} controls, {} of {} vertices frozen ({} unused, {} in {} pieces with no control, {} far from the face), units {}, IOD {:.4}",
+            "wrote {}: {} controls, {} of {} vertices frozen ({} unused, {} in {} pieces with no control, {} far from the face), units {}, IOD {:.4}; {}",
             output.display(),
             loaded.controls.len(),
             loaded.frozen.iter().filter(|f| **f).count(),
@@ -121,7 +122,8 @@ impl MadeRig {
             c.uncontrolled_pieces,
             c.far,
             loaded.units,
-            self.generated.frame.iod
+            self.generated.frame.iod,
+            self.generated.parts_note
         )
     }
 }
