@@ -6,6 +6,7 @@
 )]
 
 mod arkit;
+mod audio;
 mod avatar;
 mod browser;
 mod churn;

@@ -172,7 +172,8 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             output,
         } => {
             let said = mimic_audio::import_audio(wav, transcript.as_deref(), output)?;
-            return Ok(println!("{said}"));
+            println!("{said}");
+            return Ok(());
         }
     };
     o.for_fit = fit.is_some();
