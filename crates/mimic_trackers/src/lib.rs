@@ -19,7 +19,8 @@
 //!   ([`importer::Import::write_fitted`]);
 //! - [`import`]: a `.osf` capture as a v1 recording (`mimic import openseeface`);
 //! - [`weights_csv`]: per-frame morph weights written as mimic's CSV or a Live Link take (a
-//!   frame loop output).
+//!   frame loop output);
+//! - [`weights_take`]: a weights CSV of ARKit curves (`mimic import audio`) read as a take.
 //!
 //! Errors name the packet (by number or byte offset) or the file and line.
 //! Depends on mimic_types, mimic_capture (recordings, without its tokio replay), mimic_fit (the
@@ -41,6 +42,7 @@ pub mod take;
 pub mod take_rig;
 pub mod take_summary;
 pub mod weights_csv;
+pub mod weights_take;
 
 pub use error::{PacketError, TrackerError};
 pub use import_write::ImportWriteError;

@@ -354,13 +354,19 @@ impl<W: Write> TakeWriter<W> {
     }
 }
 
-/// Reads a take file (capped at [`TAKE_FILE`]).
+/// Reads a take file (capped at [`TAKE_FILE`]); a weights CSV of ARKit curves too
+/// ([`crate::weights_take`]).
 pub fn read_take(path: &Path) -> Result<Take, TrackerError> {
     let text = read_capped(path, &TAKE_FILE).map_err(|source| TrackerError::Io {
         path: path.to_path_buf(),
         source,
     })?;
-    parse_take(&text, path)
+    match text.lines().next() {
+        Some(h) if !is_take_header(h) && crate::weights_take::is_weights_take_header(h) => {
+            crate::weights_take::parse_weights_take(&text, path)
+        }
+        _ => parse_take(&text, path),
+    }
 }
 
 #[cfg(test)]

@@ -105,6 +105,17 @@ pub enum ImportCommand {
         #[arg(long)]
         source: Option<String>,
     },
+    /// Speech (WAV) to ARKit mouth weights at 60 fps, a weights CSV (docs/audio.md).
+    Audio {
+        /// The WAV (PCM or float, any common rate, mono or stereo).
+        wav: PathBuf,
+        /// What is said (text, or a file holding it): its phones are laid along the speech.
+        #[arg(long)]
+        transcript: Option<String>,
+        /// Output weights CSV.
+        #[arg(short, long)]
+        output: PathBuf,
+    },
 }
 
 /// Runs an import subcommand: the tracker's row of `mimic_trackers::importer::IMPORTERS` reads
@@ -155,6 +166,15 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
             let o = ImportOptions::openseeface(*face, frame_times.as_deref(), source.as_deref());
             ("openseeface", o, capture, output, None, false)
         }
+        ImportCommand::Audio {
+            wav,
+            transcript,
+            output,
+        } => {
+            let said = mimic_audio::import_audio(wav, transcript.as_deref(), output)?;
+            println!("{said}");
+            return Ok(());
+        }
     };
     o.for_fit = fit.is_some();
     let tracker = importer(name).with_context(|| format!("no importer named `{name}`"))?;
@@ -166,11 +186,7 @@ pub fn run(c: ImportCommand) -> anyhow::Result<()> {
         eprintln!("{line}");
     }
     if let Some(FitModel::Candide3) = fit {
-        let odd = if symmetric {
-            OddParts::Off
-        } else {
-            OddParts::AfterPose
-        };
+        let odd = OddParts::of_import(symmetric);
         let configs = ConfigDirs::locate(None);
         let layout = &import.imported.header.layout;
         let fit = fit_candide3(&configs, layout, &import.capture_frames(), odd)?;

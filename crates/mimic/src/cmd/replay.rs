@@ -115,7 +115,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if (args.no_pose || args.step_keys) && !matches!(args.format, OutFormat::Glb | OutFormat::Vrm) {
         bail!("--no-pose and --step-keys are options of --format glb and vrm");
     }
-    if mimic_trackers::take::is_take_file(&args.recording)? {
+    if mimic_trackers::weights_take::is_replayable_take(&args.recording)? {
         return take::run(&args);
     }
     let mut reader = RecordingReader::open(&args.recording, None)?;

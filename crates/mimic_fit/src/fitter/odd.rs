@@ -21,6 +21,18 @@ pub enum OddParts {
     AfterPose,
 }
 
+impl OddParts {
+    /// `mimic import --fit`'s choice: [`OddParts::Off`] with `--symmetric`, else
+    /// [`OddParts::AfterPose`].
+    pub fn of_import(symmetric: bool) -> Self {
+        if symmetric {
+            Self::Off
+        } else {
+            Self::AfterPose
+        }
+    }
+}
+
 /// Gauss-Newton iterations of the odd-part solve: the image is nearly linear in the odd
 /// coefficients once the pose is held, so it converges in two or three.
 const ITERATIONS: usize = 6;
