@@ -160,12 +160,19 @@ pub fn error_csv(rig: &Rig, u: &[Vec3], shape: &[Vec3], measured: &[bool]) -> St
     csv
 }
 
-/// The basis' noise gain: the largest row sum of `|B|`, i.e. how much a per-control error
-/// (tracking noise, inconsistent neighbouring controls) can be amplified at one vertex (1 for a
-/// partition of unity).
-pub fn noise_gain(basis: &Basis) -> f64 {
+/// The basis' noise gain: the largest row sum of `|B|` over its first `controls` columns (the
+/// controls'; a rigid part's columns after them carry lengths, not control weights), i.e. how
+/// much a per-control error (tracking noise, inconsistent neighbouring controls) can be amplified
+/// at one vertex (1 for a partition of unity).
+pub fn noise_gain(basis: &Basis, controls: usize) -> f64 {
     (0..basis.vertex_count())
-        .map(|i| basis.row(i).iter().map(|w| w.abs() as f64).sum::<f64>())
+        .map(|i| {
+            let row = basis.row(i);
+            row[..controls.min(row.len())]
+                .iter()
+                .map(|w| w.abs() as f64)
+                .sum::<f64>()
+        })
         .fold(0f64, f64::max)
 }
 

@@ -131,7 +131,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     args.tuning.apply_to_rig(&mut rig);
     let settings = args.tuning.solver_settings(&args.rig, &rig)?;
     let (basis, took) = timed_basis(&rig, &settings)?;
-    let noise_gain = noise_gain(&basis);
+    let noise_gain = noise_gain(&basis, rig.controls.len());
     if !args.jitter.is_empty() {
         return run_jitter(&args, &rig, basis, noise_gain);
     }
