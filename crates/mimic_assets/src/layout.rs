@@ -25,6 +25,9 @@ struct LayoutFile {
     candide_correspondences: Vec<Spanned<ModelCorrespondence>>,
     #[serde(default)]
     gaze: Option<GazeFile>,
+    /// An OBJ whose vertex i is point i of the tracker's neutral face, relative to the layout file.
+    #[serde(default)]
+    canonical_neutral: Option<Spanned<PathBuf>>,
 }
 
 /// The on-disk `[gaze]` table, each eye with its position.
@@ -41,7 +44,8 @@ pub fn load_layout(path: &Path) -> Result<Layout, AssetError> {
     parse_layout(path, &text)
 }
 
-/// Parses and validates layout TOML text; `path` only names the file in errors.
+/// Parses and validates layout TOML text; `path` names the file in errors and anchors a
+/// relative `canonical_neutral` (an OBJ, read from there).
 pub fn parse_layout(path: &Path, text: &str) -> Result<Layout, AssetError> {
     let file: LayoutFile = toml::from_str(text).map_err(|e| toml_error(path, text, e))?;
     let control_line = |fdp, nth: usize| line_of_nth(text, &file.controls, |c| c.fdp == fdp, nth);
@@ -72,6 +76,13 @@ pub fn parse_layout(path: &Path, text: &str) -> Result<Layout, AssetError> {
             left: g.left.get_ref().clone(),
             right: g.right.get_ref().clone(),
         }),
+        canonical_neutral: match &file.canonical_neutral {
+            Some(obj) => {
+                let at = path.parent().unwrap_or(Path::new("")).join(obj.get_ref());
+                Some(crate::obj::load_obj(&at)?.positions)
+            }
+            None => None,
+        },
     };
     if let Err(source) = layout.validate() {
         let line = match &source {
@@ -96,6 +107,9 @@ pub fn parse_layout(path: &Path, text: &str) -> Result<Layout, AssetError> {
                 let e = if *eye == "left" { &g.left } else { &g.right };
                 e.span().start
             })),
+            LayoutError::BadCanonicalNeutral { .. } => {
+                line_of_opt(file.canonical_neutral.as_ref().map(|c| c.span().start))
+            }
         };
         return Err(AssetError::Layout {
             path: path.to_path_buf(),
@@ -192,6 +206,7 @@ impl ConfigDirs {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use glam::Vec3;
 
     #[test]
     fn layout_names_are_the_toml_stems_sorted_and_a_missing_folder_is_named() {
@@ -342,6 +357,52 @@ region = "top"
         .unwrap_err()
         .to_string();
         assert!(e.contains("iris"), "{e}");
+    }
+
+    #[test]
+    fn a_canonical_neutral_is_read_beside_the_layout_and_must_fit_it() {
+        let dir = tempfile::tempdir().unwrap();
+        let toml = dir.path().join("tiny.toml");
+        let text = GOOD.replace(
+            "stable = [0, 1, 3]",
+            "stable = [0, 1, 3]\ncanonical_neutral = \"models/face.obj\"",
+        );
+        std::fs::create_dir(dir.path().join("models")).unwrap();
+        let obj = dir.path().join("models/face.obj");
+        std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\n").unwrap();
+        std::fs::write(&toml, &text).unwrap();
+        let l = load_layout(&toml).unwrap();
+        let c = l.canonical_neutral.unwrap();
+        assert_eq!(c, [Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z]);
+        std::fs::write(&obj, "v 0 0 0\nv 1 0 0\nv 0 1 0\n").unwrap();
+        let e = load_layout(&toml).unwrap_err().to_string();
+        assert!(
+            e.ends_with("tiny.toml:5: the canonical neutral of layout `tiny` has 3 points (3 finite); the layout has 4"),
+            "{e}"
+        );
+        std::fs::remove_file(&obj).unwrap();
+        let e = load_layout(&toml).unwrap_err().to_string();
+        assert!(e.contains("face.obj"), "{e}");
+        assert!(
+            parse_layout(&toml, GOOD)
+                .unwrap()
+                .canonical_neutral
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn the_mediapipe_layout_ships_its_canonical_face() {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../configs/layouts");
+        let l = load_layout(&root.join("mediapipe478.toml")).unwrap();
+        let c = l.canonical_neutral.unwrap();
+        assert_eq!(c.len(), 478);
+        // Landmark 4, the nose tip, is the canonical face's most anterior point (cm).
+        assert_eq!(c[4], Vec3::new(0.0, -0.46317, 7.58658));
+        for other in ["kinect121", "ibug68", "openseeface68", "kinect-gfe100"] {
+            let path = root.join(format!("{other}.toml"));
+            assert!(load_layout(&path).unwrap().canonical_neutral.is_none());
+        }
     }
 
     #[test]

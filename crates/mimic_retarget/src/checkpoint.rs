@@ -128,7 +128,7 @@ impl Checkpoint {
 
     /// Whether the neutral was known (calibration done).
     pub fn calibrated(&self) -> bool {
-        self.to_target.is_some()
+        self.to_target.is_some() && self.accumulator.is_none()
     }
 
     /// Checks every length against the layout's `p` points and the rig's `m` controls.

@@ -95,6 +95,7 @@ pub fn rig_and_layout() -> (Rig, Layout) {
             .collect(),
         candide_correspondences: vec![],
         gaze: None,
+        canonical_neutral: None,
     };
     (rig, layout)
 }

@@ -42,7 +42,7 @@ pub use frame_loop::{FrameLoop, LoopReport};
 pub use gate::{GateReading, GateReason, GateSettings, face_size};
 pub use pipeline::{FrameOutput, FrameStatus, RetargetError, Retargeter, Stage, StageTimes, Stats};
 pub use scale::SourceToTarget;
-pub use settings::{Neutral, RetargetSettings};
+pub use settings::{Neutral, Provisional, RetargetSettings};
 pub use stage_stats::{Percentiles, StagePercentiles, StageSamples, elapsed_ns, median_p99_us};
 pub use weight_stats::{TargetWeight, WeightStats, WeightSummary};
 

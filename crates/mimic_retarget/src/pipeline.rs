@@ -106,7 +106,7 @@ pub use output::FrameOutput;
 pub struct Stats {
     /// Frames given to `step`.
     pub frames: u64,
-    /// Frames spent building the neutral.
+    /// Frames spent building the neutral, showing the rest face.
     pub calibrating: u64,
     /// Frames retargeted.
     pub tracked: u64,
@@ -123,6 +123,10 @@ pub struct Stats {
     /// Tracked frames whose output moved some control more than `gate.jump_report` (IOD)
     /// since the previous frame.
     pub jumps: u64,
+    /// Tracked frames retargeted against the layout's canonical neutral while the performer's
+    /// was being calibrated (counted in `tracked` too; docs/replay.md, "Short clips").
+    #[serde(default)]
+    pub provisional: u64,
 }
 
 /// Ties a layout to a rig and turns landmark frames into deformed meshes.
@@ -151,6 +155,8 @@ pub struct Retargeter {
     pub(crate) gate_inverse_bounds2: Vec<f32>,
     pub(crate) to_target: Option<SourceToTarget>,
     pub(crate) accumulator: Option<Accumulator>,
+    /// The layout's canonical neutral, used until the performer's is calibrated.
+    pub(crate) canonical: Option<neutral::CanonicalNeutral>,
     // Per-frame state.
     pub(crate) filters: Vec<[OneEuro; 3]>,
     pub(crate) last_e: Vec<Vec3>,
@@ -265,6 +271,7 @@ impl Retargeter {
             gate_inverse_bounds2,
             to_target: None,
             accumulator: None,
+            canonical: None,
             filters: vec![[OneEuro::default(); 3]; m],
             last_e: vec![Vec3::ZERO; m],
             frame_delta: vec![Vec3::ZERO; m],
@@ -304,7 +311,16 @@ impl Retargeter {
                     first_valid: vec![false; p],
                     sum: vec![Vec3::ZERO; p],
                     count: vec![0; p],
-                })
+                });
+                if settings.provisional == crate::Provisional::Canonical {
+                    r.canonical = neutral::CanonicalNeutral::new(
+                        layout,
+                        &r.source_points,
+                        &r.target_controls,
+                        settings.allow_mirror,
+                        settings.per_axis_scale,
+                    );
+                }
             }
             Neutral::Frame(f) => {
                 if f.points.len() != p {
@@ -359,9 +375,11 @@ impl Retargeter {
         self.stats
     }
 
-    /// The fitted source-to-target map, once the neutral is known.
+    /// The fitted source-to-target map, once the neutral is known (not the canonical neutral's).
     pub fn source_to_target(&self) -> Option<&SourceToTarget> {
-        self.to_target.as_ref()
+        self.to_target
+            .as_ref()
+            .filter(|_| self.accumulator.is_none())
     }
 
     /// The basis in use.
@@ -453,6 +471,11 @@ impl Retargeter {
         if self.accumulator.is_some() {
             return self.calibrate(frame, out);
         }
+        self.track(frame, out)
+    }
+
+    /// A tracked frame against the neutral in use: pose, displacements, gate, filter, deform.
+    fn track(&mut self, frame: &LandmarkFrame, out: &mut FrameOutput) -> FrameStatus {
         let t0 = Instant::now();
         for (j, slot) in self.controls_now.iter_mut().enumerate() {
             *slot = mean_of_valid(&self.source_points[j], frame);
@@ -521,6 +544,7 @@ impl Retargeter {
             }
             out.displacements[j] = d;
         }
+        self.ease_from_canonical(frame.timestamp_us, out);
         if self.clamp_speed(frame.timestamp_us, out) {
             self.stats.clamped += 1;
         }

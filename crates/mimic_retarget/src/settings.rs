@@ -13,11 +13,27 @@ pub enum Neutral {
     Frame(LandmarkFrame),
 }
 
+/// What a frame is retargeted against while the neutral is still being calibrated
+/// ([`Neutral::FirstFrames`]), docs/replay.md "Short clips".
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Default)]
+pub enum Provisional {
+    /// The layout's canonical neutral face, when it names one (`canonical_neutral`), scaled to
+    /// the performer by the first frame's stable points: the frame is tracked (counted in
+    /// [`Stats::provisional`](crate::Stats::provisional)) and the output eases into the
+    /// calibrated one over `lost_ease_secs` once the neutral is known. Without one, as `Rest`.
+    #[default]
+    Canonical,
+    /// Nothing: the rig shows its rest face (status `Calibrating`).
+    Rest,
+}
+
 /// Knobs of [`Retargeter`](crate::Retargeter).
 #[derive(Clone, Debug, PartialEq)]
 pub struct RetargetSettings {
     /// Source of the neutral face.
     pub neutral: Neutral,
+    /// What frames are retargeted against until that neutral is known.
+    pub provisional: Provisional,
     /// Jitter filter on the control displacements; `None` turns it off.
     pub filter: Option<OneEuroSettings>,
     /// Also match the face's extent per axis (width, height, depth), not only a uniform scale.
@@ -68,6 +84,7 @@ impl Default for RetargetSettings {
     fn default() -> Self {
         Self {
             neutral: Neutral::FirstFrames(5),
+            provisional: Provisional::Canonical,
             filter: Some(OneEuroSettings::default()),
             per_axis_scale: false,
             allow_mirror: true,

@@ -18,6 +18,9 @@ The summary's terms:
                 after the previous frame): skipped and counted, never fatal
   calibrating   the first tracked frames, averaged into the performer's neutral face; the
                 rig shows its rest face meanwhile
+  provisional   those frames when the layout ships a canonical neutral face (MediaPipe's):
+                retargeted against it instead (tracked; its identity is part of the
+                expression), then eased into the calibrated output (docs/replay.md)
   lost          frames the tracker marked lost (or with too few stable points): the last head
                 pose is held and the expression eases back to neutral
   gated         tracked frames no face can make (e.g. a fit failure's sudden head turn), held
@@ -88,6 +91,7 @@ impl ReplaySummary<'_> {
             "rejected_by_reason": self.read.rejected_by_reason,
             "invalid_points": self.read.invalid_points,
             "calibrating": stats.calibrating,
+            "provisional": stats.provisional,
             "tracked": stats.tracked,
             "lost": stats.lost,
             "gated": stats.gated,
@@ -115,7 +119,7 @@ impl ReplaySummary<'_> {
         let (stages, step) = report.samples.summary();
         let stats = &self.stats;
         let mut out = format!(
-            "{}: {} frames in ({} rejected, {} lost, {} gated, {} clamped, {} jumps, {} calibrating), {} controls filled; rig {} ({} moving vertices), basis {:.0} ms\n",
+            "{}: {} frames in ({} rejected, {} lost, {} gated, {} clamped, {} jumps, {} calibrating{}), {} controls filled; rig {} ({} moving vertices), basis {:.0} ms\n",
             self.recording.display(),
             self.read.accepted,
             self.read.rejected,
@@ -124,6 +128,10 @@ impl ReplaySummary<'_> {
             stats.clamped,
             stats.jumps,
             stats.calibrating,
+            match stats.provisional {
+                0 => String::new(),
+                n => format!(", {n} provisional"),
+            },
             stats.filled_controls,
             self.rig,
             self.moving_vertices,

@@ -78,6 +78,7 @@ fn rig_and_layout() -> (Rig, Layout, Vec<u32>) {
         point_names: vec![],
         candide_correspondences: vec![],
         gaze: None,
+        canonical_neutral: None,
     };
     layout.validate().unwrap();
     rig.validate().unwrap();

@@ -186,3 +186,50 @@ fn gaze_step_allocates_nothing_on_a_real_take() {
     assert!(read > measured.len() / 2, "{read} frames read");
     assert_eq!(n, 0, "{n} allocations in {} gaze steps", measured.len() + 1);
 }
+
+#[test]
+fn provisional_and_easing_steps_allocate_nothing() {
+    // MediaPipe frames against the layout's canonical neutral while the neutral is calibrated
+    // (30 frames here), then the ease into the calibrated output: only the first frame (which
+    // scales the canonical face) and the one that fixes the neutral may allocate.
+    let rig = mimic_assets::load_rig(&repo().join("configs/rigs/ict-face.toml")).unwrap();
+    let layout =
+        mimic_assets::load_layout(&repo().join("configs/layouts/mediapipe478.toml")).unwrap();
+    let basis = Arc::new(build_basis(&rig, &rig.solver).unwrap());
+    let settings = RetargetSettings {
+        neutral: mimic_retarget::Neutral::FirstFrames(30),
+        ..RetargetSettings::default()
+    };
+    let mut rt = Retargeter::new(&rig, &layout, basis, settings).unwrap();
+    let mut out = rt.new_output();
+    let path = repo().join("recordings/megamind_mediapipe.jsonl");
+    let reader = mimic_capture::RecordingReader::open(&path, Some(layout.point_count)).unwrap();
+    let frames: Vec<LandmarkFrame> = reader
+        .read_all()
+        .frames
+        .into_iter()
+        .map(|f| f.frame)
+        .filter(|f| f.tracked)
+        .collect();
+    rt.step(&frames[0], &mut out);
+    let n = allocations_during(|| {
+        for f in &frames[1..29] {
+            rt.step(f, &mut out);
+        }
+    });
+    assert_eq!(rt.stats().provisional, 29);
+    assert_eq!(n, 0, "{n} allocations in 28 provisional steps");
+    rt.step(&frames[29], &mut out);
+    assert!(rt.source_to_target().is_some(), "the neutral is fixed");
+    let n = allocations_during(|| {
+        for f in &frames[30..50] {
+            rt.step(f, &mut out);
+        }
+    });
+    assert_eq!(rt.stats().provisional, 30);
+    assert!(out.normals.iter().all(|v| v.is_finite()));
+    assert_eq!(
+        n, 0,
+        "{n} allocations in 20 steps easing into the calibrated output"
+    );
+}

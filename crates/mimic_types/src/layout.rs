@@ -176,6 +176,11 @@ pub struct Layout {
     /// gives no gaze.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub gaze: Option<GazeLayout>,
+    /// The tracker's canonical neutral face, one position per point (its own units; the
+    /// retargeter removes scale), if the layout ships one: frames are retargeted against it
+    /// until the performer's neutral is calibrated (docs/replay.md, "Short clips").
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub canonical_neutral: Option<Vec<Vec3>>,
 }
 
 /// The eyes' points of a layout (its `[gaze]` table), by the subject's left and right.
@@ -326,6 +331,21 @@ pub enum LayoutError {
         /// What is wrong.
         reason: String,
     },
+    /// The canonical neutral face has another number of points than the layout, or a
+    /// coordinate that is not finite.
+    #[error(
+        "the canonical neutral of layout `{layout}` has {points} points ({finite} finite); the layout has {point_count}"
+    )]
+    BadCanonicalNeutral {
+        /// Layout name.
+        layout: String,
+        /// Points in the canonical neutral.
+        points: usize,
+        /// Of those, points with finite coordinates.
+        finite: usize,
+        /// Points in the layout.
+        point_count: usize,
+    },
     /// Fewer than three stable points: head motion cannot be removed.
     #[error("layout `{layout}` has {count} stable points; removing head motion needs at least 3")]
     TooFewStablePoints {
@@ -340,7 +360,8 @@ impl Layout {
     /// Checks `point_count` against [`crate::limits::MAX_LAYOUT_POINTS`], every index against
     /// `point_count`, that controls are unique and non-empty, and the CANDIDE-3 correspondences
     /// (a point in range, one vertex or an edge with `t` in [0, 1], a finite weight > 0), and the
-    /// `[gaze]` eyes (points in range, a pupil and both lids named).
+    /// `[gaze]` eyes (points in range, a pupil and both lids named), and that a canonical neutral
+    /// has one finite position per point.
     pub fn validate(&self) -> Result<(), LayoutError> {
         if self.point_count > crate::limits::MAX_LAYOUT_POINTS {
             return Err(LayoutError::TooManyPoints {
@@ -383,6 +404,17 @@ impl Layout {
                 layout: self.name.clone(),
                 count: self.stable.len(),
             });
+        }
+        if let Some(c) = &self.canonical_neutral {
+            let finite = c.iter().filter(|p| p.is_finite()).count();
+            if c.len() != self.point_count || finite != c.len() {
+                return Err(LayoutError::BadCanonicalNeutral {
+                    layout: self.name.clone(),
+                    points: c.len(),
+                    finite,
+                    point_count: self.point_count,
+                });
+            }
         }
         if let Some(&p) = self.undocumented.iter().find(|&&p| p >= self.point_count) {
             return Err(LayoutError::UndocumentedPointOutOfRange {

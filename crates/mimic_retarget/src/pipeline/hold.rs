@@ -65,7 +65,9 @@ impl Retargeter {
     /// the typical frame time; true if some control was clamped.
     pub(super) fn clamp_speed(&self, t_us: i64, out: &mut FrameOutput) -> bool {
         let g = &self.settings.gate;
-        if !g.enabled {
+        // The first frame of a session retargeted against the canonical neutral has no output
+        // before it to stay near (a single frame's expression is not a jump from rest).
+        if !g.enabled || (self.previous_time_us.is_none() && self.canonical_in_use()) {
             return false;
         }
         let dt = if let Some(typical) = self.typical_interval() {

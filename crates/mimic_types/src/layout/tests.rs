@@ -18,6 +18,7 @@ fn layout() -> Layout {
         point_names: vec![],
         candide_correspondences: vec![],
         gaze: None,
+        canonical_neutral: None,
     }
 }
 
@@ -150,4 +151,20 @@ fn out_of_range_control_names_the_control() {
     l.controls[0].points.push(7);
     let e = l.validate().unwrap_err();
     assert!(e.to_string().contains("control 8.3 maps to point 7"), "{e}");
+}
+
+#[test]
+fn a_canonical_neutral_needs_one_finite_point_per_layout_point() {
+    let mut l = layout();
+    l.canonical_neutral = Some(vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z]);
+    l.validate().unwrap();
+    l.canonical_neutral = Some(vec![Vec3::ZERO; 3]);
+    let e = l.validate().unwrap_err().to_string();
+    assert_eq!(
+        e,
+        "the canonical neutral of layout `t` has 3 points (3 finite); the layout has 4"
+    );
+    l.canonical_neutral = Some(vec![Vec3::ZERO, Vec3::X, Vec3::NAN, Vec3::Z]);
+    let e = l.validate().unwrap_err().to_string();
+    assert!(e.contains("4 points (3 finite)"), "{e}");
 }
