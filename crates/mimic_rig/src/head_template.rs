@@ -83,7 +83,7 @@ pub struct FindSettings {
     /// Each probe fits every this many template nodes.
     pub probe_stride: usize,
     /// The coarse starts also run in each orientation whose probe covers at least this
-    /// fraction of the best probe's coverage (at most 3 orientations in all).
+    /// fraction of the best probe's coverage (at most 2 orientations in all).
     pub close_probe: f32,
     /// Coarse starts: turns about the target's up axis, degrees.
     pub yaws: Vec<f32>,
@@ -433,8 +433,8 @@ pub fn register_template(
         Vec::new()
     };
     // The coarse starts run in the best probe's orientation, and in any other whose probe
-    // covers at least `close_probe` of the best's (at most 3 in all): a small face mask
-    // (MediaPipe's) separates its turns by a few percent only.
+    // covers at least `close_probe` of the best's (at most 2 in all): a small face mask
+    // (MediaPipe's) covers 19.2% upright and 18.4% upside down in its probes.
     let mut tried: Vec<Orientation> = probes
         .iter()
         .take_while(|p| {
@@ -442,7 +442,7 @@ pub fn register_template(
                 .first()
                 .is_some_and(|b| p.coverage >= s.close_probe * b.coverage)
         })
-        .take(3)
+        .take(2)
         .map(|p| p.orientation)
         .collect();
     if tried.is_empty() {
