@@ -7,7 +7,7 @@
 //! target's orientation: a probe for each of the 24 axis-aligned turns ([`Orientation::all`]):
 //! facing that way, its nose tip is its frontmost vertex, its scale its width at the nose tip's
 //! height against the template's, and a short similarity ICP of every `probe_stride`-th node
-//! from there is scored by its coverage (then RMS); the best turn is kept ([`probe_orientations`]);
+//! from there is scored by its coverage (then RMS); the best turn is kept (`probe_orientations`);
 //! (3) coarse starts for a few turns about that up axis (and those of probes nearly as good)
 //! and scales, each refined by trimmed
 //! point-to-plane similarity ICP, the start covering most of the template kept ([`crate::icp`]);
@@ -263,7 +263,7 @@ fn width_at(points: impl Iterator<Item = Vec3>, at: Vec3, up: Vec3, axis: Vec3, 
     (hi - lo).max(0.0)
 }
 
-/// One orientation probe of [`probe_orientations`].
+/// One orientation probe (a short similarity ICP from one axis-aligned turn).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Probe {
     /// The target's orientation tried.
