@@ -41,6 +41,7 @@ mod render;
 mod replay;
 mod replay_take;
 mod rig_new;
+mod rig_orient;
 mod seams;
 mod serve;
 mod serve_weights;

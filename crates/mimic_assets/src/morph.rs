@@ -131,7 +131,8 @@ pub fn load_morph_targets(rig_path: &Path, rig: &Rig) -> Result<Vec<MorphTarget>
         let target = match (&e.obj, &e.shapes) {
             (Some(obj), None) => {
                 let obj = dir.join(obj);
-                let mesh = crate::load_obj(&obj).map_err(wrap)?;
+                let turn = file.turn(&text).unwrap_or_default();
+                let mesh = crate::rig::turn_mesh(crate::load_obj(&obj).map_err(wrap)?, turn);
                 morph_target(&e.name, &rig.mesh, &mesh, &obj).map_err(wrap)?
             }
             (None, Some(pack)) => {

@@ -42,6 +42,38 @@ pub struct RigFile {
     /// Rigid parts: the jaw's passengers and the eyeballs (docs/parts.md).
     #[serde(default)]
     pub parts: Option<Spanned<mimic_types::RigParts>>,
+    /// The mesh file's up and forward axes: the mesh is turned to y up, +z forward as it loads
+    /// ([`crate::Orientation`]); every other number of the rig is in that turned frame.
+    #[serde(default)]
+    pub orientation: Option<Spanned<crate::OrientationTable>>,
+}
+
+impl RigFile {
+    /// The turn of the mesh (the identity without `[orientation]`), or the line and why the
+    /// table is bad.
+    pub fn turn(&self, text: &str) -> Result<crate::Orientation, (usize, String)> {
+        match &self.orientation {
+            None => Ok(crate::Orientation::default()),
+            Some(t) => t
+                .get_ref()
+                .orientation()
+                .map_err(|e| (line_of(text, t.span().start), e)),
+        }
+    }
+}
+
+/// `mesh` turned into the rig's frame by `turn` (positions only; nothing when it is the
+/// identity).
+pub(crate) fn turn_mesh(
+    mut mesh: mimic_types::Mesh,
+    turn: crate::Orientation,
+) -> mimic_types::Mesh {
+    if !turn.is_identity() {
+        for p in &mut mesh.positions {
+            *p = turn.to_rig(*p);
+        }
+    }
+    mesh
 }
 
 /// Where a rig's numeric settings sit in its text: a second, lenient read (unknown keys
@@ -167,6 +199,21 @@ pub fn parse_rig(path: &Path, text: &str) -> Result<Rig, AssetError> {
         path: path.to_path_buf(),
         cause: Box::new(e),
     })?;
+    let turn = file
+        .turn(text)
+        .map_err(|(line, message)| AssetError::Toml {
+            path: path.to_path_buf(),
+            line,
+            message,
+        })?;
+    if avatar && !turn.is_identity() {
+        return Err(AssetError::Toml {
+            path: path.to_path_buf(),
+            line: line_of(text, file.orientation.as_ref().map_or(0, |o| o.span().start)),
+            message: "orientation: an avatar's mesh is not turned (glTF is y up, +z forward by its specification)".into(),
+        });
+    }
+    let mesh = turn_mesh(mesh, turn);
     let n = mesh.vertex_count();
     let rig_err = |line: usize, cause: RigError| AssetError::Rig {
         path: path.to_path_buf(),

@@ -3,11 +3,15 @@
 //! (docs/rigging.md, "Without --landmarks").
 //!
 //! Steps: (1) the template's face area in its face frame (IOD units), thinned to nodes about
-//! `spacing` apart (every landmark vertex kept), joined by a k-nearest-neighbour graph; (2) a
-//! coarse start for each of a few turns about the target's +y and scales: the target is assumed
-//! roughly y up and facing +z, its nose tip is its frontmost vertex, its scale is its width at
-//! the nose tip's height against the template's; (3) trimmed point-to-plane similarity ICP from
-//! each start, the start covering most of the template kept ([`crate::icp`]); (4) non-rigid ICP
+//! `spacing` apart (every landmark vertex kept), joined by a k-nearest-neighbour graph; (2) the
+//! target's orientation: a probe for each of the 24 axis-aligned turns ([`Orientation::all`]):
+//! facing that way, its nose tip is its frontmost vertex, its scale its width at the nose tip's
+//! height against the template's, and a short similarity ICP of every `probe_stride`-th node
+//! from there is scored by its coverage (then RMS); the best turn is kept (`probe_orientations`);
+//! (3) coarse starts for a few turns about that up axis (and those of probes nearly as good)
+//! and scales, each refined by trimmed
+//! point-to-plane similarity ICP, the start covering most of the template kept ([`crate::icp`]);
+//! (4) non-rigid ICP
 //! of the nodes with stiffness steps ([`crate::nonrigid`]); (5) each template landmark goes to
 //! the nearest target vertex facing its way ([`crate::register::nearest_allowed`]).
 
@@ -20,6 +24,7 @@ use crate::new::landmark_frame;
 use crate::nonrigid::{NonRigidSettings, knn_graph, nonrigid_icp};
 use crate::register::{nearest_allowed, vertex_normals};
 use glam::{Quat, Vec3};
+use mimic_assets::Orientation;
 use mimic_types::{HeadPose, Mesh};
 use std::path::Path;
 
@@ -70,7 +75,17 @@ pub struct FindSettings {
     pub spacing: f32,
     /// Neighbours of each node in the stiffness graph.
     pub neighbours: usize,
-    /// Coarse starts: turns about the target's +y, degrees.
+    /// Probe the 24 axis-aligned orientations first (else the target is taken as y up, +z
+    /// forward).
+    pub any_orientation: bool,
+    /// ICP rounds of each orientation probe.
+    pub probe_rounds: usize,
+    /// Each probe fits every this many template nodes.
+    pub probe_stride: usize,
+    /// The coarse starts also run in each orientation whose probe covers at least this
+    /// fraction of the best probe's coverage (at most 2 orientations in all).
+    pub close_probe: f32,
+    /// Coarse starts: turns about the target's up axis, degrees.
     pub yaws: Vec<f32>,
     /// Coarse starts: factors on the scale from the widths at nose height.
     pub scales: Vec<f32>,
@@ -90,6 +105,10 @@ impl Default for FindSettings {
         Self {
             spacing: 0.05,
             neighbours: 6,
+            any_orientation: true,
+            probe_rounds: 8,
+            probe_stride: 3,
+            close_probe: 0.8,
             yaws: vec![-30.0, 0.0, 30.0],
             scales: vec![0.75, 0.9, 1.05],
             min_piece: 0.25,
@@ -110,6 +129,8 @@ pub struct FoundLandmarks {
     pub rigid: RigidFit,
     /// Coarse starts tried.
     pub starts: usize,
+    /// The target's orientation the starts were made in.
+    pub orientation: Orientation,
     /// Template nodes.
     pub nodes: usize,
     /// Fraction of the nodes matched after the non-rigid fit.
@@ -242,6 +263,97 @@ fn width_at(points: impl Iterator<Item = Vec3>, at: Vec3, up: Vec3, axis: Vec3, 
     (hi - lo).max(0.0)
 }
 
+/// One orientation probe (a short similarity ICP from one axis-aligned turn).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Probe {
+    /// The target's orientation tried.
+    pub orientation: Orientation,
+    /// Fraction of the probe's nodes covered after its short ICP.
+    pub coverage: f32,
+    /// Their RMS distance, face units.
+    pub rms: f32,
+}
+
+/// What a coarse start needs: the template's nodes, nose tip and width at nose height, the
+/// target's surface, its height band and its kept vertices.
+struct Coarse<'a, K: Fn() -> I, I: Iterator<Item = Vec3>> {
+    nodes: &'a Nodes,
+    nose: Vec3,
+    template_width: f32,
+    surface: &'a Surface,
+    band: f32,
+    kept: &'a K,
+}
+
+impl<K: Fn() -> I, I: Iterator<Item = Vec3>> Coarse<'_, K, I> {
+    /// The start with the template turned by `rotation` (its face frame to the target's), its
+    /// nose tip on the target's frontmost vertex that way, scaled by `factor` times the widths'
+    /// ratio at nose height; `None` when the target has no width there.
+    fn start(&self, rotation: Quat, factor: f32) -> Option<HeadPose> {
+        let (side, up, front) = (rotation * Vec3::X, rotation * Vec3::Y, rotation * Vec3::Z);
+        let tip = (self.kept)().max_by(|a, b| front.dot(*a).total_cmp(&front.dot(*b)))?;
+        let width = width_at((self.kept)(), tip, up, side, self.band);
+        if !(width > 0.0 && self.template_width > 0.0) {
+            return None;
+        }
+        let scale = factor * width / self.template_width;
+        Some(HeadPose {
+            rotation,
+            scale,
+            translation: tip - rotation * (self.nose * scale),
+        })
+    }
+}
+
+/// Scores the 24 axis-aligned orientations of the target, best first: for each, the middle
+/// scale's start ([`Coarse::start`], no yaw) refined by `probe_rounds` rounds of the similarity
+/// ICP on every `probe_stride`-th node, scored by coverage then RMS ([`crate::icp::score`]). At
+/// the defaults (8 rounds, a third of the nodes) the 24 probes cost about as much as 64 rounds
+/// of one full start, where each of the 9 coarse starts runs up to 60.
+fn probe_orientations<K: Fn() -> I, I: Iterator<Item = Vec3>>(
+    coarse: &Coarse<'_, K, I>,
+    s: &FindSettings,
+) -> Vec<Probe> {
+    let stride = s.probe_stride.max(1);
+    let at: Vec<Vec3> = coarse.nodes.at.iter().step_by(stride).copied().collect();
+    let normal: Vec<Vec3> = coarse
+        .nodes
+        .normal
+        .iter()
+        .step_by(stride)
+        .copied()
+        .collect();
+    let settings = IcpSettings {
+        rounds: s.probe_rounds.max(1),
+        ..s.icp
+    };
+    let middle = s.scales.get(s.scales.len() / 2).copied().unwrap_or(1.0);
+    let mut probes: Vec<Probe> = Orientation::all()
+        .into_iter()
+        .filter_map(|orientation| {
+            let rotation = if orientation.is_identity() {
+                Quat::IDENTITY
+            } else {
+                Quat::from_mat3(&orientation.rig_to_file())
+            };
+            let start = coarse.start(rotation, middle)?;
+            let fit = similarity_icp(&at, &normal, coarse.surface, start, &settings)?;
+            Some(Probe {
+                orientation,
+                coverage: fit.coverage,
+                rms: fit.rms,
+            })
+        })
+        .collect();
+    // Best first; a stable sort keeps the identity (first in `Orientation::all`) ahead on a tie.
+    probes.sort_by(|a, b| {
+        (b.coverage, -b.rms)
+            .partial_cmp(&(a.coverage, -a.rms))
+            .unwrap_or(std::cmp::Ordering::Equal)
+    });
+    probes
+}
+
 /// The template registered onto a target ([`register_template`]): the similarity, then where
 /// each template node went, in the template's face frame.
 pub struct Registration {
@@ -262,6 +374,10 @@ pub struct Registration {
     pub allowed: Vec<bool>,
     /// Coarse starts tried.
     pub starts: usize,
+    /// The orientation probes, best first (empty when not probed).
+    pub probes: Vec<Probe>,
+    /// The target's orientation: that of the start whose similarity fit best.
+    pub orientation: Orientation,
     /// Nodes matched after the non-rigid fit.
     pub matched: usize,
     /// RMS point-to-plane distance of the matched nodes, face units.
@@ -303,40 +419,65 @@ pub fn register_template(
     });
     let band = 0.015 * lo.distance(hi);
     let template_width = width_at(nodes.at.iter().copied(), nose, Vec3::Y, Vec3::X, 0.1);
-    let mut best: Option<RigidFit> = None;
+    let coarse = Coarse {
+        nodes: &nodes,
+        nose,
+        template_width,
+        surface: &surface,
+        band,
+        kept: &kept,
+    };
+    let probes = if s.any_orientation {
+        probe_orientations(&coarse, s)
+    } else {
+        Vec::new()
+    };
+    // The coarse starts run in the best probe's orientation, and in any other whose probe
+    // covers at least `close_probe` of the best's (at most 2 in all): a small face mask
+    // (MediaPipe's) covers 19.2% upright and 18.4% upside down in its probes.
+    let mut tried: Vec<Orientation> = probes
+        .iter()
+        .take_while(|p| {
+            probes
+                .first()
+                .is_some_and(|b| p.coverage >= s.close_probe * b.coverage)
+        })
+        .take(2)
+        .map(|p| p.orientation)
+        .collect();
+    if tried.is_empty() {
+        tried.push(Orientation::default());
+    }
+    let mut best: Option<(RigidFit, Orientation)> = None;
     let mut starts = 0;
-    for yaw in &s.yaws {
-        let rotation = Quat::from_rotation_y(yaw.to_radians());
-        let (side, up, front) = (rotation * Vec3::X, rotation * Vec3::Y, rotation * Vec3::Z);
-        let Some(tip) = kept().max_by(|a, b| front.dot(*a).total_cmp(&front.dot(*b))) else {
-            continue;
-        };
-        let width = width_at(kept(), tip, up, side, band);
-        if !(width > 0.0 && template_width > 0.0) {
-            continue;
-        }
-        for f in &s.scales {
-            let scale = f * width / template_width;
-            let start = HeadPose {
-                rotation,
-                scale,
-                translation: tip - rotation * (nose * scale),
-            };
-            starts += 1;
-            let Some(fit) = similarity_icp(&nodes.at, &nodes.normal, &surface, start, &s.icp)
-            else {
-                continue;
-            };
-            let better = best.is_none_or(|b| (fit.coverage, -fit.rms) > (b.coverage, -b.rms));
-            if better {
-                best = Some(fit);
+    for orientation in tried {
+        let base =
+            (!orientation.is_identity()).then(|| Quat::from_mat3(&orientation.rig_to_file()));
+        for yaw in &s.yaws {
+            let turn = Quat::from_rotation_y(yaw.to_radians());
+            let rotation = base.map_or(turn, |b| b * turn);
+            for f in &s.scales {
+                let Some(start) = coarse.start(rotation, *f) else {
+                    continue;
+                };
+                starts += 1;
+                let Some(fit) = similarity_icp(&nodes.at, &nodes.normal, &surface, start, &s.icp)
+                else {
+                    continue;
+                };
+                let better =
+                    best.is_none_or(|(b, _)| (fit.coverage, -fit.rms) > (b.coverage, -b.rms));
+                if better {
+                    best = Some((fit, orientation));
+                }
             }
         }
     }
+    let orientation = best.map_or_else(Orientation::default, |b| b.1);
+    let best = best.map(|b| b.0);
     let rigid = best.ok_or_else(|| {
         RigNewError::Frame(
-            "no start of the template registration matched the mesh (is it a face, y up, facing +z?)"
-                .into(),
+            "no start of the template registration matched the mesh (is it a face?)".into(),
         )
     })?;
     // The target in the template's face units, then the non-rigid fit there.
@@ -357,6 +498,8 @@ pub fn register_template(
         local,
         allowed,
         starts,
+        probes,
+        orientation,
         matched: fit.matched,
         residual: fit.rms,
         node_normal: nodes.normal,
@@ -398,6 +541,7 @@ pub fn landmarks_of_registration(r: &Registration, s: &FindSettings) -> FoundLan
         landmarks,
         rigid: r.rigid,
         starts: r.starts,
+        orientation: r.orientation,
         nodes: r.node_vertex.len(),
         coverage: r.matched as f32 / r.node_vertex.len().max(1) as f32,
         residual: r.residual,

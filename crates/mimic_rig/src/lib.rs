@@ -18,6 +18,7 @@ pub mod morph;
 pub mod nearest;
 pub mod new;
 pub mod nonrigid;
+pub mod orient;
 pub mod overrides;
 pub mod parts;
 pub mod picture;

@@ -211,7 +211,25 @@ pub fn make_rig_file(
         Some(a) => a.face.mesh_data.clone(),
         None => crate::load_mesh(job.mesh)?,
     };
-    let (marks, marks_from, registration) = landmarks_of(job, &mesh, note)?;
+    let (marks, marks_from, mut registration) = landmarks_of(job, &mesh, note)?;
+    let mut mesh = mesh;
+    let turn = crate::orient::head_orientation(&mesh, &marks).unwrap_or_default();
+    let turn = if turn.is_identity() || avatar.is_none() {
+        turn
+    } else {
+        note(format!(
+            "warning: the avatar's face {}; it is not turned (glTF is y up, +z forward by its specification)",
+            turn.describe()
+        ));
+        mimic_assets::Orientation::default()
+    };
+    if !turn.is_identity() {
+        crate::orient::turn_mesh(&mut mesh, turn);
+        if let Some(reg) = &mut registration {
+            crate::orient::turn_registration(reg, turn);
+        }
+        note(crate::orient::turn_note(turn));
+    }
     let face = mesh.clone();
     // An avatar's parts drawn with the face join the working mesh after the face's vertices
     // (the landmarks keep their numbers).
@@ -238,8 +256,9 @@ pub fn make_rig_file(
             .trim_end_matches(".generated")
             .to_string()
     });
-    let generated = make_rig(&mesh, &marks, &name, job.units, job.defaults)
+    let mut generated = make_rig(&mesh, &marks, &name, job.units, job.defaults)
         .map_err(context(format!("{}: {marks_from}", job.mesh.display())))?;
+    generated.orientation = turn;
     let text = rig_text(job, &mesh, &generated)?;
     let text = match &avatar {
         Some(a) => format!(

@@ -87,6 +87,9 @@ pub struct GeneratedRig {
     pub parts: mimic_types::RigParts,
     /// What [`crate::rigid_parts::find_parts`] found, in words.
     pub parts_note: String,
+    /// The turn of the mesh file into the rig's frame (`[orientation]`; [`crate::orient`]);
+    /// the identity writes nothing.
+    pub orientation: mimic_assets::Orientation,
 }
 
 /// The unit whose typical inter-ocular distance is nearest (by ratio) to `iod` mesh units;
@@ -279,6 +282,7 @@ pub fn make_rig(
         warnings,
         parts,
         parts_note,
+        orientation: mimic_assets::Orientation::default(),
     })
 }
 

@@ -151,7 +151,11 @@ IOD (eye centre distance) {iod:.4} {units}. Lengths in face units (IOD): region 
     if !r.is_empty() {
         t.push('\n');
     }
-    t.push_str("]\n\n[regions]\n");
+    t.push_str("]\n\n");
+    if !rig.orientation.is_identity() {
+        let _ = writeln!(t, "{}", rig.orientation.toml());
+    }
+    t.push_str("[regions]\n");
     let reg = rig.regions;
     let _ = writeln!(
         t,
