@@ -13,14 +13,14 @@ use std::path::Path;
 
 const FIXTURE: &str = "tests/data/avatar/ict_multimesh.glb";
 
-fn run(args: &[&str]) -> (String, String) {
+pub(crate) fn run(args: &[&str]) -> (String, String) {
     let o = mimic(args);
     let (out, err) = text(&o);
     assert!(o.status.success(), "{args:?}\n{out}\n{err}");
     (out, err)
 }
 
-fn s(p: &Path) -> &str {
+pub(crate) fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 

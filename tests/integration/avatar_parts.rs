@@ -2,20 +2,9 @@
 //! multi-mesh avatar fixture moves its lower teeth with the jaw and turns its eyes, in mimic's own
 //! frames and in the avatar written back (the parts' meshes gain their targets and keyed weights).
 
-use crate::{mimic, repo, text};
+use crate::avatar::{run, s};
+use crate::repo;
 use mimic_gltf::avatar::{ChannelPath, load_avatar};
-use std::path::Path;
-
-fn run(args: &[&str]) -> (String, String) {
-    let o = mimic(args);
-    let (out, err) = text(&o);
-    assert!(o.status.success(), "{args:?}\n{out}\n{err}");
-    (out, err)
-}
-
-fn s(p: &Path) -> &str {
-    p.to_str().unwrap()
-}
 
 fn vertices(ranges: &[[u32; 2]]) -> Vec<usize> {
     ranges

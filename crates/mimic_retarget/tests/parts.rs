@@ -24,6 +24,20 @@ fn layout(name: &str) -> Layout {
     mimic_assets::load_layout(&root().join(format!("configs/layouts/{name}.toml"))).unwrap()
 }
 
+/// A shipped recording's layout and frames.
+fn recording(name: &str) -> (Layout, Vec<LandmarkFrame>) {
+    let reader =
+        mimic_capture::RecordingReader::open(&root().join("recordings").join(name), None).unwrap();
+    let layout = layout(&reader.header().layout);
+    let frames = reader
+        .read_all()
+        .frames
+        .into_iter()
+        .map(|f| f.frame)
+        .collect();
+    (layout, frames)
+}
+
 /// The shipped ICT rig and its basis, built once.
 fn ict() -> &'static (Rig, Basis) {
     static ICT: OnceLock<(Rig, Basis)> = OnceLock::new();
@@ -84,18 +98,7 @@ fn on_the_mediapipe_take_the_jaw_carries_the_lower_teeth_and_the_eyes_turn() {
     let eye_edges = edges_within(rig, &eyeball);
     assert!(eye_edges.len() > 1000);
 
-    let reader = mimic_capture::RecordingReader::open(
-        &root().join("recordings/megamind_mediapipe.jsonl"),
-        None,
-    )
-    .unwrap();
-    let layout = layout(&reader.header().layout);
-    let frames: Vec<LandmarkFrame> = reader
-        .read_all()
-        .frames
-        .into_iter()
-        .map(|f| f.frame)
-        .collect();
+    let (layout, frames) = recording("megamind_mediapipe.jsonl");
     let mut rt = Retargeter::new(rig, &layout, basis.clone(), RetargetSettings::default()).unwrap();
     let mut out = rt.new_output();
     let rest = &rig.mesh.positions;
@@ -241,16 +244,7 @@ fn the_jaw_never_pushes_the_lower_teeth_through_the_lower_lip() {
         "a_doubt_question.kinect121.jsonl",
         "megamind_mediapipe.jsonl",
     ] {
-        let reader =
-            mimic_capture::RecordingReader::open(&root().join("recordings").join(name), None)
-                .unwrap();
-        let layout = layout(&reader.header().layout);
-        let frames: Vec<LandmarkFrame> = reader
-            .read_all()
-            .frames
-            .into_iter()
-            .map(|f| f.frame)
-            .collect();
+        let (layout, frames) = recording(name);
         let mut rt =
             Retargeter::new(rig, &layout, basis.clone(), RetargetSettings::default()).unwrap();
         let mut out = rt.new_output();

@@ -253,6 +253,11 @@ pub fn parse_take(text: &str, path: &Path) -> Result<Take, TrackerError> {
 /// Whether the file at `path` starts with a Live Link Face take's header (its first line, up
 /// to 64 KiB, has `Timecode` and `BlendShapeCount` columns).
 pub fn is_take_file(path: &Path) -> Result<bool, TrackerError> {
+    Ok(first_line(path)?.is_some_and(|l| is_take_header(&l)))
+}
+
+/// The first line of the file at `path` (up to 64 KiB); `None` when it is not text.
+pub(crate) fn first_line(path: &Path) -> Result<Option<String>, TrackerError> {
     use std::io::{BufRead, Read};
     let io = |e: std::io::Error| TrackerError::Io {
         path: path.to_path_buf(),
@@ -264,9 +269,9 @@ pub fn is_take_file(path: &Path) -> Result<bool, TrackerError> {
         .take(64 * 1024)
         .read_line(&mut first)
     {
-        Ok(_) => Ok(is_take_header(&first)),
+        Ok(_) => Ok(Some(first)),
         // Not text: not a take.
-        Err(e) if e.kind() == std::io::ErrorKind::InvalidData => Ok(false),
+        Err(e) if e.kind() == std::io::ErrorKind::InvalidData => Ok(None),
         Err(e) => Err(io(e)),
     }
 }

@@ -24,21 +24,8 @@ pub fn is_weights_take_header(header: &str) -> bool {
 /// Whether the file at `path` is a Live Link Face take or a weights CSV of ARKit curves (its
 /// first line, up to 64 KiB).
 pub fn is_replayable_take(path: &Path) -> Result<bool, TrackerError> {
-    use std::io::{BufRead, Read};
-    let io = |e: std::io::Error| TrackerError::Io {
-        path: path.to_path_buf(),
-        source: e.into(),
-    };
-    let f = std::fs::File::open(path).map_err(io)?;
-    let mut first = String::new();
-    match std::io::BufReader::new(f)
-        .take(64 * 1024)
-        .read_line(&mut first)
-    {
-        Ok(_) => Ok(is_take_header(&first) || is_weights_take_header(&first)),
-        Err(e) if e.kind() == std::io::ErrorKind::InvalidData => Ok(false),
-        Err(e) => Err(io(e)),
-    }
+    Ok(crate::take::first_line(path)?
+        .is_some_and(|l| is_take_header(&l) || is_weights_take_header(&l)))
 }
 
 /// Parses a weights CSV of ARKit curves as a take: times from `t_us` (from the first row's),
