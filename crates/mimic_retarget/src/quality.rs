@@ -7,6 +7,7 @@
 //! `RegionBands::region_at` of the rest height). `ratio = mean_error / mean_displacement`: 0 is
 //! perfect, 1 is no better than leaving the neutral unchanged.
 
+pub mod crease;
 mod report;
 
 pub use report::{JitterReport, RigUnder, ShapesReport, file_name};
