@@ -8,6 +8,7 @@ mod neutral;
 mod output;
 mod parts;
 mod pose;
+mod stats;
 use crate::gaze::{GazePoints, GazeSettings, GazeTracker};
 use crate::{Neutral, OneEuro, OneEuroStep, RetargetSettings, SourceToTarget};
 use glam::{Quat, Vec3};
@@ -50,84 +51,9 @@ pub enum RetargetError {
     BadNeutral(String),
 }
 
-/// Stages of a step, in order, for per-stage timing.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Stage {
-    /// Control points from landmarks.
-    Select,
-    /// Rigid head motion removed.
-    Stabilise,
-    /// Displacement against the neutral, scaled to the target, filtered.
-    Displace,
-    /// `u = B d`.
-    Deform,
-    /// Vertex normals.
-    Normals,
-}
-
-impl Stage {
-    /// All stages in pipeline order.
-    pub const ALL: [Stage; 5] = [
-        Stage::Select,
-        Stage::Stabilise,
-        Stage::Displace,
-        Stage::Deform,
-        Stage::Normals,
-    ];
-
-    /// Lower-case name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Stage::Select => "select",
-            Stage::Stabilise => "stabilise",
-            Stage::Displace => "displace",
-            Stage::Deform => "deform",
-            Stage::Normals => "normals",
-        }
-    }
-}
-
-/// Nanoseconds spent in each [`Stage`] of the last step.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
-pub struct StageTimes(pub [u32; 5]);
-
-impl StageTimes {
-    /// Nanoseconds of one stage.
-    pub fn get(&self, s: Stage) -> u32 {
-        self.0[s as usize]
-    }
-}
-
 pub use mimic_types::FrameStatus;
 pub use output::FrameOutput;
-
-/// Counters over a retargeter's life.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub struct Stats {
-    /// Frames given to `step`.
-    pub frames: u64,
-    /// Frames spent building the neutral, showing the rest face.
-    pub calibrating: u64,
-    /// Frames retargeted.
-    pub tracked: u64,
-    /// Frames with lost tracking or too few stable points.
-    pub lost: u64,
-    /// Tracked frames rejected for a wrong point count (lost frames are never rejected).
-    pub rejected: u64,
-    /// Controls filled (held) because none of their points was valid, summed over frames.
-    pub filled_controls: u64,
-    /// Tracked frames the plausibility gate held (counted in `tracked` too; `docs/gate.md`).
-    pub gated: u64,
-    /// Tracked frames in which the gate clamped some control's speed.
-    pub clamped: u64,
-    /// Tracked frames whose output moved some control more than `gate.jump_report` (IOD)
-    /// since the previous frame.
-    pub jumps: u64,
-    /// Tracked frames retargeted against the layout's canonical neutral while the performer's
-    /// was being calibrated (counted in `tracked` too; docs/replay.md, "Short clips").
-    #[serde(default)]
-    pub provisional: u64,
-}
+pub use stats::{Stage, StageTimes, Stats};
 
 /// Ties a layout to a rig and turns landmark frames into deformed meshes.
 #[derive(Debug)]
@@ -189,8 +115,8 @@ pub struct Retargeter {
     pub(crate) stats: Stats,
     /// The rigid parts' columns of `d` (jaw, eyeballs), after the controls'.
     pub(crate) parts: parts::PartMotion,
-    /// The eyes' turn (left, right), once a gaze is read.
-    pub(crate) eye_turn: Option<[parts::EyeTurn; 2]>,
+    /// The gaze the eyeballs are turned by (left, right), once one is read.
+    pub(crate) eye_turn: Option<[crate::gaze::EyeGaze; 2]>,
     /// The gaze, for a layout with pupils (`[gaze]`).
     pub(crate) gaze: Option<GazeTracker>,
 }
@@ -209,12 +135,13 @@ impl Retargeter {
         let m = rig.controls.len();
         let fdps: Vec<Option<Fdp>> = rig.controls.iter().map(|c| layout.fdp_of(c.fdp)).collect();
         let part_motion = parts::PartMotion::new(rig, &fdps);
-        if basis.vertex_count() != n || basis.control_count() != m + part_motion.column_count() {
+        let columns = m + rig.parts.column_count();
+        if basis.vertex_count() != n || basis.control_count() != columns {
             return Err(RetargetError::BasisShape {
                 rows: basis.vertex_count(),
                 cols: basis.control_count(),
                 vertices: n,
-                controls: m + part_motion.column_count(),
+                controls: columns,
             });
         }
         let source_points = rig
@@ -552,7 +479,7 @@ impl Retargeter {
             *l = *d;
         }
         if let Some(g) = self.gaze.as_mut().filter(|g| g.has_neutral()) {
-            self.eye_turn = Some(parts::eye_turns(g.step(frame, &back, dt)));
+            self.eye_turn = Some(g.step(frame, &back, dt));
         }
         let t3 = Instant::now();
         self.stats.tracked += 1;
@@ -594,7 +521,6 @@ impl Retargeter {
     /// layout with pupils driving a rig with eyeballs).
     pub fn gaze(&self) -> Option<[crate::gaze::EyeGaze; 2]> {
         self.eye_turn
-            .map(|t| t.map(|(yaw, pitch)| crate::gaze::EyeGaze { yaw, pitch }))
     }
 
     /// Number of vertices that can move (non-zero rows of `B`); 0 when positions are off.

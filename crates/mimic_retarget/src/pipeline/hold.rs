@@ -31,7 +31,7 @@ impl Retargeter {
             *o = *d * k;
         }
         if let Some(g) = self.gaze.as_mut().filter(|g| g.has_neutral()) {
-            self.eye_turn = Some(super::parts::eye_turns(g.hold(k)));
+            self.eye_turn = Some(g.hold(k));
         }
     }
 

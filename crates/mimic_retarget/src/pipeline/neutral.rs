@@ -170,13 +170,13 @@ impl Retargeter {
     /// Makes the canonical neutral the retargeter's (scaled to the performer by `frame`'s stable
     /// points the first time); false when there is none or it cannot be scaled yet.
     fn use_canonical(&mut self, frame: &LandmarkFrame) -> bool {
+        if self.canonical_in_use() {
+            return true;
+        }
         let limit = self.outlier_limit();
         let Some(c) = self.canonical.as_mut() else {
             return false;
         };
-        if c.in_use {
-            return true;
-        }
         if c.scale <= 0.0 {
             self.stable_src.clear();
             self.stable_dst.clear();

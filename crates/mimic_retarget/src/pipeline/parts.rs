@@ -1,6 +1,7 @@
 //! The rigid parts' entries of `d` (after the controls'): the jaw turned about its hinge by the
 //! chin's swing, and the eyeballs turned by the gaze (docs/parts.md). Allocation-free per frame.
 
+use crate::gaze::EyeGaze;
 use glam::{Mat3, Vec3};
 use mimic_solve::rigid::part_coefficients;
 use mimic_types::{Fdp, Rig, parts::PART_COLUMNS};
@@ -45,9 +46,6 @@ pub(crate) struct PartMotion {
     has_eyes: bool,
 }
 
-/// One eye's gaze, radians: `yaw` toward the subject's left, `pitch` up.
-pub(crate) type EyeTurn = (f32, f32);
-
 impl PartMotion {
     /// The part motion of `rig`, whose controls stand for `fdps` (`None`: no FDP). The jaw is
     /// read from the chin (FDP 2.1, and 2.10 the chin boss), or the lower lip's middle (2.3,
@@ -88,14 +86,9 @@ impl PartMotion {
         }
     }
 
-    /// Columns of `d` the parts fill.
-    pub(crate) fn column_count(&self) -> usize {
-        PART_COLUMNS * (usize::from(self.has_jaw) + 2 * usize::from(self.has_eyes))
-    }
-
     /// Writes the parts' entries of `d` from the controls' entries (the jaw) and `eyes` (the
     /// left and right eye's turn; `None`: looking ahead).
-    pub(crate) fn fill(&self, d: &mut [Vec3], eyes: Option<[EyeTurn; 2]>) {
+    pub(crate) fn fill(&self, d: &mut [Vec3], eyes: Option<[EyeGaze; 2]>) {
         let mut col = self.first;
         if self.has_jaw {
             let (turn, slide) = self
@@ -106,11 +99,11 @@ impl PartMotion {
             col += PART_COLUMNS;
         }
         if self.has_eyes {
-            for (yaw, pitch) in eyes.unwrap_or([(0.0, 0.0); 2]) {
+            for e in eyes.unwrap_or_default() {
                 write(
                     d,
                     col,
-                    part_coefficients(eye_rotation(yaw, pitch), Vec3::ZERO),
+                    part_coefficients(eye_rotation(e.yaw, e.pitch), Vec3::ZERO),
                 );
                 col += PART_COLUMNS;
             }
@@ -122,11 +115,6 @@ fn write(d: &mut [Vec3], col: usize, values: [Vec3; PART_COLUMNS]) {
     if let Some(slot) = d.get_mut(col..col + PART_COLUMNS) {
         slot.copy_from_slice(&values);
     }
-}
-
-/// The eyes' turns from a gaze reading (left, right).
-pub(crate) fn eye_turns(g: [crate::gaze::EyeGaze; 2]) -> [EyeTurn; 2] {
-    g.map(|e| (e.yaw, e.pitch))
 }
 
 /// The eye's rotation in the rig's frame (x the subject's left, y up, z out of the face): turned
