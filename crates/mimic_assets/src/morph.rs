@@ -67,20 +67,28 @@ pub fn morph_target(
             target.triangles[t], neutral.triangles[t]
         )));
     }
+    let deltas = target
+        .positions
+        .iter()
+        .zip(&neutral.positions)
+        .map(|(t, p)| *t - *p)
+        .collect();
+    Ok(with_normals(name, neutral, &target.positions, deltas))
+}
+
+/// The target `name` moving `neutral`'s vertices to `moved` by `deltas`, with the normal deltas
+/// that makes (the moved mesh's vertex normals minus the neutral's, on the neutral's triangles).
+fn with_normals(name: &str, neutral: &Mesh, moved: &[Vec3], deltas: Vec<Vec3>) -> MorphTarget {
+    let n = neutral.vertex_count();
     let mut n0 = vec![Vec3::ZERO; n];
     let mut n1 = vec![Vec3::ZERO; n];
     vertex_normals(&neutral.positions, &neutral.triangles, &mut n0);
-    vertex_normals(&target.positions, &target.triangles, &mut n1);
-    Ok(MorphTarget {
+    vertex_normals(moved, &neutral.triangles, &mut n1);
+    MorphTarget {
         name: name.to_string(),
-        position_deltas: target
-            .positions
-            .iter()
-            .zip(&neutral.positions)
-            .map(|(t, p)| *t - *p)
-            .collect(),
+        position_deltas: deltas,
         normal_deltas: n1.iter().zip(&n0).map(|(a, b)| *a - *b).collect(),
-    })
+    }
 }
 
 /// The morph targets listed in the rig file at `rig_path`, as deltas against `rig`'s mesh.
@@ -187,15 +195,7 @@ pub fn packed_target(
         .zip(&shape.deltas)
         .map(|(p, d)| *p + *d)
         .collect();
-    let mut n0 = vec![Vec3::ZERO; n];
-    let mut n1 = vec![Vec3::ZERO; n];
-    vertex_normals(&neutral.positions, &neutral.triangles, &mut n0);
-    vertex_normals(&moved, &neutral.triangles, &mut n1);
-    Ok(MorphTarget {
-        name: name.to_string(),
-        position_deltas: shape.deltas.clone(),
-        normal_deltas: n1.iter().zip(&n0).map(|(a, b)| *a - *b).collect(),
-    })
+    Ok(with_normals(name, neutral, &moved, shape.deltas.clone()))
 }
 
 /// Writes targets as a morph data file; `comment` lines go into the header.
