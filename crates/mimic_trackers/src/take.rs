@@ -139,6 +139,29 @@ pub fn timecode_rate(max_frame: f64) -> Option<u32> {
         .find(|r| max_frame.floor() < f64::from(*r))
 }
 
+/// Where each Live Link curve is among a header's `names` (any case), or why not: a curve
+/// named twice.
+pub(crate) fn curve_columns(names: &[&str]) -> Result<[Option<usize>; CURVES], String> {
+    let mut columns = [None; CURVES];
+    for (c, name) in names.iter().enumerate() {
+        if let Some(i) = curve_index(name) {
+            if columns[i].is_some() {
+                return Err(format!("column `{name}` appears twice"));
+            }
+            columns[i] = Some(c);
+        }
+    }
+    Ok(columns)
+}
+
+/// A curve's value `v` in column `column`: a finite number, or why not.
+pub(crate) fn curve_value(v: &str, column: &str) -> Result<f32, String> {
+    v.parse::<f32>()
+        .ok()
+        .filter(|x| x.is_finite())
+        .ok_or_else(|| format!("column `{column}`: `{v}` is not a number"))
+}
+
 /// Parses a take's text; errors name `path` and the line.
 pub fn parse_take(text: &str, path: &Path) -> Result<Take, TrackerError> {
     let err = |line: usize, reason: String| TrackerError::Line {
@@ -156,15 +179,7 @@ pub fn parse_take(text: &str, path: &Path) -> Result<Take, TrackerError> {
     let timecode = find("Timecode").ok_or_else(|| err(1, "no `Timecode` column".into()))?;
     let count =
         find("BlendShapeCount").ok_or_else(|| err(1, "no `BlendShapeCount` column".into()))?;
-    let mut columns = [None; CURVES];
-    for (c, name) in names.iter().enumerate() {
-        if let Some(i) = curve_index(name) {
-            if columns[i].is_some() {
-                return Err(err(1, format!("column `{name}` appears twice")));
-            }
-            columns[i] = Some(c);
-        }
-    }
+    let columns = curve_columns(&names).map_err(|r| err(1, r))?;
     if columns.iter().all(Option::is_none) {
         return Err(err(1, "no Live Link curve column (e.g. `JawOpen`)".into()));
     }
@@ -197,16 +212,7 @@ pub fn parse_take(text: &str, path: &Path) -> Result<Take, TrackerError> {
                         ),
                     )
                 })?;
-                curves[k] = v
-                    .parse::<f32>()
-                    .ok()
-                    .filter(|x| x.is_finite())
-                    .ok_or_else(|| {
-                        err(
-                            line,
-                            format!("column `{}`: `{v}` is not a number", CURVE_NAMES[k]),
-                        )
-                    })?;
+                curves[k] = curve_value(v, CURVE_NAMES[k]).map_err(|r| err(line, r))?;
             }
         }
         raw.push((line, secs, frames, n > 0, curves));

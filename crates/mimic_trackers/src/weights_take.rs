@@ -6,7 +6,9 @@
 
 use crate::error::TrackerError;
 use crate::livelink::{CURVES, curve_index};
-use crate::take::{Take, TakeRow, WRITTEN_TIMECODE_RATE, is_take_header};
+use crate::take::{
+    Take, TakeRow, WRITTEN_TIMECODE_RATE, curve_columns, curve_value, is_take_header,
+};
 use std::path::Path;
 
 /// Columns of a weights CSV that are not weights.
@@ -42,15 +44,7 @@ pub fn parse_weights_take(text: &str, path: &Path) -> Result<Take, TrackerError>
     let find = |n: &str| names.iter().position(|c| c.eq_ignore_ascii_case(n));
     let t_col = find("t_us").ok_or_else(|| err(1, "no `t_us` column".into()))?;
     let status = find("status");
-    let mut columns = [None; CURVES];
-    for (c, name) in names.iter().enumerate() {
-        if let Some(i) = curve_index(name) {
-            if columns[i].is_some() {
-                return Err(err(1, format!("column `{name}` appears twice")));
-            }
-            columns[i] = Some(c);
-        }
-    }
+    let columns = curve_columns(&names).map_err(|r| err(1, r))?;
     let mut rows: Vec<TakeRow> = Vec::new();
     let mut t0 = None;
     for (i, l) in lines {
@@ -86,16 +80,7 @@ pub fn parse_weights_take(text: &str, path: &Path) -> Result<Take, TrackerError>
         for (k, col) in columns.iter().enumerate() {
             let Some(c) = *col else { continue };
             let v = field(c)?;
-            curves[k] = v
-                .parse::<f32>()
-                .ok()
-                .filter(|x| x.is_finite())
-                .ok_or_else(|| {
-                    err(
-                        line,
-                        format!("column `{}`: `{v}` is not a number", names[c]),
-                    )
-                })?;
+            curves[k] = curve_value(v, names[c]).map_err(|r| err(line, r))?;
         }
         rows.push(TakeRow {
             line,
