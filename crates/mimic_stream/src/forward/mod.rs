@@ -19,8 +19,8 @@ use glam::Quat;
 use mimic_retarget::WeightMap;
 use mimic_retarget::gaze::{EYE_LOOK_NAMES, EyeGaze, eye_look_weights};
 use mimic_trackers::livelink::{
-    BLENDSHAPES, CURVE_NAMES, CURVES, HEAD_YAW, LEFT_EYE_YAW, LiveLinkPacket, encode_packet,
-    head_angles,
+    BLENDSHAPES, CURVE_NAMES, CURVES, HEAD_YAW, LEFT_EYE_YAW, LiveLinkPacket, curve_index,
+    encode_packet, head_angles,
 };
 use mimic_trackers::namemap::{Inverse, Mapping, NameMap};
 use std::net::{SocketAddr, UdpSocket};
@@ -153,14 +153,14 @@ pub struct Forwarder {
 /// Writes gaze `g` into Live Link `curves`: ARKit's eight `eyeLook*` weights by name, and each
 /// eye's yaw and pitch (radians, as the head's angles) into `LeftEyeYaw` .. `RightEyePitch`.
 fn put_gaze(g: [EyeGaze; 2], curves: &mut [f32; CURVES]) {
+    // Where the eight eyeLook curves are, found once (not per forwarded frame).
+    static LOOK_CURVES: std::sync::OnceLock<[Option<usize>; 8]> = std::sync::OnceLock::new();
+    let at = LOOK_CURVES.get_or_init(|| EYE_LOOK_NAMES.map(curve_index));
     let mut look = [0.0; 8];
     eye_look_weights(g, &mut look);
-    for (name, w) in EYE_LOOK_NAMES.iter().zip(look) {
-        if let Some(k) = CURVE_NAMES[..BLENDSHAPES]
-            .iter()
-            .position(|c| c.eq_ignore_ascii_case(name))
-        {
-            curves[k] = w;
+    for (k, w) in at.iter().zip(look) {
+        if let Some(k) = k {
+            curves[*k] = w;
         }
     }
     for (eye, e) in g.iter().enumerate() {
