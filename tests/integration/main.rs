@@ -39,6 +39,7 @@ mod record_weights;
 mod regression;
 mod render;
 mod replay;
+mod replay_audio;
 mod replay_take;
 mod rig_new;
 mod rig_orient;

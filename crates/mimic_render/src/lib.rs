@@ -15,6 +15,7 @@
 
 mod camera;
 mod error;
+pub mod headless;
 mod image;
 pub mod overlay;
 mod renderer;

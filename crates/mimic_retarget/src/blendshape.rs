@@ -101,6 +101,11 @@ pub struct BlendshapeFitter {
     eye_look_targets: [Option<usize>; 8],
     /// The gaze's `eyeLook*` weights for the next [`BlendshapeFitter::apply`], if any.
     eye_look: Option<[f32; 8]>,
+    /// Each target's ARKit name, if it has one (by ARKit or ICT spelling).
+    arkit: Vec<Option<&'static str>>,
+    /// Per target, a weight from another source (speech) that replaces the fit's at the next
+    /// [`BlendshapeFitter::apply`] ([`BlendshapeFitter::set_mouth`]).
+    mouth: Vec<Option<f32>>,
 }
 
 impl BlendshapeFitter {
@@ -185,6 +190,11 @@ impl BlendshapeFitter {
                     .position(|t| mimic_types::arkit::arkit_name(&t.name) == Some(look))
             }),
             eye_look: None,
+            arkit: targets
+                .iter()
+                .map(|t| mimic_types::arkit::arkit_name(&t.name))
+                .collect(),
+            mouth: vec![None; k],
         })
     }
 
@@ -193,6 +203,18 @@ impl BlendshapeFitter {
     /// (the controls barely see where the eyes look); `None` leaves the fit's.
     pub fn set_eye_look(&mut self, weights: Option<[f32; 8]>) {
         self.eye_look = weights;
+    }
+
+    /// ARKit weights by name (`names[i]` weighs `weights[i]`; the mouth's, from speech) that
+    /// replace the fit's on the targets of those names at the next [`BlendshapeFitter::apply`];
+    /// `None` leaves the fit's. Allocates nothing.
+    pub fn set_mouth(&mut self, named: Option<(&[&str], &[f32])>) {
+        for (slot, arkit) in self.mouth.iter_mut().zip(&self.arkit) {
+            *slot = named.and_then(|(names, weights)| {
+                let i = names.iter().position(|n| Some(*n) == *arkit)?;
+                weights.get(i).copied()
+            });
+        }
     }
 
     /// How many of ARKit's eight `eyeLook*` shapes the rig has as targets.
@@ -345,6 +367,11 @@ impl BlendshapeFitter {
                         }
                     }
                 }
+                for (w, m) in self.weights.iter_mut().zip(&self.mouth) {
+                    if let Some(m) = m {
+                        *w = m.clamp(0.0, 1.0);
+                    }
+                }
             }
         }
         let weights = std::mem::take(&mut self.weights);
@@ -490,6 +517,52 @@ mod tests {
             (w[1] - 0.3).abs() < 1e-5 && (w[2] - 0.2).abs() < 1e-5,
             "{w:?}"
         );
+    }
+
+    #[test]
+    fn speech_sets_the_mouth_targets_it_names_and_the_fit_the_rest() {
+        let rig = grid_rig();
+        let mut t = targets(&rig);
+        // Target 1 is ARKit's jawOpen, target 2 mouthClose in ICT's (= ARKit's) spelling.
+        t[1].name = "jawOpen".into();
+        t[2].name = "mouthClose".into();
+        let settings = BlendshapeSettings {
+            ridge: 0.0,
+            smoothing: None,
+        };
+        let mut f = BlendshapeFitter::new(&rig, &t, &settings).unwrap();
+        let mut out = FrameOutput {
+            timestamp_us: 0,
+            status: FrameStatus::Tracked,
+            positions: rig.mesh.positions.clone(),
+            normals: Vec::new(),
+            displacements: control_d(&rig, &t, &[0.6, 0.3, 0.2]),
+            pose: mimic_types::HeadPose::IDENTITY,
+            target_rotation: glam::Quat::IDENTITY,
+            filled: 0,
+            times: Default::default(),
+        };
+        // The speech names jawOpen (1.5 is clamped to 1) and a shape the rig lacks.
+        f.set_mouth(Some((&["tongueOut", "jawOpen"], &[0.9, 1.5])));
+        let w = f.apply(&mut out).to_vec();
+        assert!(
+            (w[0] - 0.6).abs() < 1e-5 && (w[2] - 0.2).abs() < 1e-5,
+            "{w:?}"
+        );
+        assert_eq!(w[1], 1.0);
+        // The blend follows the weights in use.
+        let mut want = rig.mesh.positions.clone();
+        for (k, wk) in w.iter().enumerate() {
+            for (p, d) in want.iter_mut().zip(&t[k].position_deltas) {
+                *p += *d * *wk;
+            }
+        }
+        for (a, b) in out.positions.iter().zip(&want) {
+            assert!(a.distance(*b) <= 1e-5 * (1.0 + b.length()), "{a} vs {b}");
+        }
+        f.set_mouth(None);
+        let w = f.apply(&mut out).to_vec();
+        assert!((w[1] - 0.3).abs() < 1e-5, "{w:?}");
     }
 
     #[test]

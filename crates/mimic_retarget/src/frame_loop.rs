@@ -172,6 +172,7 @@ impl FrameLoop {
                     crate::gaze::eye_look_weights(g, &mut w);
                     w
                 }));
+                b.fitter.set_mouth(r.mouth().and_then(|m| m.weights()));
                 let w = b.fitter.apply(&mut self.out);
                 if self.out.status == FrameStatus::Tracked {
                     b.stats.push(w, elapsed_ns(fitted));

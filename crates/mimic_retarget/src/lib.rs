@@ -26,6 +26,7 @@ mod frame_loop;
 pub use mimic_types::frame_metrics;
 mod gate;
 pub mod gaze;
+pub mod mouth;
 mod patch;
 mod pipeline;
 pub mod quality;

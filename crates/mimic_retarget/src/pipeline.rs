@@ -119,6 +119,8 @@ pub struct Retargeter {
     pub(crate) eye_turn: Option<[crate::gaze::EyeGaze; 2]>,
     /// The gaze, for a layout with pupils (`[gaze]`).
     pub(crate) gaze: Option<GazeTracker>,
+    /// The mouth from another source (speech), mixed into `d` before the deform.
+    pub(crate) mouth: Option<crate::mouth::MouthDrive>,
 }
 
 impl Retargeter {
@@ -227,6 +229,7 @@ impl Retargeter {
             gaze: GazePoints::of(layout).map(|p| GazeTracker::new(p, GazeSettings::default())),
             parts: part_motion,
             eye_turn: None,
+            mouth: None,
             settings: settings.clone(),
         };
         match settings.neutral {
@@ -504,6 +507,12 @@ impl Retargeter {
 
     /// `positions = rest + B d` and normals, over the moving part only; returns the instants after each.
     fn deform(&mut self, out: &mut FrameOutput) -> (Instant, Instant) {
+        if let Some(mouth) = self.mouth.as_mut() {
+            mouth.apply(
+                out.timestamp_us,
+                &mut out.displacements[..self.target_controls.len()],
+            );
+        }
         self.parts.fill(&mut out.displacements, self.eye_turn);
         if !self.settings.positions {
             let t = Instant::now();
@@ -515,6 +524,17 @@ impl Retargeter {
             self.patch.normals(&mut out.normals);
         }
         (t4, Instant::now())
+    }
+
+    /// Lets `mouth` drive the mouth's controls from now on (`None`: the tracker again); the jaw
+    /// follows them, as it follows the tracker's.
+    pub fn set_mouth(&mut self, mouth: Option<crate::mouth::MouthDrive>) {
+        self.mouth = mouth;
+    }
+
+    /// The mouth drive, if one is set.
+    pub fn mouth(&self) -> Option<&crate::mouth::MouthDrive> {
+        self.mouth.as_ref()
     }
 
     /// The eyes' gaze (left, right) the last frame turned the eyeballs by, once one is read (a

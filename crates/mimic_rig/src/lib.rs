@@ -25,6 +25,7 @@ pub mod picture;
 pub mod place;
 pub mod register;
 pub mod rigid_parts;
+pub mod speech_mouth;
 pub mod summary;
 pub mod transfer;
 pub mod write;

@@ -47,6 +47,6 @@ pub use catalog_load::{CatalogLoadError, load_catalog};
 pub use server::Server;
 pub use settings::{
     BindError, DEFAULT_LISTEN, HELLO_MAX_BYTES, HttpSettings, LiveLinkIntake, RecordMode,
-    ServerSettings, check_bind, check_binds,
+    ServerSettings, check_bind, check_binds, token_or_env,
 };
 pub use stats::{LatencyHistogram, LatencySummary, ServerStats, SessionSnapshot, ViewerSnapshot};

@@ -281,3 +281,9 @@ mod tests {
         ));
     }
 }
+
+/// `--token`, else the MIMIC_TOKEN environment variable (shared by serve, send and view).
+pub fn token_or_env(flag: Option<&str>) -> Option<String> {
+    flag.map(str::to_string)
+        .or_else(|| std::env::var("MIMIC_TOKEN").ok())
+}

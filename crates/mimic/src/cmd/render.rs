@@ -1,7 +1,7 @@
 //! `mimic render`: frames of a recording retargeted onto a rig, rendered headless to PNG (the
 //! drawing is `mimic_view::stills`).
 
-use crate::cmd::setup::{PipelineArgs, RigArgs, parse_size, prepare_with, quiet_headless_vulkan};
+use crate::cmd::setup::{PipelineArgs, RigArgs, prepare_with};
 use anyhow::bail;
 use mimic_capture::RecordingReader;
 use mimic_render::{Camera, Renderer, View};
@@ -60,8 +60,9 @@ pub struct Args {
 
 /// Runs `mimic render`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    quiet_headless_vulkan();
-    let (width, height) = parse_size(&args.size)?;
+    // SAFETY: no thread has started yet.
+    unsafe { mimic_render::headless::quiet_headless_vulkan() };
+    let (width, height) = mimic_types::parse::parse_size(&args.size).map_err(anyhow::Error::msg)?;
     if args.frames.is_empty() && args.sheet.is_none() {
         bail!("nothing to render: give --frames 0,30,60 or --sheet N");
     }

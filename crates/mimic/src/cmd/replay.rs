@@ -14,6 +14,7 @@ use mimic_assets::load_morph_targets;
 use mimic_capture::{FileSource, Pace, RecordingReader, Replay, ReplayOptions};
 use mimic_retarget::summary::ReplaySummary;
 use mimic_retarget::{BlendshapeFitter, FrameLoop};
+use mimic_rig::speech_mouth::speech_drive;
 use std::io::IsTerminal;
 use std::path::PathBuf;
 use std::time::Instant;
@@ -99,6 +100,20 @@ pub struct Args {
     /// Print the per-stage timings (median and p99 of each stage of the step) too.
     #[arg(long)]
     pub detail: bool,
+    /// Speech (WAV) whose lip sync drives the mouth; the rest of the face follows the recording.
+    #[arg(long, value_name = "WAV")]
+    pub audio: Option<PathBuf>,
+    /// Seconds after the recording's first frame at which the audio starts (negative: before).
+    #[arg(
+        long,
+        default_value_t = 0.0,
+        allow_hyphen_values = true,
+        requires = "audio"
+    )]
+    pub audio_offset: f64,
+    /// The words of `--audio` (text, or a file of it): phones aligned to them, not recognised.
+    #[arg(long, requires = "audio")]
+    pub transcript: Option<String>,
 }
 
 impl Args {
@@ -126,8 +141,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         positions: args.blend.mode == Mode::Freeform,
         ..args.pipeline.settings()
     };
-    let prepared = prepare_with(&args.rig, settings, &reader.header().layout)?;
+    let mut prepared = prepare_with(&args.rig, settings, &reader.header().layout)?;
     let rig = prepared.rig.clone();
+    if let Some(wav) = &args.audio {
+        let (root, words) = (args.rig.config_dirs().root, args.transcript.as_deref());
+        let (drive, line) = speech_drive(&root, &rig, wav, words, args.audio_offset)?;
+        eprintln!("{line}");
+        prepared.retargeter.set_mouth(Some(drive));
+    }
     let (fitter, targets) = match blend_fitter(&args, &rig)? {
         Some((fitter, targets)) => (Some(fitter), targets),
         None => (None, Vec::new()),

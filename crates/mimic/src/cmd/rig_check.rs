@@ -1,7 +1,7 @@
 //! `mimic rig check`: warnings about a rig, and a labelled picture of its neutral (logic in
 //! `mimic_rig::check` and `mimic_rig::picture`; drawn by `mimic_view::stills::rig_picture`).
 
-use crate::cmd::setup::{load_rig_with_targets, parse_size};
+use crate::cmd::setup::load_rig_with_targets;
 use mimic_assets::ConfigDirs;
 use mimic_render::Renderer;
 use std::path::PathBuf;
@@ -26,13 +26,15 @@ pub struct Args {
 /// Runs `mimic rig check`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.output.is_some() {
-        crate::cmd::setup::quiet_headless_vulkan();
+        // SAFETY: no thread has started yet.
+        unsafe { mimic_render::headless::quiet_headless_vulkan() };
     }
     let path = ConfigDirs::locate(None).rig_path(&args.rig);
     let (rig, _) = load_rig_with_targets(&args.rig, None)?;
     let warnings = mimic_rig::check_rig(&rig);
     if let Some(out) = &args.output {
-        let (width, height) = parse_size(&args.size)?;
+        let (width, height) =
+            mimic_types::parse::parse_size(&args.size).map_err(anyhow::Error::msg)?;
         let renderer = Renderer::new(width, height)?;
         let image = mimic_view::stills::rig_picture(&renderer, &rig, (width, height))?;
         image.save_png(out)?;

@@ -86,7 +86,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let o = SendOptions {
         to: args.to.clone(),
         session: args.session.clone(),
-        token: crate::cmd::setup::token_or_env(args.token.as_deref()),
+        token: mimic_stream::token_or_env(args.token.as_deref()),
         rig: args.rig.clone(),
         forward: args.forward,
         rate: args.rate,

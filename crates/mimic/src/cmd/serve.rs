@@ -179,7 +179,7 @@ fn seconds(s: f64, what: &str) -> anyhow::Result<Duration> {
 /// Runs `mimic serve` until Ctrl-C.
 pub fn run(args: Args) -> anyhow::Result<()> {
     // Protected mode first: no rig is loaded for a server that may not start.
-    let token = crate::cmd::setup::token_or_env(args.token.as_deref());
+    let token = mimic_stream::token_or_env(args.token.as_deref());
     let t = token.as_deref();
     let udp = (!args.no_udp).then(|| args.udp.unwrap_or(args.listen));
     // The trackers' own protocols carry no token: beyond loopback they need one all the same

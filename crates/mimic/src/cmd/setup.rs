@@ -132,10 +132,6 @@ pub fn timed_basis(rig: &Rig, settings: &SolverSettings) -> anyhow::Result<(Basi
 
 pub use mimic_types::parse::{parse_seconds, parse_seconds_f32};
 
-/// Parses `WIDTHxHEIGHT` (`mimic_types::parse::parse_size`).
-pub fn parse_size(s: &str) -> anyhow::Result<(u32, u32)> {
-    mimic_types::parse::parse_size(s).map_err(anyhow::Error::msg)
-}
 pub use tuning::SolverTuningArgs;
 
 /// The warning `--f16-weights` prints (once): the f16 weights are gone from the deform.
@@ -296,12 +292,6 @@ pub fn fit_candide3(
     )?)
 }
 
-/// `--token`, else the MIMIC_TOKEN environment variable (shared by serve, send and view).
-pub fn token_or_env(flag: Option<&str>) -> Option<String> {
-    flag.map(str::to_string)
-        .or_else(|| std::env::var("MIMIC_TOKEN").ok())
-}
-
 /// The rigs (`--rig` first, then `--also-rig`, each with its basis and morph targets) and every
 /// layout of the config folder, as a server (or a `mimic worker`) offers them; and each rig's
 /// file by rig name (for the browser viewer's GLBs).
@@ -317,30 +307,4 @@ pub(crate) fn build_catalog(
         .map(String::as_str);
     let settings = |rig: &Rig| args_rig.solver_settings(rig);
     Ok(load_catalog(&args_rig.config_dirs(), rigs, settings)?)
-}
-
-/// Keeps Mesa's Vulkan device-select layer from looking for a Wayland display where there can be
-/// none (no absolute `XDG_RUNTIME_DIR`): its look asks libwayland, which prints
-/// `error: XDG_RUNTIME_DIR is invalid or not set in the environment.` once per device listing.
-/// The layer only orders the devices (a display's GPU first); without a display the renderer
-/// picks its adapter alone. Called by the headless commands first thing, before any thread.
-pub fn quiet_headless_vulkan() {
-    let runtime_dir = std::env::var_os("XDG_RUNTIME_DIR");
-    let no_display = runtime_dir.is_none_or(|d| !Path::new(&d).is_absolute());
-    if no_display && std::env::var_os("NODEVICE_SELECT").is_none() {
-        // SAFETY: the command has started no thread yet, so nothing reads the environment
-        // while it is written.
-        unsafe { std::env::set_var("NODEVICE_SELECT", "1") };
-    }
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn sizes_parse() {
-        assert_eq!(parse_size("640x480").unwrap(), (640, 480));
-        assert!(parse_size("640").is_err());
-    }
 }

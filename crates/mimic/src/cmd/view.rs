@@ -1,7 +1,7 @@
 //! `mimic view`: a window replaying a recording through the retargeter, or following a live
 //! `mimic serve` session (`--connect`), drawn with the GPU morph (`crates/mimic_view`).
 
-use crate::cmd::setup::{PipelineArgs, RigArgs, parse_size};
+use crate::cmd::setup::{PipelineArgs, RigArgs};
 use anyhow::bail;
 use mimic_capture::RecordingReader;
 use mimic_render::Renderer;
@@ -90,7 +90,7 @@ fn live_viewer(args: &Args, addr: &str, options: Options) -> anyhow::Result<View
             _ => Look::default(),
         }
     });
-    let token = crate::cmd::setup::token_or_env(args.token.as_deref());
+    let token = mimic_stream::token_or_env(args.token.as_deref());
     let session = &args.session;
     Ok(Viewer::connect(
         addr,
@@ -140,9 +140,10 @@ fn local_viewer(args: &Args, recording: &Path, options: Options) -> anyhow::Resu
 /// Runs `mimic view`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     if args.headless_frames.is_some() {
-        crate::cmd::setup::quiet_headless_vulkan();
+        // SAFETY: no thread has started yet.
+        unsafe { mimic_render::headless::quiet_headless_vulkan() };
     }
-    let (width, height) = parse_size(&args.size)?;
+    let (width, height) = mimic_types::parse::parse_size(&args.size).map_err(anyhow::Error::msg)?;
     let keys = mimic_view::keys::actions_named(&args.headless_keys)?;
     let options = Options {
         pose: args.pose,

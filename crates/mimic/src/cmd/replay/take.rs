@@ -18,9 +18,9 @@ use std::time::{Duration, Instant};
 /// Replays the take `args.recording`.
 pub fn run(args: &Args) -> anyhow::Result<()> {
     let path = &args.recording;
-    if args.metrics.is_some() || args.controls.is_some() {
+    if args.metrics.is_some() || args.controls.is_some() || args.audio.is_some() {
         bail!(
-            "{}: a Live Link take drives morph targets: --metrics and --controls are for landmark recordings",
+            "{}: a Live Link take drives morph targets: --metrics, --controls and --audio are for landmark recordings",
             path.display()
         );
     }
