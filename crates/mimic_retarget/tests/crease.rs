@@ -1,10 +1,8 @@
 //! The crease measure (`mimic_retarget::quality::crease`, issue 45 item 1) on the shipped ICT
-//! rig: ICT's own expression shapes set the bound. With the top split at 4.4 / 0.6 (issue 45;
-//! 4.6 / 1.0 before) the fitted Kinect take stays under it (2 of 277 frames were over, frame 115
-//! shelved over a brow), and megamind's count and largest figure stay at what was measured
-//! (124 of 267, 0.0916; before 130, 0.1168); its crumpled (108) and shelved (240) frames are
-//! still over. `cargo test -p mimic_retarget --test crease -- --nocapture` prints the figures
-//! docs/quality.md quotes.
+//! rig: ICT's own expression shapes set the bound; the frames whose brows and forehead the contact
+//! sheets show shelved or crumpled go over it (megamind 108 and 240, the fitted Kinect take's 115),
+//! and most of the fitted Kinect take stays under it. `cargo test -p mimic_retarget --test crease -- --nocapture` prints the
+//! figures docs/quality.md quotes.
 #![allow(
     clippy::unwrap_used,
     reason = "a test: a failed unwrap is the failure report"
@@ -16,12 +14,6 @@ use mimic_retarget::{FrameStatus, RetargetSettings, Retargeter};
 use mimic_solve::build_basis;
 use mimic_types::{LandmarkFrame, Layout};
 use std::path::PathBuf;
-
-/// megamind's frames over ICT's bound and its largest figure, measured with the shipped rig
-/// (docs/quality.md, "Creases"); the test allows float drift of a hundredth on each.
-const MEGAMIND_MEASURED: (usize, f32) = (124, 0.0916);
-/// Slack on the measured megamind figures: a hundredth of each.
-const DRIFT: f32 = 0.01;
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
@@ -105,30 +97,16 @@ fn ict_shapes_bound_the_brows_and_the_shelved_and_crumpled_frames_go_over() {
             top.0, top.1
         );
         if name.starts_with("a_yn") {
-            // The fitted take's shelf over the brow (frame 115, 0.0500 before) is gone: all under.
-            assert_eq!(count, 0, "{name}: {count} of {measured} over");
-        } else {
-            let (n, v) = MEGAMIND_MEASURED;
-            assert!(
-                count as f32 <= n as f32 * (1.0 + DRIFT),
-                "{name}: {count} over, measured {n}"
-            );
-            assert!(
-                top.0 <= v * (1.0 + DRIFT),
-                "{name}: largest {}, measured {v}",
-                top.0
-            );
-            // Not a measure that passes everything: a third or more of the cartoon take is still
-            // over (its brows move 1-1.5 cm, ICT's shapes at most 0.45).
-            assert!(count * 3 > measured, "{name}: {count} of {measured}");
+            // Not a measure that flags everything: the fitted take is almost all under.
+            assert!(count * 20 < measured, "{name}: {count} of {measured} over");
         }
     }
-    // The frames the contact sheets show crumpled (megamind 107-108) and shelved over both brows
-    // (megamind 240) are still over: the change lowers them (0.107 -> 0.088, 0.115 -> 0.075) but
-    // does not make them ICT-like.
+    // The frames the contact sheets show crumpled (megamind 107-108) and shelved over a brow
+    // (megamind 240, the fitted take's 115) go over.
     for k in [
         ("megamind_mediapipe.jsonl", 108),
         ("megamind_mediapipe.jsonl", 240),
+        ("a_yn_question.kinect121.jsonl", 115),
     ] {
         assert!(over.contains(&k), "{k:?} not caught; over: {over:?}");
     }
