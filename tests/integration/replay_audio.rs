@@ -125,6 +125,21 @@ fn speech_drives_the_mouth_of_a_mediapipe_replay_and_the_tracker_the_brows() {
         "{closed_a} of {}",
         silent.len()
     );
+    // Where the speech opens the jaw wide, the lips open with it (the tracker's do not follow it).
+    let wide: Vec<usize> = (0..t.len())
+        .filter(|&i| at[i].is_some_and(|k| said_jaw[k] >= 0.3))
+        .collect();
+    let opened = |o: &[f64]| wide.iter().filter(|&&i| o[i] >= 0.25 * widest).count();
+    let (opened_a, opened_p) = (opened(&open_a), opened(&open_p));
+    eprintln!(
+        "wide-open speech: {} frames, lips open >= 0.25 of the widest in {opened_a} with the audio, {opened_p} on the tracker alone",
+        wide.len()
+    );
+    assert!(
+        wide.len() >= 10 && opened_a * 10 >= wide.len() * 8,
+        "{opened_a} of {}",
+        wide.len()
+    );
 
     // Blend-shape mode: the rig's jawOpen is shut in the silences.
     let jaw = column(&weights, "jawOpen");
