@@ -16,6 +16,9 @@ use std::path::Path;
 /// The template rig whose controls read ICT's shapes, relative to `configs/`.
 pub const TEMPLATE_RIG: &str = "rigs/ict-face.toml";
 
+/// One shape's displacement at every control of a rig, if the template has the shape.
+pub type ShapeAtControls = Option<Vec<Vec3>>;
+
 /// Why the mouth cannot be driven from speech.
 #[derive(Debug, thiserror::Error)]
 pub enum SpeechMouthError {
@@ -39,7 +42,7 @@ pub fn mouth_shapes(
     configs: &Path,
     rig: &Rig,
     names: &[&str],
-) -> Result<(Vec<Option<Vec<Vec3>>>, Vec<f32>), RigNewError> {
+) -> Result<(Vec<ShapeAtControls>, Vec<f32>), RigNewError> {
     let template = mimic_assets::load_rig(&configs.join(TEMPLATE_RIG))?;
     let pack = mimic_assets::load_shape_pack(&configs.join(ICT_EXPRESSIONS))?;
     let (shapes, _) = arkit_from_ict(&pack);

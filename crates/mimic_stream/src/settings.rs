@@ -260,6 +260,12 @@ pub fn check_binds(
     Ok(())
 }
 
+/// `--token`, else the MIMIC_TOKEN environment variable (shared by serve, send and view).
+pub fn token_or_env(flag: Option<&str>) -> Option<String> {
+    flag.map(str::to_string)
+        .or_else(|| std::env::var("MIMIC_TOKEN").ok())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -280,10 +286,4 @@ mod tests {
             Err(BindError::EmptyToken)
         ));
     }
-}
-
-/// `--token`, else the MIMIC_TOKEN environment variable (shared by serve, send and view).
-pub fn token_or_env(flag: Option<&str>) -> Option<String> {
-    flag.map(str::to_string)
-        .or_else(|| std::env::var("MIMIC_TOKEN").ok())
 }
