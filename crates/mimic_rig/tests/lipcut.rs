@@ -323,7 +323,22 @@ fn rig_new_cuts_a_closed_mouth_and_jaw_open_opens_it() {
     let mut lines = Vec::new();
     let made = make_rig_file(&job, &mut |l| lines.push(l)).unwrap();
     println!("{}", lines.join("\n"));
+    println!("{}", made.summary(&out));
     let rig = mimic_assets::load_rig(&out).unwrap();
+    // The added inside: the lower teeth ride on the jaw, the socket and the gums and tongue on
+    // it below the lip line.
+    let jaw_part = rig.parts.jaw.as_ref().unwrap();
+    let count = |rs: &[[u32; 2]]| rs.iter().map(|[a, b]| (b - a + 1) as usize).sum::<usize>();
+    assert!(count(&jaw_part.vertices) > 500, "{:?}", jaw_part.vertices);
+    assert!(count(&jaw_part.ramped) > 2000, "{:?}", jaw_part.ramped);
+    assert!(
+        jaw_part
+            .vertices
+            .iter()
+            .chain(&jaw_part.ramped)
+            .all(|[a, _]| *a as usize >= scan.mesh.vertex_count()),
+        "the jaw's parts are the added pieces"
+    );
     let n = scan.mesh.vertex_count();
     assert!(mimic_rig::cut_mesh_path(&out).exists());
     // The cut's pairs: each copy (after the scan's vertices) and the original at its place; the
