@@ -343,3 +343,52 @@ pub fn cut_closed_mouth(
         length,
     }))
 }
+
+/// What `rig check` says of a rig's mouth: whether its lips were cut open (vertex pairs at one
+/// place within 0.6 IOD of the upper inner lip, 2.2: the cut's vertex and its lower copy) and
+/// what rides on its jaw; `None` for a rig without 2.2 or the eyes' FDPs.
+pub fn mouth_note(rig: &mimic_types::Rig) -> Option<String> {
+    let iod = crate::register::rig_iod(rig)?;
+    let lip = rig
+        .controls
+        .iter()
+        .find(|c| c.fdp.to_string() == "2.2")
+        .and_then(|c| rig.mesh.positions.get(c.vertex as usize))
+        .copied()?;
+    let mut used = vec![false; rig.mesh.vertex_count()];
+    for t in &rig.mesh.triangles {
+        for v in t {
+            if let Some(u) = used.get_mut(*v as usize) {
+                *u = true;
+            }
+        }
+    }
+    let mut near: Vec<(u32, [u32; 3])> = rig
+        .mesh
+        .positions
+        .iter()
+        .enumerate()
+        .filter(|(v, p)| used[*v] && p.distance(lip) < 0.6 * iod)
+        .map(|(v, p)| (v as u32, p.to_array().map(f32::to_bits)))
+        .collect();
+    near.sort_by_key(|(v, bits)| (*bits, *v));
+    let split = near.windows(2).filter(|w| w[0].1 == w[1].1).count();
+    let count = |rs: &[[u32; 2]]| rs.iter().map(|[a, b]| (b - a + 1) as usize).sum::<usize>();
+    let jaw = rig.parts.jaw.as_ref().map_or_else(
+        || "no jaw part".to_string(),
+        |j| {
+            format!(
+                "the jaw carries {} vertices whole and {} ramped across the lip line",
+                count(&j.vertices),
+                count(&j.ramped)
+            )
+        },
+    );
+    Some(if split > 0 {
+        format!(
+            "mouth: the lips are cut open ({split} vertices split along the lip line, the lower lip on the copies); {jaw}"
+        )
+    } else {
+        format!("mouth: no cut (no two vertices at one place along the lips); {jaw}")
+    })
+}

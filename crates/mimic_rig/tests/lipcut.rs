@@ -230,6 +230,9 @@ fn a_closed_mouth_is_found_and_cut_along_the_zipped_lip_line_and_icts_own_is_ope
             .unwrap()
             .is_none()
     );
+    let ict = mimic_assets::load_rig(&configs().join("rigs/ict-face.toml")).unwrap();
+    let note = mimic_rig::lipcut::mouth_note(&ict).unwrap();
+    assert!(note.starts_with("mouth: no cut"), "{note}");
     let scan = closed_lip_scan(3, 0.3);
     let found = find_landmarks(&scan.mesh, &template, &FindSettings::default()).unwrap();
     let frame = landmark_frame(&scan.mesh, &found.landmarks).unwrap();
@@ -341,6 +344,9 @@ fn rig_new_cuts_a_closed_mouth_and_jaw_open_opens_it() {
     );
     let n = scan.mesh.vertex_count();
     assert!(mimic_rig::cut_mesh_path(&out).exists());
+    let note = mimic_rig::lipcut::mouth_note(&rig).unwrap();
+    println!("{note}");
+    assert!(note.contains("the lips are cut open"), "{note}");
     // The cut's pairs: each copy (after the scan's vertices) and the original at its place; the
     // mouth's inside follows the copies.
     let (mut path, mut lower) = (Vec::new(), Vec::new());
