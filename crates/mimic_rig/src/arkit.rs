@@ -175,14 +175,16 @@ pub fn arkit_line(made: &ArkitShapes, pack: &Path) -> String {
     )
 }
 
-/// `rig new --blendshapes arkit`: makes the ARKit shapes for `face` (the registered mesh; `rig`'s working mesh is it and then
-/// an avatar's frozen parts), writes them beside the rig and appends their entries to the rig
-/// file, which is then read back with its morph targets.
+/// `rig new --blendshapes arkit`: makes the ARKit shapes for `face` (the registered mesh; `rig`'s
+/// working mesh is it and then an avatar's frozen parts, or a cut mouth's inside: `inside`, its
+/// first vertex and ICT's vertex of each, which take ICT's own deltas), writes them beside the
+/// rig and appends their entries to the rig file, which is then read back with its morph targets.
 pub fn add_arkit(
     job: &NewRig<'_>,
     face: &Mesh,
     rig: &Rig,
     registration: Option<Registration>,
+    inside: Option<(usize, &[u32])>,
     note: &mut dyn FnMut(String),
 ) -> Result<(), RigNewError> {
     let template =
@@ -197,8 +199,18 @@ pub fn add_arkit(
         ))?,
     };
     let expressions = mimic_assets::load_shape_pack(&job.configs.join(ICT_EXPRESSIONS))?;
-    let made = make_arkit_shapes(face, rig.mesh.vertex_count(), &template, &reg, &expressions)
+    let mut made = make_arkit_shapes(face, rig.mesh.vertex_count(), &template, &reg, &expressions)
         .map_err(context("--blendshapes arkit"))?;
+    if let Some((start, template_vertex)) = inside {
+        let (on_template, _) = arkit_from_ict(&expressions);
+        crate::mouth_interior::carry_shapes(
+            &mut made.shapes,
+            start,
+            template_vertex,
+            &on_template,
+            &reg,
+        );
+    }
     // Deltas kept to 2e-5 of the eye distance (ICT's own pack: 1e-4 cm, about 1.6e-5 IOD).
     let entries = write_arkit_targets(job.output, &made, 2e-5 * reg.rigid.pose.scale)?;
     let text = mimic_types::limits::read_capped(job.output, &mimic_types::limits::RIG_FILE)

@@ -89,6 +89,15 @@ pub fn rig_frame(rig: &Rig) -> Option<FaceFrame> {
     })
 }
 
+/// The first line `mimic rig check` prints: the rig file, its controls and its warnings' count.
+pub fn check_line(path: &std::path::Path, rig: &Rig, warnings: usize) -> String {
+    format!(
+        "{}: {} controls, {warnings} warning(s)",
+        path.display(),
+        rig.controls.len()
+    )
+}
+
 /// Checks a loaded rig: missing or extra FDPs (against the 38 of docs/layouts.md), FDPs that
 /// share a vertex, controls outside their region, left/right controls that are not mirror
 /// images in the face frame, midline controls off it, and units that do not fit the face size.

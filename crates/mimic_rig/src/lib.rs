@@ -13,8 +13,10 @@ pub mod gltf_mesh;
 pub mod head_template;
 pub mod icp;
 pub mod landmarks;
+pub mod lipcut;
 pub mod make;
 pub mod morph;
+pub mod mouth_interior;
 pub mod nearest;
 pub mod new;
 pub mod nonrigid;
@@ -43,7 +45,9 @@ pub use landmarks::{
     IBUG_POINTS, LandmarkBase, Landmarks, Numbering, landmarks_json, load_landmarks,
     parse_landmarks,
 };
-pub use make::{MadeRig, NewRig, make_rig_file, prepare_output, write_rig_with_controls};
+pub use make::{
+    MadeRig, NewRig, cut_mesh_path, make_rig_file, prepare_output, write_rig_with_controls,
+};
 pub use new::{Defaults, GeneratedRig, guess_units, make_rig};
 pub use overrides::apply_overrides;
 pub use summary::{LayoutSummary, RigSummary};

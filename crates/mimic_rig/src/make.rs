@@ -12,6 +12,9 @@ use mimic_types::{Mesh, Rig};
 use std::path::{Path, PathBuf};
 
 mod avatar;
+mod lips;
+
+pub use lips::cut_mesh_path;
 
 /// What `mimic rig new` was asked for.
 #[derive(Clone, Debug)]
@@ -41,11 +44,14 @@ pub struct NewRig<'a> {
     pub defaults: Defaults,
     /// The `configs/` directory (the ICT template head, layouts' templates).
     pub configs: &'a Path,
-    /// The command line that makes the rig again, written into its header.
+    /// The command line that makes the rig again, written into its header (empty:
+    /// [`NewRig::repeat_command`]'s).
     pub command_line: String,
     /// Blend shapes made for the head as the rig's morph targets: `arkit` (ARKit's 52 from
     /// ICT-FaceKit's expressions, [`crate::arkit`]) or none.
     pub blendshapes: Option<&'a str>,
+    /// Cut closed lips open along the lip line ([`crate::lipcut`]; `--no-cut`: false).
+    pub cut: bool,
 }
 
 /// What [`make_rig_file`] made.
@@ -102,11 +108,26 @@ impl NewRig<'_> {
         if let Some(b) = self.blendshapes {
             words.push(format!("--blendshapes {b}"));
         }
+        if !self.cut {
+            words.push("--no-cut".into());
+        }
         words.join(" ")
     }
 }
 
 impl MadeRig {
+    /// The warnings `rig new` prints after its summary: the generation's, then `rig check`'s on
+    /// the rig as written.
+    pub fn warnings(&self) -> Vec<String> {
+        let mut out = self.generated.warnings.clone();
+        out.extend(
+            crate::check_rig(&self.loaded)
+                .iter()
+                .map(ToString::to_string),
+        );
+        out
+    }
+
     /// The line `mimic rig new` prints: controls, frozen vertices and why, units, IOD, and the
     /// rigid parts found.
     pub fn summary(&self, output: &Path) -> String {
@@ -139,7 +160,12 @@ pub(crate) fn context(what: impl Into<String>) -> impl FnOnce(RigNewError) -> Ri
 
 /// Writes `text` to `path`.
 pub(crate) fn write(path: &Path, text: &str) -> Result<(), RigNewError> {
-    std::fs::write(path, text).map_err(|cause| RigNewError::Write {
+    write_file(path, text.as_bytes())
+}
+
+/// Writes `bytes` to `path`.
+pub(crate) fn write_file(path: &Path, bytes: &[u8]) -> Result<(), RigNewError> {
+    std::fs::write(path, bytes).map_err(|cause| RigNewError::Write {
         path: path.to_path_buf(),
         cause,
     })
@@ -211,8 +237,13 @@ pub fn make_rig_file(
         Some(a) => a.face.mesh_data.clone(),
         None => crate::load_mesh(job.mesh)?,
     };
-    let (marks, marks_from, mut registration) = landmarks_of(job, &mesh, note)?;
+    let (mut marks, marks_from, mut registration) = landmarks_of(job, &mesh, note)?;
     let mut mesh = mesh;
+    // An avatar's face keeps its mesh (its file is written back whole).
+    let cut = match &avatar {
+        None => lips::cut_lips(job, &mut mesh, &mut marks, &mut registration, note)?,
+        Some(_) => None,
+    };
     let turn = crate::orient::head_orientation(&mesh, &marks).unwrap_or_default();
     let turn = if turn.is_identity() || avatar.is_none() {
         turn
@@ -230,7 +261,10 @@ pub fn make_rig_file(
         }
         note(crate::orient::turn_note(turn));
     }
-    let face = mesh.clone();
+    // The ARKit shapes are made for the skin; a cut mouth's added inside follows its template.
+    let face = cut
+        .as_ref()
+        .map_or_else(|| mesh.clone(), |c| c.skin_of(&mesh));
     // An avatar's parts drawn with the face join the working mesh after the face's vertices
     // (the landmarks keep their numbers).
     let (avatar, mesh) = match avatar {
@@ -259,7 +293,8 @@ pub fn make_rig_file(
     let mut generated = make_rig(&mesh, &marks, &name, job.units, job.defaults)
         .map_err(context(format!("{}: {marks_from}", job.mesh.display())))?;
     generated.orientation = turn;
-    let text = rig_text(job, &mesh, &generated)?;
+    let file = cut.as_ref().map_or(job.mesh, |c| c.file.as_path());
+    let text = rig_text(job, file, &mesh, &generated)?;
     let text = match &avatar {
         Some(a) => format!(
             "{text}{}{}",
@@ -273,25 +308,35 @@ pub fn make_rig_file(
     write(job.output, &text)?;
     let loaded = read_back(job, &text, &marks)?;
     if job.blendshapes.is_some() {
-        crate::arkit::add_arkit(job, &face, &loaded, registration, note)?;
+        let inside = cut.as_ref().map(|c| (c.skin.0, &c.inside[..]));
+        crate::arkit::add_arkit(job, &face, &loaded, registration, inside, note)?;
     }
     Ok(MadeRig { generated, loaded })
 }
 
-/// The generated rig's TOML (the command line as its second line); an avatar's file is named
-/// as the rig's mesh, relative to the rig.
-fn rig_text(job: &NewRig<'_>, mesh: &Mesh, rig: &GeneratedRig) -> Result<String, RigNewError> {
+/// The generated rig's TOML (the command line as its second line); `file` (the mesh or avatar
+/// file, or the cut mesh) is named as the rig's mesh, relative to the rig.
+fn rig_text(
+    job: &NewRig<'_>,
+    file: &Path,
+    mesh: &Mesh,
+    rig: &GeneratedRig,
+) -> Result<String, RigNewError> {
     let out_dir = job
         .output
         .parent()
         .filter(|p| !p.as_os_str().is_empty())
         .map_or_else(|| PathBuf::from("."), PathBuf::from);
-    let mesh_rel = relative_path(&out_dir, job.mesh);
+    let mesh_rel = relative_path(&out_dir, file);
     let text = write_rig_toml(rig, &mesh_rel, mesh.vertex_count());
     let (first, rest) = text.split_once('\n').unwrap_or((&text, ""));
     Ok(format!(
         "{first}\n# Regenerate: {}\n{rest}",
-        job.command_line
+        if job.command_line.is_empty() {
+            job.repeat_command()
+        } else {
+            job.command_line.clone()
+        }
     ))
 }
 

@@ -50,14 +50,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "{}: {} controls, {} warning(s)",
-        path.display(),
-        rig.controls.len(),
-        warnings.len()
+        "{}",
+        mimic_rig::check::check_line(&path, &rig, warnings.len())
     );
     for w in &warnings {
         println!("warning: {w}");
     }
+    mimic_rig::lipcut::mouth_note(&rig)
+        .into_iter()
+        .for_each(|n| println!("{n}"));
     if let Some(out) = &args.output {
         println!("{}", out.display());
     }

@@ -70,6 +70,10 @@ pub struct Args {
     /// expressions transferred through the registration; docs/rigging.md, "ARKit shapes").
     #[arg(long, value_parser = ["arkit"])]
     pub blendshapes: Option<String>,
+    /// Keep closed lips as they are (by default a mesh whose lips are one surface is cut along
+    /// its lip line so the mouth opens; docs/rigging.md, "Closed lips").
+    #[arg(long)]
+    pub no_cut: bool,
 }
 
 /// Runs `mimic rig new`: the options are checked and the output folder made before the work.
@@ -101,19 +105,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             ..Defaults::default()
         },
         configs: &configs,
+        // Empty: the rig's header gets `job.repeat_command()`.
         command_line: String::new(),
         blendshapes: args.blendshapes.as_deref(),
-    };
-    let job = NewRig {
-        command_line: job.repeat_command(),
-        ..job
+        cut: !args.no_cut,
     };
     let made = make_rig_file(&job, &mut |line| eprintln!("{line}"))?;
     println!("{}", made.summary(&args.output));
-    for w in &made.generated.warnings {
-        eprintln!("warning: {w}");
-    }
-    for w in mimic_rig::check_rig(&made.loaded) {
+    for w in made.warnings() {
         eprintln!("warning: {w}");
     }
     Ok(())
