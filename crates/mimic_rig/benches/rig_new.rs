@@ -93,6 +93,7 @@ fn main() {
             configs: &configs,
             command_line: String::new(),
             blendshapes: Some("arkit"),
+            cut: true,
         };
         let t = Instant::now();
         let made = make_rig_file(&job, &mut |_| {}).unwrap();
