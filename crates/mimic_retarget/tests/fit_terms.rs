@@ -216,8 +216,17 @@ fn held_out_error_of_the_picked_terms_against_the_ridge_alone() {
     let takes = takes(&study);
     let (mut held_out, mut ridge_only) = (0.0, 0.0);
     for (i, take) in takes.iter().enumerate() {
-        assert!(take.truth.len() > 500, "{}: {} frames", take.name, take.truth.len());
-        assert!(take.moving.iter().filter(|m| **m).count() >= 20, "{}", take.name);
+        assert!(
+            take.truth.len() > 500,
+            "{}: {} frames",
+            take.name,
+            take.truth.len()
+        );
+        assert!(
+            take.moving.iter().filter(|m| **m).count() >= 20,
+            "{}",
+            take.name
+        );
         let before = score(&study, &BlendshapeFit::RIDGE_ONLY, take);
         // Scored with what the other take picked.
         let out = score(&study, &FOLD_PICKS[1 - i], take);
@@ -230,13 +239,24 @@ fn held_out_error_of_the_picked_terms_against_the_ridge_alone() {
         ridge_only += before.all / 2.0;
         // The defaults, picked on both takes (held in): under the ridge alone's error on each,
         // over all driven targets and over the moving ones (measured 0.72 and 0.92 of it).
-        assert!(after.all <= 0.95 * before.all, "{}: {after:?} vs {before:?}", take.name);
-        assert!(after.moving <= before.moving, "{}: {after:?} vs {before:?}", take.name);
+        assert!(
+            after.all <= 0.95 * before.all,
+            "{}: {after:?} vs {before:?}",
+            take.name
+        );
+        assert!(
+            after.moving <= before.moving,
+            "{}: {after:?} vs {before:?}",
+            take.name
+        );
     }
     // Held out, the terms one take picks do not always carry to the other (S07's strong symmetry
     // costs S88 13 %, S88's pick gains 20 % on S07): over both folds the error is at most the
     // ridge alone's (measured 0.973 of it).
-    assert!(held_out <= ridge_only, "held out {held_out} vs ridge only {ridge_only}");
+    assert!(
+        held_out <= ridge_only,
+        "held out {held_out} vs ridge only {ridge_only}"
+    );
 }
 
 /// Each setting of one term, the others held: the grid the selection walks.
