@@ -329,8 +329,8 @@ fn select_the_terms_by_leave_one_out() {
 fn jitter(segments: &[Vec<Vec<Vec3>>]) -> f64 {
     let mut sq: Vec<f64> = Vec::new();
     for w in segments.iter().flat_map(|s| s.windows(3)) {
-        for j in 0..w[0].len() {
-            let dd = (w[2][j] - 2.0 * w[1][j] + w[0][j]).as_dvec3();
+        for ((a, b), c) in w[0].iter().zip(&w[1]).zip(&w[2]) {
+            let dd = (*c - 2.0 * *b + *a).as_dvec3();
             sq.extend(dd.to_array().map(|x| x * x));
         }
     }
