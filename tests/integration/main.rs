@@ -26,6 +26,7 @@ mod gpu_bench;
 mod hostile_avatar;
 mod import;
 mod info;
+mod landmark_arkit;
 mod livelink;
 mod look;
 mod loopback;

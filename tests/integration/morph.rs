@@ -47,16 +47,19 @@ fn known_ict_combination_is_recovered_from_the_control_displacements() {
         // No ridge: exact data, 114 equations for 8 unknowns of full rank; the error is f32
         // rounding of the deltas amplified by the conditioning (measured 2e-7), below 1e-4.
         (0.0, 1e-4),
-        // Default ridge, 0.01 |D_k|^2 per target: a lone weight shrinks by 1 %; correlated targets
+        // The ridge alone, 0.01 |D_k|^2 per target: a lone weight shrinks by 1 %; correlated targets
         // (jawOpen and mouthSmileLeft share the lip controls) by a few % (measured 0.594 and
         // 0.292); 0.02 bounds that.
-        (BlendshapeSettings::default().ridge, 0.02),
+        (mimic_retarget::BlendshapeFit::RIDGE_ONLY.ridge, 0.02),
     ] {
         let mut fitter = BlendshapeFitter::new(
             &rig,
             &targets,
             &BlendshapeSettings {
                 ridge,
+                l1: 0.0,
+                temporal: 0.0,
+                symmetry: 0.0,
                 smoothing: None,
             },
         )

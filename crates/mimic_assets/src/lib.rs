@@ -40,7 +40,7 @@ pub use morph::{
 pub use obj::{load_obj, parse_obj, write_obj};
 pub use obj_write::{ObjExtras, ObjFrames, write_mtl, write_obj_with};
 pub use orientation::{Axis, Orientation, OrientationTable};
-pub use rig::{RigFile, load_rig, parse_rig};
+pub use rig::{RigFile, load_blendshape_fit, load_rig, parse_rig};
 pub use shape_pack::{
     PackedShape, SHAPE_PACK_MAGIC, ShapePack, load_shape_pack, pack_tolerance, read_shape_pack,
     save_shape_pack, write_shape_pack,

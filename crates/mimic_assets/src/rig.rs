@@ -42,6 +42,11 @@ pub struct RigFile {
     /// Rigid parts: the jaw's passengers and the eyeballs (docs/parts.md).
     #[serde(default)]
     pub parts: Option<Spanned<mimic_types::RigParts>>,
+    /// The terms of the fit of the morph targets' weights to the controls
+    /// ([`mimic_types::BlendshapeFit`]; its defaults when absent); loaded by
+    /// [`load_blendshape_fit`].
+    #[serde(default)]
+    pub blendshape_fit: Option<Spanned<mimic_types::BlendshapeFit>>,
     /// The mesh file's up and forward axes: the mesh is turned to y up, +z forward as it loads
     /// ([`crate::Orientation`]); every other number of the rig is in that turned frame.
     #[serde(default)]
@@ -282,7 +287,36 @@ pub fn parse_rig(path: &Path, text: &str) -> Result<Rig, AssetError> {
             cause,
         });
     }
+    blendshape_fit(path, text, &file)?;
     Ok(rig)
+}
+
+/// The rig file's `[blendshape_fit]`, range-checked (the error at the table's line), or the
+/// defaults when it has none.
+fn blendshape_fit(
+    path: &Path,
+    text: &str,
+    file: &RigFile,
+) -> Result<mimic_types::BlendshapeFit, AssetError> {
+    let Some(fit) = &file.blendshape_fit else {
+        return Ok(mimic_types::BlendshapeFit::default());
+    };
+    fit.get_ref()
+        .validate()
+        .map_err(|cause| AssetError::Setting {
+            path: path.to_path_buf(),
+            line: line_of(text, fit.span().start),
+            cause,
+        })?;
+    Ok(*fit.get_ref())
+}
+
+/// The `[blendshape_fit]` of the rig file at `path` ([`mimic_types::BlendshapeFit`]: the terms
+/// of the fit of its morph targets' weights to its controls), its defaults when it has none.
+pub fn load_blendshape_fit(path: &Path) -> Result<mimic_types::BlendshapeFit, AssetError> {
+    let text = crate::read::read_text(path, &mimic_types::limits::RIG_FILE)?;
+    let file: RigFile = toml::from_str(&text).map_err(|e| toml_error(path, &text, e))?;
+    blendshape_fit(path, &text, &file)
 }
 
 /// 1-based line of the top-level `units = ...` key (1 when it is not found as a plain line).
@@ -370,6 +404,38 @@ kind = "laplacian"
         assert_eq!(load_rig(&path).unwrap().solver.top_split, None);
         let bad = text.replace("band = 1.0,", "bnad = 1.0,");
         assert!(parse_rig(&path, &bad).is_err());
+    }
+
+    #[test]
+    fn blendshape_fit_table_is_read_checked_and_defaulted() {
+        let dir = tempfile::tempdir().unwrap();
+        let controls = "[[controls]]\nfdp = \"8.3\"\nvertex = 1\nregion = \"bottom\"\n";
+        let path = write_rig(dir.path(), controls);
+        assert_eq!(
+            load_blendshape_fit(&path).unwrap(),
+            mimic_types::BlendshapeFit::default()
+        );
+        let text = std::fs::read_to_string(&path).unwrap();
+        std::fs::write(
+            &path,
+            format!("{text}\n[blendshape_fit]\nl1 = 0.25\nsymmetry = 2\n"),
+        )
+        .unwrap();
+        assert_eq!(
+            load_blendshape_fit(&path).unwrap(),
+            mimic_types::BlendshapeFit {
+                l1: 0.25,
+                symmetry: 2.0,
+                ..mimic_types::BlendshapeFit::default()
+            }
+        );
+        std::fs::write(&path, format!("{text}\n[blendshape_fit]\ntemporal = -1\n")).unwrap();
+        let e = load_rig(&path).unwrap_err().to_string();
+        assert!(
+            e.contains("tri.toml:19") && e.contains("blendshape_fit.temporal"),
+            "{e}"
+        );
+        assert!(load_blendshape_fit(&path).is_err());
     }
 
     #[test]

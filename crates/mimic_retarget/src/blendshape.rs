@@ -2,17 +2,18 @@
 //!
 //! Per frame, [`BlendshapeFitter::apply`] takes the control displacements `d` the
 //! [`Retargeter`](crate::Retargeter) produced (38 x 3, target units) and solves
-//! `min_w |sum_k w_k D_k - d|^2 + lambda |w|^2` with `0 <= w_k <= 1` ([`MorphFit`]), where `D_k`
-//! are target `k`'s deltas at the rig's control vertices. The weights are then smoothed in time
+//! `min_w |sum_k w_k D_k - d|^2` plus the ridge, L1, temporal and left/right symmetry terms of
+//! the rig's `[blendshape_fit]` ([`BlendshapeFit`]) with `0 <= w_k <= 1` ([`MorphFit`]), where
+//! `D_k` are target `k`'s deltas at the rig's control vertices. The weights are then smoothed in time
 //! (One Euro per weight) and the mesh is evaluated as the GPU morph-target method does:
 //! positions `P0 + sum w_k dP_k`, normals `N0 + sum w_k dN_k` (renormalised). Nothing is allocated
 //! per frame.
 
 use crate::{FrameOutput, FrameStatus, OneEuro, OneEuroSettings, OneEuroStep};
 use glam::Vec3;
-use mimic_solve::morph_fit::{MorphFit, MorphScratch};
+use mimic_solve::morph_fit::{MorphFit, MorphScratch, MorphTerms};
 use mimic_solve::{SolveError, vertex_normals};
-pub use mimic_types::WeightMap;
+pub use mimic_types::{BlendshapeFit, WeightMap};
 use mimic_types::{MorphTarget, Rig};
 
 /// Knobs of [`BlendshapeFitter`].
@@ -22,20 +23,51 @@ pub struct BlendshapeSettings {
     /// not depend on the rig's units or on how far a target moves the controls; 0.01 shrinks a
     /// lone target's weight by 1 % (`w = 1 / (1 + ridge)`).
     pub ridge: f64,
+    /// L1 weight relative to each target's `|D_k|^2` ([`BlendshapeFit::l1`]).
+    pub l1: f64,
+    /// Weight of the pull towards the previous frame's fitted weights, relative to each target's
+    /// `|D_k|^2` ([`BlendshapeFit::temporal`]).
+    pub temporal: f64,
+    /// Weight of the left/right pairs' likeness ([`BlendshapeFit::symmetry`]).
+    pub symmetry: f64,
     /// One Euro filter on each weight (speeds in weight units per second); `None` turns it off.
     pub smoothing: Option<OneEuroSettings>,
 }
 
-impl Default for BlendshapeSettings {
-    fn default() -> Self {
+impl BlendshapeSettings {
+    /// The One Euro filter the weights get unless turned off.
+    pub const SMOOTHING: OneEuroSettings = OneEuroSettings {
+        min_cutoff: 3.0,
+        beta: 1.0,
+        derivative_cutoff: 1.0,
+    };
+
+    /// A rig's `[blendshape_fit]` terms, with the weights smoothed ([`Self::SMOOTHING`]).
+    pub fn with_fit(fit: &BlendshapeFit) -> Self {
         Self {
-            ridge: 0.01,
-            smoothing: Some(OneEuroSettings {
-                min_cutoff: 3.0,
-                beta: 1.0,
-                derivative_cutoff: 1.0,
-            }),
+            ridge: fit.ridge,
+            l1: fit.l1,
+            temporal: fit.temporal,
+            symmetry: fit.symmetry,
+            smoothing: Some(Self::SMOOTHING),
         }
+    }
+
+    /// The terms as a `[blendshape_fit]` table.
+    pub fn fit(&self) -> BlendshapeFit {
+        BlendshapeFit {
+            ridge: self.ridge,
+            l1: self.l1,
+            temporal: self.temporal,
+            symmetry: self.symmetry,
+        }
+    }
+}
+
+impl Default for BlendshapeSettings {
+    /// [`BlendshapeFit::DEFAULT`], smoothed.
+    fn default() -> Self {
+        Self::with_fit(&BlendshapeFit::DEFAULT)
     }
 }
 
@@ -67,9 +99,9 @@ pub enum BlendshapeError {
         /// First offending vertex.
         vertex: usize,
     },
-    /// The ridge setting is negative or not finite.
-    #[error("blendshape ridge {0} must be finite and >= 0")]
-    Ridge(f64),
+    /// A term's weight is negative or not finite.
+    #[error(transparent)]
+    Setting(#[from] mimic_types::SettingError),
     /// The bounded least-squares fit could not be prepared.
     #[error(transparent)]
     Fit(#[from] SolveError),
@@ -94,8 +126,10 @@ pub struct BlendshapeFitter {
     normal_deltas: Vec<Vec3>,
     /// Ridge weight of each target, `lambda_k` (rig units squared).
     ridges: Vec<f64>,
-    /// `d` followed by zeros at the ridge's pseudo-controls (see [`BlendshapeFitter::new`]).
-    d_padded: Vec<Vec3>,
+    /// The left/right pairs the symmetry term holds alike.
+    pairs: Vec<(usize, usize)>,
+    /// The settings it was made with.
+    settings: BlendshapeSettings,
     /// The target of each of ARKit's eight `eyeLook*` shapes ([`crate::gaze::EYE_LOOK_NAMES`]),
     /// by ARKit or ICT name, if the rig has it.
     eye_look_targets: [Option<usize>; 8],
@@ -118,14 +152,12 @@ impl BlendshapeFitter {
         if targets.is_empty() {
             return Err(BlendshapeError::NoTargets(rig.name.clone()));
         }
-        if !(settings.ridge.is_finite() && settings.ridge >= 0.0) {
-            return Err(BlendshapeError::Ridge(settings.ridge));
-        }
+        settings.fit().validate()?;
         let n = rig.mesh.vertex_count();
         let k = targets.len();
         let mut position_deltas = Vec::with_capacity(k * n);
         let mut normal_deltas = Vec::with_capacity(k * n);
-        let mut at_controls = Vec::with_capacity(k);
+        let mut at_controls: Vec<Vec<Vec3>> = Vec::with_capacity(k);
         for t in targets {
             if t.position_deltas.len() != n || t.normal_deltas.len() != n {
                 return Err(BlendshapeError::VertexCount {
@@ -153,24 +185,29 @@ impl BlendshapeFitter {
                     .collect::<Vec<Vec3>>(),
             );
         }
-        // A ridge per target, lambda_k = ridge |D_k|^2: MorphFit's ridge is one number, so each
-        // target gets sqrt(lambda_k) at a pseudo-control coordinate of its own, where d is 0.
-        // That adds exactly diag(lambda_k) to the Gram matrix D^T D.
-        let ridges: Vec<f64> = at_controls
+        // Every term relative to the target's own |D_k|^2, so none depends on the rig's units.
+        let scale: Vec<f64> = at_controls
             .iter()
-            .map(|t| settings.ridge * t.iter().map(|v| v.as_dvec3().length_squared()).sum::<f64>())
+            .map(|t| t.iter().map(|v| v.as_dvec3().length_squared()).sum::<f64>())
             .collect();
-        let m = rig.controls.len();
-        let pseudo = k.div_ceil(3);
-        for (t, (col, lambda)) in at_controls.iter_mut().zip(&ridges).enumerate() {
-            col.resize(m + pseudo, Vec3::ZERO);
-            col[m + t / 3][t % 3] = lambda.sqrt() as f32;
-        }
-        let fit = MorphFit::new(&at_controls, 0.0)?;
+        let names: Vec<String> = targets.iter().map(|t| t.name.clone()).collect();
+        let pairs = mimic_types::arkit::mirror_pairs(&names);
+        let times = |x: f64| scale.iter().map(|s| x * s).collect::<Vec<f64>>();
+        let terms = MorphTerms {
+            ridge: times(settings.ridge),
+            l1: times(settings.l1),
+            temporal: times(settings.temporal),
+            pairs: pairs
+                .iter()
+                .map(|&(l, r)| (l, r, settings.symmetry * (scale[l] * scale[r]).sqrt()))
+                .collect(),
+        };
+        let fit = MorphFit::with_terms(&at_controls, &terms)?;
+        let ridges = terms.ridge;
         let mut rest_normals = vec![Vec3::ZERO; n];
         vertex_normals(&rig.mesh.positions, &rig.mesh.triangles, &mut rest_normals);
         Ok(Self {
-            names: targets.iter().map(|t| t.name.clone()).collect(),
+            names,
             scratch: fit.scratch(),
             fit,
             smoothing: settings.smoothing,
@@ -183,7 +220,8 @@ impl BlendshapeFitter {
             position_deltas,
             normal_deltas,
             ridges,
-            d_padded: vec![Vec3::ZERO; m + pseudo],
+            pairs,
+            settings: *settings,
             eye_look_targets: crate::gaze::EYE_LOOK_NAMES.map(|look| {
                 targets
                     .iter()
@@ -237,6 +275,17 @@ impl BlendshapeFitter {
         &self.ridges
     }
 
+    /// The left/right pairs of targets the symmetry term holds alike
+    /// ([`mimic_types::arkit::mirror_pairs`]).
+    pub fn mirror_pairs(&self) -> &[(usize, usize)] {
+        &self.pairs
+    }
+
+    /// The settings the fitter was made with.
+    pub fn settings(&self) -> &BlendshapeSettings {
+        &self.settings
+    }
+
     /// Weights of the last frame, after smoothing.
     pub fn weights(&self) -> &[f32] {
         &self.weights
@@ -263,14 +312,12 @@ impl BlendshapeFitter {
     /// If `d` has fewer entries than the rig has controls (entries after the controls', the
     /// rigid parts' columns, are not read).
     pub fn fit(&mut self, d: &[Vec3], timestamp_us: i64) -> &[f32] {
-        let m = self.d_padded.len() - self.names.len().div_ceil(3);
+        let m = self.fit.control_count();
         assert!(
             d.len() >= m,
             "BlendshapeFitter::fit: one displacement per control"
         );
-        self.d_padded[..m].copy_from_slice(&d[..m]);
-        self.fit
-            .fit(&self.d_padded, &mut self.scratch, &mut self.raw);
+        self.fit.fit(&d[..m], &mut self.scratch, &mut self.raw);
         let dt = self
             .last_time_us
             .map_or(0.0, |t| (timestamp_us - t) as f32 * 1e-6);
@@ -489,6 +536,9 @@ mod tests {
         let settings = BlendshapeSettings {
             ridge: 0.0,
             smoothing: None,
+            l1: 0.0,
+            temporal: 0.0,
+            symmetry: 0.0,
         };
         let mut f = BlendshapeFitter::new(&rig, &t, &settings).unwrap();
         assert_eq!(f.eye_look_target_count(), 2);
@@ -572,6 +622,9 @@ mod tests {
         let settings = BlendshapeSettings {
             ridge: 0.0,
             smoothing: None,
+            l1: 0.0,
+            temporal: 0.0,
+            symmetry: 0.0,
         };
         let mut f = BlendshapeFitter::new(&rig, &t, &settings).unwrap();
         let truth = [0.6, 0.3, 0.0];
@@ -603,6 +656,9 @@ mod tests {
         let settings = BlendshapeSettings {
             ridge: 0.05,
             smoothing: None,
+            l1: 0.0,
+            temporal: 0.0,
+            symmetry: 0.0,
         };
         let mut f = BlendshapeFitter::new(&rig, &t, &settings).unwrap();
         let truth = [0.5, 0.4, 0.7];
@@ -647,7 +703,7 @@ mod tests {
             &t,
             &BlendshapeSettings {
                 ridge: 0.0,
-                ..BlendshapeSettings::default()
+                ..BlendshapeSettings::with_fit(&BlendshapeFit::RIDGE_ONLY)
             },
         )
         .unwrap();

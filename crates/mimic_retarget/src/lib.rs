@@ -36,7 +36,9 @@ mod stage_stats;
 pub mod summary;
 mod weight_stats;
 
-pub use blendshape::{BlendshapeError, BlendshapeFitter, BlendshapeSettings, WeightMap};
+pub use blendshape::{
+    BlendshapeError, BlendshapeFit, BlendshapeFitter, BlendshapeSettings, WeightMap,
+};
 pub use checkpoint::{Checkpoint, CheckpointError};
 pub use filter::{OneEuro, OneEuroSettings, OneEuroStep};
 pub use frame_loop::{FrameLoop, LoopReport};

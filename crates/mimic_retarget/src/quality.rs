@@ -213,8 +213,12 @@ impl MorphEval {
             .filter(|t| !(self.leave_one_out && is_shape(t)))
             .cloned()
             .collect();
+        // A still shape: no previous frame, and the ridge alone (the figures of docs/quality.md).
         let settings = BlendshapeSettings {
             ridge: self.ridge,
+            l1: 0.0,
+            temporal: 0.0,
+            symmetry: 0.0,
             smoothing: None,
         };
         BlendshapeFitter::new(rig, &used, &settings)

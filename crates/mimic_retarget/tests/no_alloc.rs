@@ -233,3 +233,53 @@ fn provisional_and_easing_steps_allocate_nothing() {
         "{n} allocations in 20 steps easing into the calibrated output"
     );
 }
+
+#[test]
+fn blendshape_fit_with_every_term_allocates_nothing() {
+    use mimic_retarget::{BlendshapeFit, BlendshapeFitter, BlendshapeSettings};
+    // ICT's whole expression set on the ICT rig (its symmetric pairs give the symmetry term work).
+    let rig = mimic_assets::load_rig(&repo().join("configs/rigs/ict-face.toml")).unwrap();
+    let pack = mimic_assets::load_shape_pack(
+        &repo().join("configs/meshes/ict-facekit/expressions.shapes"),
+    )
+    .unwrap();
+    let n = rig.mesh.vertex_count();
+    let targets: Vec<mimic_types::MorphTarget> = pack
+        .shapes
+        .iter()
+        .map(|s| mimic_types::MorphTarget {
+            name: s.name.clone(),
+            position_deltas: s.deltas.clone(),
+            normal_deltas: vec![Vec3::ZERO; n],
+        })
+        .collect();
+    let fit = BlendshapeFit {
+        ridge: 0.02,
+        l1: 0.01,
+        temporal: 0.5,
+        symmetry: 0.3,
+    };
+    let mut f = BlendshapeFitter::new(&rig, &targets, &BlendshapeSettings::with_fit(&fit)).unwrap();
+    assert!(f.mirror_pairs().len() >= 10, "{:?}", f.mirror_pairs());
+    // Control displacements of a few targets at varying weights.
+    let d_of = |i: usize| -> Vec<Vec3> {
+        rig.controls
+            .iter()
+            .map(|c| {
+                let v = c.vertex as usize;
+                targets[i % 7].position_deltas[v] * 0.7
+                    + targets[(i + 3) % 11].position_deltas[v] * 0.3
+            })
+            .collect()
+    };
+    let ds: Vec<Vec<Vec3>> = (0..20).map(d_of).collect();
+    f.fit(&ds[0], 0);
+    let mut moved = 0.0f32;
+    let n = allocations_during(|| {
+        for (i, d) in ds.iter().enumerate() {
+            moved += f.fit(d, 33_333 * (i as i64 + 1)).iter().sum::<f32>();
+        }
+    });
+    assert!(moved > 0.0);
+    assert_eq!(n, 0, "{n} allocations in 20 fits");
+}

@@ -58,6 +58,8 @@ pub struct MorphSet {
     pub message: Message,
     /// The targets themselves (for a landmark session's blendshape fit when it forwards).
     targets: Vec<MorphTarget>,
+    /// The rig's `[blendshape_fit]`: the terms of that fit.
+    pub fit: mimic_types::BlendshapeFit,
 }
 
 impl MorphSet {
@@ -165,8 +167,18 @@ impl RigEntry {
             deltas,
             message,
             targets,
+            fit: mimic_types::BlendshapeFit::default(),
         });
         Ok(self)
+    }
+
+    /// Sets the terms of the blend-shape fit of the rig's morph targets (its `[blendshape_fit]`,
+    /// e.g. `mimic_assets::load_blendshape_fit`); nothing without morph targets.
+    pub fn with_blendshape_fit(mut self, fit: mimic_types::BlendshapeFit) -> Self {
+        if let Some(m) = self.morph.as_mut() {
+            m.fit = fit;
+        }
+        self
     }
 
     /// Rig name.

@@ -61,7 +61,12 @@ pub fn load_catalog<'a>(
             let ms = started.elapsed().as_secs_f64() * 1e3;
             tracing::info!(rig = %rig.name, targets = targets.len(), ms, "morph targets loaded");
         }
-        entries.push(RigEntry::new(rig, basis)?.with_morph_targets(targets)?);
+        let fit = mimic_assets::load_blendshape_fit(&rig_path)?;
+        entries.push(
+            RigEntry::new(rig, basis)?
+                .with_morph_targets(targets)?
+                .with_blendshape_fit(fit),
+        );
     }
     let mut entries = entries.into_iter();
     let mut catalog = Catalog::new(entries.next().ok_or(CatalogLoadError::NoRig)?);

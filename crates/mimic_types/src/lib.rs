@@ -7,6 +7,7 @@
 //! `mimic_assets`' job, producing frames is `mimic_capture`'s.
 
 pub mod arkit;
+pub mod blend_fit;
 pub mod correspondence;
 pub mod fdp;
 pub mod frame;
@@ -28,6 +29,7 @@ pub mod sink;
 pub mod status;
 pub mod weight_map;
 
+pub use blend_fit::BlendshapeFit;
 pub use correspondence::ModelCorrespondence;
 pub use fdp::{Fdp, FdpError};
 pub use frame::LandmarkFrame;

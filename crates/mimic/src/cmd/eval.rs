@@ -42,7 +42,7 @@ pub struct Args {
     #[arg(long)]
     pub leave_one_out: bool,
     /// Blendshapes: ridge of the weight fit, relative to each target's squared control deltas.
-    #[arg(long, default_value_t = mimic_retarget::BlendshapeSettings::default().ridge)]
+    #[arg(long, default_value_t = mimic_types::BlendshapeFit::RIDGE_ONLY.ridge)]
     pub ridge: f64,
     /// Measure only these vertices (inclusive ranges such as `0-9408`, comma-separated); frozen
     /// vertices are always left out. Default: every non-frozen vertex.

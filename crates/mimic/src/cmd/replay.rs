@@ -222,7 +222,7 @@ fn blend_fitter(
         return Ok(None);
     }
     let targets = load_morph_targets(&args.rig.rig_path(), rig)?;
-    let fitter = BlendshapeFitter::new(rig, &targets, &blend.settings())
+    let fitter = BlendshapeFitter::new(rig, &targets, &blend.settings(&args.rig.rig_path())?)
         .with_context(|| format!("blendshapes of rig `{}`", rig.name))?;
     Ok(Some((fitter, targets)))
 }

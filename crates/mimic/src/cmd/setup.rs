@@ -255,25 +255,23 @@ pub struct BlendshapeArgs {
     /// Per-frame blendshape weights as CSV (frame, t_us, status, label, one column per target).
     #[arg(long)]
     pub weights: Option<PathBuf>,
-    /// Ridge of the weight fit, relative to each target's squared control deltas (0.01: 1 % shrink).
-    #[arg(long, default_value_t = BlendshapeSettings::default().ridge)]
-    pub ridge: f64,
+    /// Ridge of the weight fit, relative to each target's squared control deltas (0.01: 1 % shrink);
+    /// default: the rig's `[blendshape_fit]` (docs/quality.md, "Landmarks to ARKit weights").
+    #[arg(long)]
+    pub ridge: Option<f64>,
     /// Turn the One Euro smoothing of the weights off.
     #[arg(long)]
     pub no_weight_filter: bool,
 }
 
 impl BlendshapeArgs {
-    /// The weight fit's settings these options describe.
-    pub fn settings(&self) -> BlendshapeSettings {
-        BlendshapeSettings {
-            ridge: self.ridge,
-            smoothing: if self.no_weight_filter {
-                None
-            } else {
-                BlendshapeSettings::default().smoothing
-            },
-        }
+    /// The weight fit's settings: the `[blendshape_fit]` of the rig file at `rig_path`, as
+    /// these options change them.
+    pub fn settings(&self, rig_path: &std::path::Path) -> anyhow::Result<BlendshapeSettings> {
+        let mut s = BlendshapeSettings::with_fit(&mimic_assets::load_blendshape_fit(rig_path)?);
+        s.ridge = self.ridge.unwrap_or(s.ridge);
+        s.smoothing = s.smoothing.filter(|_| !self.no_weight_filter);
+        Ok(s)
     }
 }
 

@@ -212,7 +212,8 @@ fn udp_key(shared: &Shared, id: u32) -> u32 {
 }
 
 /// A landmark session's forwarding: the blendshape fit of the rig's morph targets to its
-/// controls (`mimic_retarget::BlendshapeFitter`, default settings) feeds the forwarder; a rig
+/// controls (`mimic_retarget::BlendshapeFitter`, with the rig's `[blendshape_fit]`, as
+/// `replay --mode blendshapes` fits) feeds the forwarder; a rig
 /// without morph targets forwards nothing (logged).
 fn landmark_forward(
     s: &Session,
@@ -225,14 +226,15 @@ fn landmark_forward(
         tracing::warn!(session = %s.name, rig = s.rig.name(), "not forwarded: the rig has no [[morph_targets]] to fit weights of");
         return None;
     };
-    let fitter =
-        match BlendshapeFitter::new(&s.rig.rig, morph.targets(), &BlendshapeSettings::default()) {
-            Ok(f) => f,
-            Err(e) => {
-                tracing::warn!(session = %s.name, "not forwarded: {e}");
-                return None;
-            }
-        };
+    let settings = BlendshapeSettings::with_fit(&morph.fit);
+    let fitter = match BlendshapeFitter::new(&s.rig.rig, morph.targets(), &settings) {
+        Ok(f) => f,
+        Err(e) => {
+            tracing::warn!(session = %s.name, "not forwarded: {e}");
+            return None;
+        }
+    };
+    tracing::info!(session = %s.name, fit = ?morph.fit, "forwarding: blend-shape fit");
     let forwarder = start_forwarder(s, own, &morph.names)?;
     Some(Box::new((forwarder, fitter)))
 }

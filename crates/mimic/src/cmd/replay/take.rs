@@ -95,7 +95,7 @@ fn morph_fitter(
             rig.name
         );
     }
-    let fitter = BlendshapeFitter::new(rig, &targets, &args.blend.settings())
+    let fitter = BlendshapeFitter::new(rig, &targets, &args.blend.settings(rig_path)?)
         .with_context(|| format!("morph targets of rig `{}`", rig.name))?;
     Ok((fitter, targets))
 }
