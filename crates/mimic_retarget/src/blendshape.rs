@@ -579,6 +579,9 @@ mod tests {
         let settings = BlendshapeSettings {
             ridge: 0.0,
             smoothing: None,
+            l1: 0.0,
+            temporal: 0.0,
+            symmetry: 0.0,
         };
         let mut f = BlendshapeFitter::new(&rig, &t, &settings).unwrap();
         let mut out = FrameOutput {
