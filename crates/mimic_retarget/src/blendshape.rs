@@ -526,6 +526,21 @@ mod tests {
             .collect()
     }
 
+    /// A tracked frame of `rig` at rest with control displacements `d`.
+    fn tracked(rig: &Rig, d: Vec<Vec3>) -> FrameOutput {
+        FrameOutput {
+            timestamp_us: 0,
+            status: FrameStatus::Tracked,
+            positions: rig.mesh.positions.clone(),
+            normals: Vec::new(),
+            displacements: d,
+            pose: mimic_types::HeadPose::IDENTITY,
+            target_rotation: glam::Quat::IDENTITY,
+            filled: 0,
+            times: Default::default(),
+        }
+    }
+
     #[test]
     fn the_gaze_sets_the_eye_look_targets_and_the_fit_the_rest() {
         let rig = grid_rig();
@@ -542,18 +557,7 @@ mod tests {
         };
         let mut f = BlendshapeFitter::new(&rig, &t, &settings).unwrap();
         assert_eq!(f.eye_look_target_count(), 2);
-        let d = control_d(&rig, &t, &[0.6, 0.3, 0.2]);
-        let mut out = FrameOutput {
-            timestamp_us: 0,
-            status: FrameStatus::Tracked,
-            positions: rig.mesh.positions.clone(),
-            normals: Vec::new(),
-            displacements: d,
-            pose: mimic_types::HeadPose::IDENTITY,
-            target_rotation: glam::Quat::IDENTITY,
-            filled: 0,
-            times: Default::default(),
-        };
+        let mut out = tracked(&rig, control_d(&rig, &t, &[0.6, 0.3, 0.2]));
         let look = [0.0, 0.0, 0.7, 0.0, 0.0, 0.0, 0.0, 0.4];
         f.set_eye_look(Some(look));
         let w = f.apply(&mut out).to_vec();
@@ -584,17 +588,7 @@ mod tests {
             symmetry: 0.0,
         };
         let mut f = BlendshapeFitter::new(&rig, &t, &settings).unwrap();
-        let mut out = FrameOutput {
-            timestamp_us: 0,
-            status: FrameStatus::Tracked,
-            positions: rig.mesh.positions.clone(),
-            normals: Vec::new(),
-            displacements: control_d(&rig, &t, &[0.6, 0.3, 0.2]),
-            pose: mimic_types::HeadPose::IDENTITY,
-            target_rotation: glam::Quat::IDENTITY,
-            filled: 0,
-            times: Default::default(),
-        };
+        let mut out = tracked(&rig, control_d(&rig, &t, &[0.6, 0.3, 0.2]));
         // The speech names jawOpen (1.5 is clamped to 1) and a shape the rig lacks.
         f.set_mouth(Some((&["tongueOut", "jawOpen"], &[0.9, 1.5])));
         let w = f.apply(&mut out).to_vec();
