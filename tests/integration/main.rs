@@ -34,6 +34,7 @@ mod lost;
 mod mediapipe;
 mod morph;
 mod nats;
+mod open_mouth;
 mod openseeface;
 mod protected;
 mod record_weights;

@@ -1,8 +1,6 @@
-//! A mouth that opens on closed lips (issue 41, item 4). The fixture is a closed-lip "scan": ICT's
-//! neutral plus one of its ten identity shapes, the skin only (no mouth socket, teeth or eyes),
-//! the lips zipped (each vertex of the lower inner-lip edge moved onto the nearest vertex of the
-//! upper one), re-meshed by vertex clustering on a voxel grid so the lips are one surface, in mm,
-//! z up and facing -y, as scans come. The truth the cut is checked against is the zipped line
+//! A mouth that opens on closed lips (issue 41, item 4). The fixture is a closed-lip "scan"
+//! (`fixtures/closed_lips.rs`: an ICT identity, skin only, the lips zipped and re-meshed, in mm,
+//! z up facing -y, as scans come). The truth the cut is checked against is the zipped line
 //! itself (the clusters that hold a zipped vertex); the opening is measured across the cut as the
 //! difference of the displacements of each cut vertex and its copy, in eye distances.
 
@@ -11,209 +9,18 @@
     reason = "a test: a failed unwrap is the failure report"
 )]
 
-use glam::{Quat, Vec3};
-use mimic_assets::load_shape_pack;
+#[path = "fixtures/closed_lips.rs"]
+mod closed_lips;
+
+use closed_lips::closed_lip_scan;
+use glam::Vec3;
 use mimic_rig::lipcut::{Mouth, cut_closed_mouth, mouth_closed};
 use mimic_rig::new::landmark_frame;
 use mimic_rig::{FindSettings, NewRig, TemplateHead, find_landmarks, make_rig_file};
-use mimic_types::Mesh;
-use std::collections::{HashMap, HashSet};
 use std::path::PathBuf;
 
 fn configs() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs")
-}
-
-/// ICT's skin: face, head and neck.
-const SKIN: usize = 11248;
-
-/// The fixture: the mesh, and per vertex whether it holds a zipped inner-lip vertex.
-struct Scan {
-    mesh: Mesh,
-    zipped: Vec<bool>,
-}
-
-/// Vertices on an edge of one triangle among `triangles`.
-fn border(n: usize, triangles: &[[u32; 3]]) -> Vec<bool> {
-    let mut count: HashMap<(u32, u32), u32> = HashMap::new();
-    for t in triangles {
-        for k in 0..3 {
-            let (a, b) = (t[k], t[(k + 1) % 3]);
-            *count.entry((a.min(b), a.max(b))).or_default() += 1;
-        }
-    }
-    let mut out = vec![false; n];
-    for ((a, b), c) in count {
-        if c == 1 {
-            out[a as usize] = true;
-            out[b as usize] = true;
-        }
-    }
-    out
-}
-
-/// ICT identity `identity` (weight 1.5), skin only, lips zipped, clustered on a `voxel` grid
-/// (cm), in mm, turned z up facing -y.
-fn closed_lip_scan(identity: usize, voxel: f32) -> Scan {
-    let template = TemplateHead::ict(&configs()).unwrap();
-    let ids = load_shape_pack(&configs().join("meshes/ict-facekit/identities.shapes")).unwrap();
-    let mut skin: Vec<Vec3> = (0..SKIN)
-        .map(|v| template.mesh.positions[v] + ids.shapes[identity].deltas[v] * 1.5)
-        .collect();
-    let all: Vec<[u32; 3]> = template
-        .mesh
-        .triangles
-        .iter()
-        .filter(|t| t.iter().all(|v| (*v as usize) < SKIN))
-        .copied()
-        .collect();
-    let at = |k: usize| skin[template.landmarks.get(k).unwrap() as usize];
-    let centre = (60..=67).map(at).sum::<Vec3>() / 8.0;
-    // The inner surfaces of the lips go: the skin behind the inner-lip line (iBUG 60-64, ICT is
-    // y up and faces +z, cm) reached from the mouth's hole. What is left closes at the front,
-    // where the lips touch, as a scan's closed lips do.
-    let line: Vec<Vec3> = (60..=64).map(at).collect();
-    let line_z = |x: f32| {
-        let k = line
-            .windows(2)
-            .position(|w| x <= w[1].x)
-            .unwrap_or(line.len() - 2);
-        let (a, b) = (line[k], line[k + 1]);
-        let t = ((x - a.x) / (b.x - a.x)).clamp(0.0, 1.0);
-        a.z + (b.z - a.z) * t
-    };
-    let behind = |p: Vec3| p.distance(centre) < 3.0 && p.z < line_z(p.x) - 0.05;
-    let edge = border(SKIN, &all);
-    let mut gone = vec![false; SKIN];
-    let mut stack: Vec<usize> = (0..SKIN)
-        .filter(|v| edge[*v] && skin[*v].distance(centre) < 3.0)
-        .collect();
-    let mut near = vec![Vec::new(); SKIN];
-    for t in &all {
-        for k in 0..3 {
-            near[t[k] as usize].push(t[(k + 1) % 3] as usize);
-            near[t[(k + 1) % 3] as usize].push(t[k] as usize);
-        }
-    }
-    while let Some(v) = stack.pop() {
-        if gone[v] || !behind(skin[v]) {
-            continue;
-        }
-        gone[v] = true;
-        stack.extend(near[v].iter().copied().filter(|w| !gone[*w]));
-    }
-    let triangles: Vec<[u32; 3]> = all
-        .into_iter()
-        .filter(|t| t.iter().all(|v| !gone[*v as usize]))
-        .collect();
-    assert!(gone.iter().filter(|g| **g).count() > 20, "the inner lips");
-    // The mouth's hole now: border vertices near the inner-lip landmarks.
-    let edge = border(SKIN, &triangles);
-    let mouth: Vec<usize> = (0..SKIN)
-        .filter(|v| edge[*v] && skin[*v].distance(centre) < 3.0)
-        .collect();
-    // Upper and lower lip by ICT's own jawOpen: the lower lip moves with the jaw.
-    let expressions =
-        load_shape_pack(&configs().join("meshes/ict-facekit/expressions.shapes")).unwrap();
-    let jaw = &expressions.get("jawOpen").unwrap().deltas;
-    let most = mouth.iter().map(|v| jaw[*v].length()).fold(0.0, f32::max);
-    let below = |v: usize| jaw[v].length() > 0.5 * most;
-    let upper: Vec<usize> = mouth.iter().copied().filter(|v| !below(*v)).collect();
-    let lower: Vec<usize> = mouth.iter().copied().filter(|v| below(*v)).collect();
-    assert!(upper.len() > 10 && lower.len() > 10, "{upper:?} {lower:?}");
-    // Zipped: each vertex of either edge joined with the nearest of the other, each joined group
-    // moved to its mean, so no gap is left between them.
-    let mut group: Vec<usize> = (0..SKIN).collect();
-    fn root(g: &mut [usize], v: usize) -> usize {
-        let mut r = v;
-        while g[r] != r {
-            r = g[r];
-        }
-        g[v] = r;
-        r
-    }
-    for (from, to) in [(&lower, &upper), (&upper, &lower)] {
-        for &v in from {
-            let p = skin[v];
-            let u = to
-                .iter()
-                .copied()
-                .min_by(|a, b| skin[*a].distance(p).total_cmp(&skin[*b].distance(p)))
-                .unwrap();
-            let (a, b) = (root(&mut group, v), root(&mut group, u));
-            group[a] = b;
-        }
-    }
-    let mut joined: HashMap<usize, Vec<usize>> = HashMap::new();
-    for &v in &mouth {
-        let r = root(&mut group, v);
-        joined.entry(r).or_default().push(v);
-    }
-    for members in joined.values() {
-        let mean = members.iter().map(|v| skin[*v]).sum::<Vec3>() / members.len() as f32;
-        for v in members {
-            skin[*v] = mean;
-        }
-    }
-    // Vertex clustering.
-    let mut cell_of: HashMap<[i32; 3], u32> = HashMap::new();
-    let cluster: Vec<u32> = skin
-        .iter()
-        .map(|p| {
-            let q = (*p / voxel).floor();
-            let next = cell_of.len() as u32;
-            *cell_of
-                .entry([q.x as i32, q.y as i32, q.z as i32])
-                .or_insert(next)
-        })
-        .collect();
-    let k = cell_of.len();
-    let (mut sum, mut count) = (vec![Vec3::ZERO; k], vec![0f32; k]);
-    for (v, c) in cluster.iter().enumerate() {
-        sum[*c as usize] += skin[v];
-        count[*c as usize] += 1.0;
-    }
-    let mut tris = Vec::new();
-    let mut seen = HashSet::new();
-    for t in &triangles {
-        let c = t.map(|v| cluster[v as usize]);
-        if c[0] == c[1] || c[1] == c[2] || c[0] == c[2] {
-            continue;
-        }
-        let mut key = c;
-        key.sort_unstable();
-        if seen.insert(key) {
-            tris.push(c);
-        }
-    }
-    let mut used = vec![u32::MAX; k];
-    let mut kept = Vec::new();
-    for t in &mut tris {
-        for v in t.iter_mut() {
-            if used[*v as usize] == u32::MAX {
-                used[*v as usize] = kept.len() as u32;
-                kept.push(*v as usize);
-            }
-            *v = used[*v as usize];
-        }
-    }
-    let mut zipped = vec![false; kept.len()];
-    for v in mouth {
-        let u = used[cluster[v] as usize];
-        if u != u32::MAX {
-            zipped[u as usize] = true;
-        }
-    }
-    let turn = Quat::from_rotation_x(std::f32::consts::FRAC_PI_2);
-    let mesh = Mesh {
-        positions: kept
-            .iter()
-            .map(|c| turn * (sum[*c] / count[*c] * 10.0) + Vec3::new(3.0, -40.0, 1500.0))
-            .collect(),
-        triangles: tris,
-        ..Mesh::default()
-    };
-    Scan { mesh, zipped }
 }
 
 #[test]
@@ -233,7 +40,7 @@ fn a_closed_mouth_is_found_and_cut_along_the_zipped_lip_line_and_icts_own_is_ope
     let ict = mimic_assets::load_rig(&configs().join("rigs/ict-face.toml")).unwrap();
     let note = mimic_rig::lipcut::mouth_note(&ict).unwrap();
     assert!(note.starts_with("mouth: no cut"), "{note}");
-    let scan = closed_lip_scan(3, 0.3);
+    let scan = closed_lip_scan(&configs(), 3, 0.3);
     let found = find_landmarks(&scan.mesh, &template, &FindSettings::default()).unwrap();
     let frame = landmark_frame(&scan.mesh, &found.landmarks).unwrap();
     assert_eq!(
@@ -292,7 +99,7 @@ fn opening(path: &[u32], lower: &[u32], d: &[Vec3], iod: f32) -> f32 {
 #[test]
 fn rig_new_cuts_a_closed_mouth_and_jaw_open_opens_it() {
     let dir = tempfile::tempdir().unwrap();
-    let scan = closed_lip_scan(7, 0.3);
+    let scan = closed_lip_scan(&configs(), 7, 0.3);
     let obj = dir.path().join("scan.obj");
     let mut text = Vec::new();
     mimic_assets::write_obj(
