@@ -164,6 +164,8 @@ pub fn load_morph_targets(rig_path: &Path, rig: &Rig) -> Result<Vec<MorphTarget>
         };
         targets.push(target);
     }
+    // Shapes that open the chin but leave the lower teeth behind carry them (docs/parts.md).
+    mimic_solve::jaw::carry_jaw(rig, &mut targets);
     Ok(targets)
 }
 

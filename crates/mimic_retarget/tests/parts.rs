@@ -143,6 +143,75 @@ fn on_the_mediapipe_take_the_jaw_carries_the_lower_teeth_and_the_eyes_turn() {
     assert!(eye_stretch < 0.01, "eyeball edges stretched {eye_stretch}");
 }
 
+#[test]
+fn in_blend_shape_mode_the_targets_carry_the_lower_teeth_with_the_chin() {
+    // ICT's own expression shapes leave its teeth still; loaded as the rig's targets they carry
+    // them (mimic_solve::jaw::carry_jaw), so a blend of targets opens the teeth with the jaw.
+    let (rig, basis) = ict();
+    let jaw = rig.parts.jaw.as_ref().expect("ict-face has a jaw");
+    let lower = vertices(&jaw.vertices);
+    let upper: Vec<usize> = (17039..=19246).collect();
+    let chin = rig
+        .controls
+        .iter()
+        .find(|c| c.fdp.to_string() == "2.1")
+        .expect("chin control")
+        .vertex as usize;
+    let targets =
+        mimic_assets::load_morph_targets(&root().join("configs/rigs/ict-face.toml"), rig).unwrap();
+    let open = targets.iter().find(|t| t.name == "jawOpen").unwrap();
+    let drop = |d: &[Vec3]| {
+        (
+            -d[chin].y,
+            -lower.iter().map(|&v| d[v].y).sum::<f32>() / lower.len() as f32,
+        )
+    };
+    let (c, t) = drop(&open.position_deltas);
+    println!("jawOpen: chin drops {c:.3} cm, lower teeth {t:.3} cm");
+    assert!(c > 0.5 && t >= 0.5 * c, "{c} {t}");
+    for t in &targets {
+        let most = upper
+            .iter()
+            .map(|&v| t.position_deltas[v].length())
+            .fold(0.0, f32::max);
+        assert_eq!(most, 0.0, "{}: the upper teeth stay with the skull", t.name);
+    }
+    // The MediaPipe take fitted onto the targets: the widest-open frame.
+    let (layout, frames) = recording("megamind_mediapipe.jsonl");
+    let mut rt = Retargeter::new(rig, &layout, basis.clone(), RetargetSettings::default()).unwrap();
+    let mut fitter = mimic_retarget::BlendshapeFitter::new(
+        rig,
+        &targets,
+        &mimic_retarget::BlendshapeSettings::default(),
+    )
+    .unwrap();
+    let mut out = rt.new_output();
+    let rest = &rig.mesh.positions;
+    let mut widest = (0.0f32, 0.0f32);
+    for f in &frames {
+        rt.step(f, &mut out);
+        fitter.apply(&mut out);
+        let d: Vec<Vec3> = out
+            .positions
+            .iter()
+            .zip(rest)
+            .map(|(p, r)| *p - *r)
+            .collect();
+        let (c, t) = drop(&d);
+        if c > widest.0 {
+            widest = (c, t);
+        }
+    }
+    println!(
+        "blend-shape mode, widest open: chin drops {:.3} cm, lower teeth {:.3} cm ({:.2})",
+        widest.0,
+        widest.1,
+        widest.1 / widest.0
+    );
+    assert!(widest.0 > 0.3, "{widest:?}");
+    assert!(widest.1 >= 0.5 * widest.0, "{widest:?}");
+}
+
 /// MediaPipe's canonical face with irises (cm, x the subject's left, y up, z forward).
 fn canonical() -> Vec<Vec3> {
     let text =

@@ -178,6 +178,24 @@ fn rig_new_cuts_a_closed_mouth_and_jaw_open_opens_it() {
     // ARKit's jawOpen transferred onto the cut mesh.
     let targets = mimic_assets::load_morph_targets(&out, &rig).unwrap();
     let jaw = targets.iter().find(|t| t.name == "jawOpen").unwrap();
+    // The added lower teeth ride on the jaw in the shape too (mimic_solve::jaw::carry_jaw):
+    // along the chin's motion, at least half of it (the chin is farther from the hinge).
+    let chin = jaw.position_deltas[control("2.1").unwrap()];
+    let teeth = (jaw_part.vertices.iter())
+        .flat_map(|[a, b]| *a as usize..=*b as usize)
+        .map(|v| jaw.position_deltas[v].dot(chin.normalize()))
+        .collect::<Vec<f32>>();
+    let mean = teeth.iter().sum::<f32>() / teeth.len() as f32;
+    println!(
+        "jawOpen: the chin moves {:.3} IOD, the lower teeth {:.3}",
+        chin.length() / iod,
+        mean / iod
+    );
+    assert!(
+        mean >= 0.5 * chin.length(),
+        "teeth {mean} vs chin {}",
+        chin.length()
+    );
     let gap = opening(&path, &lower, &jaw.position_deltas, iod);
     println!("jawOpen opens the lips by {gap:.3} IOD");
     assert!(gap >= 0.1, "jawOpen opens {gap:.3} IOD");

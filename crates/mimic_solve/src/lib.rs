@@ -14,6 +14,7 @@ pub mod cotangent;
 pub mod deform;
 pub mod error;
 pub mod geodesic;
+pub mod jaw;
 pub mod kabsch;
 pub mod kernel;
 pub mod laplacian;
