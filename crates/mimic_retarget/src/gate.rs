@@ -55,12 +55,18 @@ pub struct GateSettings {
     pub pose_trim_floor: f32,
     /// The mouth and chin repair (docs/gate.md, "Tears"): an accepted frame whose bottom-region
     /// controls the bounded fit onto ICT's expression shapes leaves more than this far from
-    /// the fit at a control (IOD) has that control's leftover shrunk to this bound; 0 turns it off.
+    /// the fit at a lip control (IOD) has that control's leftover shrunk to this bound; 0 turns
+    /// the repair off.
     pub max_mouth_residual: f32,
+    /// ... the same bound for the chin's controls (FDPs 2.1 and 2.10-2.14), IOD; 0: as
+    /// `max_mouth_residual`.
+    pub max_chin_residual: f32,
 }
 
 /// The default of [`GateSettings::max_mouth_residual`], IOD (docs/gate.md, "Tears").
 pub const MOUTH_RESIDUAL: f32 = 0.0;
+/// The default of [`GateSettings::max_chin_residual`], IOD (docs/gate.md, "Tears").
+pub const CHIN_RESIDUAL: f32 = 0.0;
 
 impl Default for GateSettings {
     fn default() -> Self {
@@ -81,6 +87,7 @@ impl Default for GateSettings {
             jump_report: 1.0 / 6.303,
             pose_trim_floor: 0.0,
             max_mouth_residual: MOUTH_RESIDUAL,
+            max_chin_residual: CHIN_RESIDUAL,
         }
     }
 }

@@ -185,7 +185,10 @@ impl Retargeter {
                     &regions,
                     &target_controls,
                     face,
-                    settings.gate.max_mouth_residual,
+                    [
+                        settings.gate.max_mouth_residual,
+                        settings.gate.max_chin_residual,
+                    ],
                 )
             })
             .flatten();
