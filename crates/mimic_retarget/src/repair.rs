@@ -26,10 +26,12 @@ pub const ICT_AT_FDPS: &str = include_str!("repair/ict_at_fdps.txt");
 /// them to turn the repair on (it is off by default, which keeps every shipped golden).
 pub const CHOSEN: [f32; 2] = [0.15, 0.1];
 
-/// Shapes of the table the fit leaves out: ARKit's `mouthClose` is only a face together with
-/// at least as much `jawOpen` (alone it pushes the lower lip 3 cm up through the upper), a
-/// condition a box-bounded fit cannot hold.
-const LEFT_OUT: [&str; 1] = ["mouthClose"];
+/// ARKit's `mouthClose` is a face only with at least as much `jawOpen` (alone it pushes the
+/// lower lip 3 cm up through the upper), a condition a box-bounded fit cannot hold on two
+/// weights; so the fit's shape is `mouthClose + jawOpen` (lips closed over an open jaw), and
+/// `a jawOpen + b (mouthClose + jawOpen)` with `a, b >= 0` is every blend with
+/// `mouthClose <= jawOpen`.
+const RIDES_ON: (&str, &str) = ("mouthClose", "jawOpen");
 
 /// Ridge of the fit, relative to the mean squared length of the shapes' columns: keeps the
 /// system positive definite (the shapes overlap at a few controls) without pulling weights.
@@ -186,11 +188,16 @@ impl MouthRepair {
         let per_shape: Vec<Vec<Vec3>> = table
             .shapes
             .iter()
-            .filter(|(name, _)| !LEFT_OUT.contains(&name.as_str()))
-            .map(|(_, s)| {
+            .map(|(name, s)| {
+                let base = (name == RIDES_ON.0)
+                    .then(|| table.shapes.iter().find(|(n, _)| n == RIDES_ON.1))
+                    .flatten();
                 controls
                     .iter()
-                    .map(|(_, t)| pose.rotation * s[*t] * pose.scale)
+                    .map(|(_, t)| {
+                        let v = s[*t] + base.map_or(Vec3::ZERO, |(_, b)| b[*t]);
+                        pose.rotation * v * pose.scale
+                    })
                     .collect::<Vec<Vec3>>()
             })
             .filter(|s| s.iter().any(|v| v.length() > 1e-3 * face))
@@ -326,13 +333,26 @@ mod tests {
                     .wrapping_add(1442695040888963407);
                 (seed >> 40) as f32 / (1u64 << 24) as f32
             };
-            // Each shape at full weight, and 200 blends of three shapes with weights in [0, 1].
-            let mut cases: Vec<Vec<(usize, f32)>> =
-                (0..t.shapes.len()).map(|k| vec![(k, 1.0)]).collect();
+            // Each shape but mouthClose at full weight, and 200 blends of three of them with
+            // weights in [0, 1].
+            let close = t.shapes.iter().position(|(n, _)| n == RIDES_ON.0).unwrap();
+            let open = t.shapes.iter().position(|(n, _)| n == RIDES_ON.1).unwrap();
+            let kept: Vec<usize> = (0..t.shapes.len()).filter(|k| *k != close).collect();
+            let mut cases: Vec<Vec<(usize, f32)>> = kept.iter().map(|k| vec![(*k, 1.0)]).collect();
             for _ in 0..200 {
-                let n = t.shapes.len() as f32;
-                cases.push((0..3).map(|_| ((next() * n) as usize, next())).collect());
+                let n = kept.len() as f32;
+                cases.push(
+                    (0..3)
+                        .map(|_| (kept[(next() * n) as usize], next()))
+                        .collect(),
+                );
             }
+            // mouthClose alone drives the lower lip up through the upper: repaired.
+            let mut lips = blend(&[(close, 1.0)], q, s);
+            assert!(r.apply(&mut lips, face).repaired);
+            // ARKit's mouthClose as it is used: with at least as much jawOpen.
+            cases.push(vec![(open, 1.0), (close, 1.0)]);
+            cases.push(vec![(open, 0.6), (close, 0.3), (kept[5], 0.5)]);
             for w in cases {
                 let d = blend(&w, q, s);
                 let mut out = d.clone();
