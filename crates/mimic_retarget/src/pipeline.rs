@@ -175,23 +175,7 @@ impl Retargeter {
             .zip(&rig.controls)
             .map(|(f, c)| (settings.gate.bound_of(*f, c.region) * face).powi(-2))
             .collect();
-        let regions: Vec<_> = rig.controls.iter().map(|c| c.region).collect();
-        let repair = settings
-            .gate
-            .enabled
-            .then(|| {
-                crate::repair::MouthRepair::new(
-                    &fdps,
-                    &regions,
-                    &target_controls,
-                    face,
-                    [
-                        settings.gate.max_mouth_residual,
-                        settings.gate.max_chin_residual,
-                    ],
-                )
-            })
-            .flatten();
+        let repair = crate::repair::MouthRepair::of_rig(&settings.gate, &fdps, rig, face);
         let mut r = Retargeter {
             layout: layout.clone(),
             patch: if settings.positions {

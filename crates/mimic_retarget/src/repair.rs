@@ -150,6 +150,22 @@ pub struct RepairReading {
 }
 
 impl MouthRepair {
+    /// The repair `gate` asks for on `rig` (its controls standing for `fdps`, face size `face`):
+    /// `None` with the gate or the repair off, or a rig it cannot read.
+    pub(crate) fn of_rig(
+        gate: &crate::GateSettings,
+        fdps: &[Option<Fdp>],
+        rig: &mimic_types::Rig,
+        face: f32,
+    ) -> Option<Self> {
+        if !gate.enabled {
+            return None;
+        }
+        let regions: Vec<Region> = rig.controls.iter().map(|c| c.region).collect();
+        let bounds = [gate.max_mouth_residual, gate.max_chin_residual];
+        Self::new(fdps, &regions, &rig.control_positions(), face, bounds)
+    }
+
     /// The repair of a rig whose controls stand for `fdps` (one per control), in `regions`, at
     /// rest at `target` (target units, face size `face`), with the residual bounds `[lips, chin]`
     /// (IOD; a chin bound of 0 is the lips');
