@@ -68,6 +68,9 @@ struct Probe {
     iod: f32,
     edges: Vec<(usize, usize, f32)>,
     chin: usize,
+    /// The upper lip's controls (8.1, 8.5, 8.6) and the front of the upper teeth at rest
+    /// beside each (within 0.5 cm across).
+    upper_lip: Vec<(usize, f32)>,
 }
 
 fn ctl(rig: &Rig, fdp: &str) -> usize {
@@ -157,12 +160,27 @@ impl Probe {
             iod,
             edges,
             chin: rig.controls[ctl(rig, "2.1")].vertex as usize,
+            upper_lip: ["8.1", "8.5", "8.6"]
+                .iter()
+                .map(|f| {
+                    let v = rig.controls[ctl(rig, f)].vertex as usize;
+                    // ICT's upper teeth (configs/meshes/ict-facekit/SOURCE.md).
+                    let front = (17039..=19246)
+                        .filter(|t| (rest[*t].x - rest[v].x).abs() < 0.5)
+                        .map(|t| rest[t].z)
+                        .fold(f32::MIN, f32::max);
+                    (v, front)
+                })
+                .collect(),
         }
     }
 
-    /// (lip behind the teeth at rest, edge strain p99 of the front skin, chin shear (IOD))
-    fn mesh(&self, p: &[Vec3], rest: &[Vec3]) -> (bool, f32, f32) {
+    /// (the lower lip's middle behind the lower teeth at rest, edge strain p99 of the front
+    /// skin, chin shear (IOD), the upper lip (8.1, 8.5, 8.6) behind the upper teeth beside it:
+    /// bared teeth).
+    fn mesh(&self, p: &[Vec3], rest: &[Vec3]) -> (bool, f32, f32, bool) {
         let behind = p[self.lip].z <= self.lower_teeth_front;
+        let bared = self.upper_lip.iter().any(|(v, front)| p[*v].z <= *front);
         let mut strain: Vec<f32> = self
             .edges
             .iter()
@@ -171,7 +189,7 @@ impl Probe {
         let st = pct(&mut strain, 0.99);
         let d = p[self.chin] - rest[self.chin];
         let shear = (-d.z - 1.03 * (-d.y).max(0.0)) / self.iod;
-        (behind, st, shear)
+        (behind, st, shear, bared)
     }
 
     /// Per bottom control, the residual of the fit (IOD).
@@ -271,14 +289,16 @@ fn explore() {
         }
         let dmax = db.iter().map(|v| v.length()).fold(0.0, f32::max);
         println!(
-            "ICT {:24} truth behind {} strain {:5.3} shear {:6.3} | basis behind {} strain {:5.3} shear {:6.3} | dmax {:.3} IOD loo resid {:.3} IOD",
+            "ICT {:24} truth behind {} strain {:5.3} shear {:6.3} bared {} | basis behind {} strain {:5.3} shear {:6.3} bared {} | dmax {:.3} IOD loo resid {:.3} IOD",
             s.name,
             t.0,
             t.1,
             t.2,
+            t.3,
             v.0,
             v.1,
             v.2,
+            v.3,
             dmax / probe.iod,
             mx / probe.iod
         );
@@ -339,7 +359,7 @@ fn run_take(probe: &Probe, name: &str, l: &Layout, frames: &[LandmarkFrame], bou
     settings.gate.max_chin_residual = std::env::var("CHIN").map_or(0.0, |c| c.parse().unwrap());
     let mut rt = Retargeter::new(rig, l, basis.clone(), settings).unwrap();
     let mut out = rt.new_output();
-    let (mut behind, mut flip, mut crossed, mut tracked) = (0, 0, 0, 0);
+    let (mut behind, mut flip, mut crossed, mut tracked, mut bared) = (0, 0, 0, 0, 0);
     let (mut r_all, mut r_torn, mut r_clean) = (vec![], vec![], vec![]);
     let mut chin_d = vec![];
     let mut chin_v = vec![];
@@ -354,7 +374,8 @@ fn run_take(probe: &Probe, name: &str, l: &Layout, frames: &[LandmarkFrame], bou
             continue;
         }
         tracked += 1;
-        let (b, t, c) = probe.mesh(&out.positions, &rig.mesh.positions);
+        let (b, t, c, u) = probe.mesh(&out.positions, &rig.mesh.positions);
+        bared += usize::from(u);
         let r = rt.repair_reading().residual;
         let torn = b || t > STRAIN || c > SHEAR;
         behind += usize::from(b);
@@ -413,7 +434,7 @@ fn run_take(probe: &Probe, name: &str, l: &Layout, frames: &[LandmarkFrame], bou
         );
     }
     println!(
-        "{name} bound {bound}: tracked {tracked} repaired {} behind {behind} strain {flip} shear {crossed} (p99 {:.3} max {:.3} IOD) | resid IOD p50 {:.3} p90 {:.3} p99 {:.3} max {:.3} (frame {}) | torn p50 {:.3} clean p99 {:.3} | chin |d| p50 {:.3} cm | neutral chin off {:.2} / {:.2} cm (kabsch {:.2} / {:.2}), rms {:.2} | torn {:?}",
+        "{name} bound {bound}: tracked {tracked} repaired {} behind {behind} bared {bared} strain {flip} shear {crossed} (p99 {:.3} max {:.3} IOD) | resid IOD p50 {:.3} p90 {:.3} p99 {:.3} max {:.3} (frame {}) | torn p50 {:.3} clean p99 {:.3} | chin |d| p50 {:.3} cm | neutral chin off {:.2} / {:.2} cm (kabsch {:.2} / {:.2}), rms {:.2} | torn {:?}",
         rt.stats().repaired,
         pct(&mut shears, 0.99),
         pct(&mut shears, 1.0),
@@ -512,7 +533,7 @@ fn run(
         rt.step(f, &mut out);
         ds.push(out.displacements.clone());
         if out.status == FrameStatus::Tracked {
-            let (_, _, shear) = probe.mesh(&out.positions, &rig.mesh.positions);
+            let (_, _, shear, _) = probe.mesh(&out.positions, &rig.mesh.positions);
             torn += usize::from(shear > SHEAR);
             worst = worst.max(shear);
         }
@@ -532,7 +553,7 @@ fn the_repair_cuts_a_raw_imports_chin_tears_and_leaves_a_clean_take_alone() {
     .unwrap();
     for s in &pack.shapes {
         let p: Vec<Vec3> = rest.iter().zip(&s.deltas).map(|(a, b)| *a + *b).collect();
-        let (_, _, shear) = probe.mesh(&p, rest);
+        let (_, _, shear, _) = probe.mesh(&p, rest);
         assert!(shear < 0.1 * SHEAR, "{}: {shear}", s.name);
     }
     let chosen = mimic_retarget::repair::CHOSEN;
