@@ -53,7 +53,20 @@ pub struct GateSettings {
     /// pose, from frame to frame. 0 (the default) keeps the pipeline's trim as it was;
     /// `docs/gate.md` has what 0.2 does on depth-repaired Kinect captures.
     pub pose_trim_floor: f32,
+    /// The mouth and chin repair (docs/gate.md, "Tears"): an accepted frame whose bottom-region
+    /// controls the bounded fit onto ICT's expression shapes leaves more than this far from
+    /// the fit at a lip control (IOD) has that control's leftover shrunk to this bound; 0 turns
+    /// the repair off.
+    pub max_mouth_residual: f32,
+    /// ... the same bound for the chin's controls (FDPs 2.1 and 2.10-2.14), IOD; 0: as
+    /// `max_mouth_residual`.
+    pub max_chin_residual: f32,
 }
+
+/// The default of [`GateSettings::max_mouth_residual`], IOD (docs/gate.md, "Tears").
+pub const MOUTH_RESIDUAL: f32 = 0.0;
+/// The default of [`GateSettings::max_chin_residual`], IOD (docs/gate.md, "Tears").
+pub const CHIN_RESIDUAL: f32 = 0.0;
 
 impl Default for GateSettings {
     fn default() -> Self {
@@ -73,6 +86,8 @@ impl Default for GateSettings {
             step_floor: 0.005,
             jump_report: 1.0 / 6.303,
             pose_trim_floor: 0.0,
+            max_mouth_residual: MOUTH_RESIDUAL,
+            max_chin_residual: CHIN_RESIDUAL,
         }
     }
 }

@@ -121,6 +121,11 @@ pub struct Retargeter {
     pub(crate) gaze: Option<GazeTracker>,
     /// The mouth from another source (speech), mixed into `d` before the deform.
     pub(crate) mouth: Option<crate::mouth::MouthDrive>,
+    /// The mouth and chin repair (`GateSettings::max_mouth_residual`), when on and the rig has
+    /// the feature points for it.
+    pub(crate) repair: Option<crate::repair::MouthRepair>,
+    /// What the repair measured on the last accepted frame.
+    pub(crate) repair_reading: crate::RepairReading,
 }
 
 impl Retargeter {
@@ -170,6 +175,7 @@ impl Retargeter {
             .zip(&rig.controls)
             .map(|(f, c)| (settings.gate.bound_of(*f, c.region) * face).powi(-2))
             .collect();
+        let repair = crate::repair::MouthRepair::of_rig(&settings.gate, &fdps, rig, face);
         let mut r = Retargeter {
             layout: layout.clone(),
             patch: if settings.positions {
@@ -230,6 +236,8 @@ impl Retargeter {
             parts: part_motion,
             eye_turn: None,
             mouth: None,
+            repair,
+            repair_reading: crate::RepairReading::default(),
             settings: settings.clone(),
         };
         match settings.neutral {
@@ -312,6 +320,17 @@ impl Retargeter {
             .filter(|_| self.accumulator.is_none())
     }
 
+    /// The calibrated neutral's control positions (source space, the performer's units), once
+    /// the neutral is known (not the canonical neutral's).
+    pub fn neutral_controls(&self) -> Option<&[Vec3]> {
+        self.source_to_target().map(|_| &self.neutral_controls[..])
+    }
+
+    /// The rig's control positions at rest (target units).
+    pub fn target_controls(&self) -> &[Vec3] {
+        &self.target_controls
+    }
+
     /// The basis in use.
     pub fn basis(&self) -> &Basis {
         &self.basis
@@ -370,6 +389,11 @@ impl Retargeter {
             self.previous_time_us = Some(frame.timestamp_us);
         }
         status
+    }
+
+    /// What the mouth and chin repair measured on the last accepted frame (docs/gate.md, "Tears").
+    pub fn repair_reading(&self) -> crate::RepairReading {
+        self.repair_reading
     }
 
     /// What the plausibility gate measured on the last tracked frame, and whether it held it.
@@ -454,6 +478,10 @@ impl Retargeter {
         self.gated_since_us = None;
         self.accepted_rotation = pose.rotation;
         self.accepted_time_us = Some(frame.timestamp_us);
+        if let Some(repair) = self.repair.as_mut() {
+            self.repair_reading = repair.apply(&mut self.raw_d, self.face_size);
+            self.stats.repaired += u64::from(self.repair_reading.repaired);
+        }
         let filter = self
             .settings
             .filter

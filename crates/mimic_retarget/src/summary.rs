@@ -97,6 +97,7 @@ impl ReplaySummary<'_> {
             "gated": stats.gated,
             "clamped": stats.clamped,
             "jumps": stats.jumps,
+            "repaired": stats.repaired,
             "filled_controls": stats.filled_controls,
             "frames_with_non_finite_vertices": report.non_finite_frames,
             "source_to_target": map.map(|m| json!({"scale": m.scale, "mirrored": m.mirrored, "rms_residual": m.rms_residual})),

@@ -104,11 +104,14 @@ fn step_and_apply_allocate_nothing_on_the_ict_rig() {
     let rig = mimic_assets::load_rig(&repo().join("configs/rigs/ict-face.toml")).unwrap();
     let layout = mimic_assets::load_layout(&repo().join("configs/layouts/kinect121.toml")).unwrap();
     let basis = Arc::new(build_basis(&rig, &rig.solver).unwrap());
-    let settings = RetargetSettings {
+    let mut settings = RetargetSettings {
         normals: true,
         positions: true,
         ..RetargetSettings::default()
     };
+    // The mouth and chin repair on, with bounds low enough that it repairs frames here.
+    settings.gate.max_mouth_residual = 0.02;
+    settings.gate.max_chin_residual = 0.02;
     let mut rt = Retargeter::new(&rig, &layout, basis.clone(), settings).unwrap();
     let mut out = rt.new_output();
     let frames = frames(layout.point_count);
@@ -132,6 +135,7 @@ fn step_and_apply_allocate_nothing_on_the_ict_rig() {
         }
     });
     assert!(tracked > measured.len(), "{tracked} tracked frames");
+    assert!(rt.stats().repaired > 10, "{:?}", rt.stats());
     assert!(out.normals.iter().all(|v| v.is_finite()));
     assert_eq!(n, 0, "{n} allocations in {} steps", 2 * measured.len() + 2);
 

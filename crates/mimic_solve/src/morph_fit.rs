@@ -58,6 +58,15 @@ pub struct MorphScratch {
     primed: bool,
 }
 
+impl MorphScratch {
+    /// Forgets the previous fit: the next starts from all-zero weights with no temporal term,
+    /// as on fresh scratch (allocates nothing).
+    pub fn reset(&mut self) {
+        self.weights.iter_mut().for_each(|w| *w = 0.0);
+        self.primed = false;
+    }
+}
+
 impl MorphFit {
     /// Prepares the fit from `targets[k][j]`, the delta of target `k` at control `j`.
     /// Adds `ridge |w|^2` to the data term.

@@ -75,4 +75,8 @@ pub struct Stats {
     /// was being calibrated (counted in `tracked` too; docs/replay.md, "Short clips").
     #[serde(default)]
     pub provisional: u64,
+    /// Tracked frames whose mouth and chin the repair pulled toward the plausible subspace
+    /// (`GateSettings::max_mouth_residual`, docs/gate.md "Tears").
+    #[serde(default)]
+    pub repaired: u64,
 }
