@@ -23,6 +23,10 @@ pub const MAX_SLIDE: f32 = 0.1;
 /// A target "leaves the jaw's passengers behind" when none of the vertices the jaw carries whole
 /// moves by more than this share of its largest chin motion ([`carry_jaw`]).
 pub const LEFT_BEHIND: f32 = 0.05;
+/// A target whose chin moves less than this share of the chin's distance from the hinge (1 mm on
+/// ICT; a turn under 0.6 degrees) does not move the jaw: a blink's or a brow's stray chin motion
+/// ([`carry_jaw`]).
+pub const MIN_CHIN: f32 = 0.01;
 
 /// One chin control: its index among the rig's controls and its rest offset from the hinge.
 #[derive(Clone, Copy, Debug)]
@@ -104,6 +108,23 @@ impl JawReader {
         (turn, slide)
     }
 
+    /// The chin controls' mean distance from the hinge.
+    fn reach(&self) -> f32 {
+        self.chins
+            .iter()
+            .map(|c| c.from_hinge.length())
+            .sum::<f32>()
+            / self.chins.len() as f32
+    }
+
+    /// How far the jaw's motion `(turn, slide)` moves the farthest-moved chin control.
+    fn carried_chin(&self, turn: Mat3, slide: Vec3) -> f32 {
+        self.chins
+            .iter()
+            .map(|c| (turn * c.from_hinge - c.from_hinge + slide).length())
+            .fold(0.0, f32::max)
+    }
+
     /// The largest displacement among the chin controls of `d`.
     fn chin_motion(&self, d: &[Vec3]) -> f32 {
         self.chins
@@ -114,7 +135,8 @@ impl JawReader {
     }
 }
 
-/// Carries the jaw into `targets` (deltas on `rig`'s mesh): a target that moves the chin but
+/// Carries the jaw into `targets` (deltas on `rig`'s mesh): a target that moves the chin, and
+/// whose jaw motion read from it moves the chin, by at least [`MIN_CHIN`] of its reach, but
 /// leaves the vertices the jaw carries whole still (within [`LEFT_BEHIND`] of the chin's motion;
 /// ICT-FaceKit's own expression shapes do) gets, on every vertex of the rig's jaw part, the
 /// jaw's motion read from the target's chin ([`JawReader::motion`]) in the share the part gives
@@ -161,11 +183,13 @@ pub fn carry_jaw(rig: &Rig, targets: &mut [MorphTarget]) -> Vec<String> {
             .iter()
             .map(|v| t.position_deltas[*v].length())
             .fold(0.0, f32::max);
-        if chin <= 0.0 || passengers > LEFT_BEHIND * chin {
+        if chin < MIN_CHIN * reader.reach() || passengers > LEFT_BEHIND * chin {
             continue;
         }
         let (turn, slide) = reader.motion(&d);
-        if turn == Mat3::IDENTITY && slide == Vec3::ZERO {
+        // The jaw itself must move the chin as far too (a chin pushed up or forward by the skin
+        // is clamped to no turn, and a sliver of slide is not a jaw's).
+        if reader.carried_chin(turn, slide) < MIN_CHIN * reader.reach() {
             continue;
         }
         let r = turn - Mat3::IDENTITY;
@@ -307,11 +331,16 @@ mod tests {
         own.position_deltas[n - 2] = Vec3::new(0.0, -0.3, 0.0);
         let mut still = target("browInnerUp", n);
         still.position_deltas[rig.controls[2].vertex as usize] = Vec3::Y;
-        let mut targets = vec![open, own.clone(), still.clone()];
+        // A blink's stray chin motion: under MIN_CHIN of the chin's reach from the hinge.
+        let mut blink = target("eyeBlinkLeft", n);
+        let reach = rig.mesh.positions[chin].distance(hinge);
+        blink.position_deltas[chin] = Vec3::new(0.0, -0.5 * MIN_CHIN * reach, 0.0);
+        let mut targets = vec![open, own.clone(), still.clone(), blink.clone()];
         let changed = carry_jaw(&rig, &mut targets);
         assert_eq!(changed, vec!["jawOpen".to_string()]);
         assert_eq!(targets[1], own);
         assert_eq!(targets[2], still);
+        assert_eq!(targets[3], blink);
         // The tooth turns with the chin about the hinge (truth: the quaternion's own turn), the
         // ramped vertex by half of it (smoothstep at the cut).
         let scale = rig.mesh.positions[n - 2].distance(hinge);
