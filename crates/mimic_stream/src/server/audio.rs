@@ -56,7 +56,7 @@ enum ToWorker {
 
 /// One mouth frame from the worker: its time, its weights (the live names' order) and the
 /// arrival of the chunk that completed it.
-struct MouthFrame {
+pub(crate) struct MouthFrame {
     t_us: i64,
     weights: [f32; ARKIT_NAMES.len()],
     arrival: Instant,
