@@ -7,8 +7,10 @@
 //! (printed; p90 at most 150 ms). Every 1/60 s of the stream has its frame, and VMC gets each
 //! frame's jawOpen as the viewer does. Skips, saying so, without espeak-ng (fails under CI).
 
-use crate::loopback::{Serve, read_session, viewer};
+use crate::loopback::{Serve, connect, read_json_line, read_session, viewer};
 use crate::{mimic, text};
+use serde_json::Value;
+use std::io::{BufReader, Write};
 use std::net::UdpSocket;
 use std::path::Path;
 use std::process::Command;
@@ -45,8 +47,13 @@ fn sentences_wav(sentences: &[&str], dir: &Path, out: &Path) -> Vec<(String, f64
         words.push((w.to_string(), start, all.len() as f64 / f64::from(rate)));
         all.extend(&gap);
     }
-    // A canonical 44-byte PCM WAV header, then the samples.
-    let data = mimic_audio::wav::pcm16(&all);
+    write_wav(out, rate, &all);
+    words
+}
+
+/// `samples` as a 16-bit mono WAV: a canonical 44-byte header, then the samples.
+fn write_wav(out: &Path, rate: u32, samples: &[f32]) {
+    let data = mimic_audio::wav::pcm16(samples);
     let mut wav = Vec::with_capacity(44 + data.len());
     let n = data.len() as u32;
     for chunk in [
@@ -67,7 +74,6 @@ fn sentences_wav(sentences: &[&str], dir: &Path, out: &Path) -> Vec<(String, f64
     wav.extend_from_slice(&n.to_le_bytes());
     wav.extend_from_slice(&data);
     std::fs::write(out, wav).unwrap();
-    words
 }
 
 #[test]
@@ -200,4 +206,127 @@ fn live_speech_becomes_mouth_weights_as_it_arrives_viewed_and_forwarded() {
     assert!(open * 10 >= words.len() * 9, "{open} of {}", words.len());
     assert!(closed * 10 >= silent * 9, "{closed} of {silent}");
     assert!(q(0.9) <= 150.0, "p90 onset delay {} ms", q(0.9));
+}
+
+#[test]
+fn audio_hellos_and_chunks_are_checked_gaps_are_silence_and_a_fast_sender_loses_nothing() {
+    let serve = Serve::start(&["--no-udp"]);
+    // A rate outside 8-48 kHz: refused at the hello, naming the field.
+    let mut t = connect(&serve.tcp);
+    t.write_all(b"{\"mode\":\"audio\",\"sample_rate\":96000}\n")
+        .unwrap();
+    let refusal = read_json_line(&mut BufReader::new(t.try_clone().unwrap()));
+    assert_eq!(refusal["code"], "bad_hello", "{refusal}");
+    assert!(
+        refusal["message"].as_str().unwrap().contains("sample_rate"),
+        "{refusal}"
+    );
+
+    let mut v = viewer(&serve.tcp, "p", false);
+    serve.wait_for("the viewer", |s| s["viewers_active"] == 1);
+    let seen = mimic_testkit::spawn("viewer", move || read_session(&mut v));
+    let mut t = connect(&serve.tcp);
+    let mut replies = BufReader::new(t.try_clone().unwrap());
+    t.write_all(b"{\"mode\":\"audio\",\"session\":\"p\",\"sample_rate\":16000,\"channels\":1}\n")
+        .unwrap();
+    let welcome = read_json_line(&mut replies);
+    assert_eq!(welcome["mode"], "audio", "{welcome}");
+    assert_eq!(welcome["fps"], 60.0, "{welcome}");
+    assert!(
+        welcome["mouth"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|n| n == "jawOpen"),
+        "{welcome}"
+    );
+    let tone = |n: usize| -> Vec<f32> { (0..n).map(|i| 0.3 * (i as f32 * 0.05).sin()).collect() };
+    let chunk = |t_us: i64, n: usize| mimic_stream::wire::encode_audio_chunk(t_us, &tone(n));
+    let lines = [
+        chunk(0, 320),                                // line 2: 0-20 ms
+        "{\"t_us\":20000,\"pcm\":\"!!\"}\n".into(),   // line 3: not base64
+        "{\"t_us\":20000,\"pcm\":\"AA==\"}\n".into(), // line 4: half a sample
+        chunk(20_000, 3200),                          // line 5: 200 ms, over the 100 ms limit
+        chunk(10_000, 320),                           // line 6: overlaps 0-20 ms: late
+        chunk(20_000, 320),                           // line 7: 20-40 ms
+        chunk(500_000, 320),                          // line 8: 460 ms of silence, then 500-520 ms
+        chunk(3_000_000, 320),                        // line 9: over 1 s later: a new stream
+    ];
+    for l in &lines {
+        t.write_all(l.as_bytes()).unwrap();
+    }
+    t.shutdown(std::net::Shutdown::Write).unwrap();
+    let got: Vec<Value> = std::io::BufRead::lines(&mut replies)
+        .map(|l| serde_json::from_str(&l.unwrap()).unwrap())
+        .collect();
+    let brief: Vec<(String, u64)> = got
+        .iter()
+        .map(|l| {
+            (
+                l["code"].as_str().unwrap_or("bye").to_string(),
+                l["line"].as_u64().unwrap_or(0),
+            )
+        })
+        .collect();
+    let want = [
+        ("bad_audio", 3),
+        ("bad_audio", 4),
+        ("bad_audio", 5),
+        ("bye", 0),
+    ];
+    assert_eq!(brief, want.map(|(c, l)| (c.to_string(), l)), "{got:?}");
+    assert!(
+        got[2]["message"].as_str().unwrap().contains("at most 1600"),
+        "{got:?}"
+    );
+    let bye = &got[3];
+    assert_eq!(
+        (bye["late"].as_u64(), bye["malformed"].as_u64()),
+        (Some(1), Some(3)),
+        "{bye}"
+    );
+    // 0-520 ms: frames 1/60 .. 31/60 s; the new stream at 3 s: one frame at 3 s + 1/60.
+    let seen = seen.join().unwrap();
+    let times: Vec<i64> = seen.frames.iter().map(|f| f.timestamp_us).collect();
+    let mut want: Vec<i64> = (1..=31).map(|k| k * 1_000_000 / 60).collect();
+    want.push(3_000_000 + 1_000_000 / 60);
+    // A viewer's queue keeps the newest frames of a burst (the gap's): its frames are some of
+    // these, in order, ending with the new stream's.
+    assert!(
+        times.windows(2).all(|w| w[0] < w[1]) && times.iter().all(|t| want.contains(t)),
+        "{times:?}"
+    );
+    assert_eq!(times.last(), want.last());
+    assert_eq!(bye["frames"].as_u64(), Some(want.len() as u64), "{bye}");
+
+    // `--fast`: 12 s of audio as fast as TCP takes it; the worker's queue pushes back, so every
+    // frame is made and none is dropped.
+    let tmp = tempfile::tempdir().unwrap();
+    let wav = tmp.path().join("tone.wav");
+    let samples: Vec<f32> = (0..16_000 * 12)
+        .map(|i| {
+            if (i / 4000) % 2 == 0 {
+                0.3 * (i as f32 * 0.05).sin()
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    write_wav(&wav, 16_000, &samples);
+    let o = mimic(&[
+        "send",
+        "--audio",
+        wav.to_str().unwrap(),
+        "--to",
+        &serve.tcp,
+        "--session",
+        "f",
+        "--fast",
+    ]);
+    let (out, err) = text(&o);
+    assert!(o.status.success(), "{out}{err}");
+    assert!(
+        out.contains("sent 600 audio chunks") && out.contains("720 frames, 0 late, 0 malformed"),
+        "{out}"
+    );
 }

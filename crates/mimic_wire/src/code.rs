@@ -52,8 +52,6 @@ pub enum ErrorCode {
     /// An audio chunk whose `pcm` is not base64 whole samples of the session's channels, or
     /// longer than the chunk limit.
     BadAudio,
-    /// An audio chunk the session's processing queue had no room for (dropped; once a run).
-    AudioDropped,
 }
 
 impl ErrorCode {
@@ -82,7 +80,6 @@ impl ErrorCode {
             ErrorCode::TooManyConnections => "too_many_connections",
             ErrorCode::BadToken => "bad_token",
             ErrorCode::BadAudio => "bad_audio",
-            ErrorCode::AudioDropped => "audio_dropped",
         }
     }
 }

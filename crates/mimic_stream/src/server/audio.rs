@@ -7,9 +7,10 @@
 //! Stream time: the first chunk's `t_us` anchors the stream; frame `k` is at `anchor + k / 60 s`
 //! and holds the mouth after the audio up to that time. A chunk starting before the previous
 //! one ended is dropped (`late`); a gap up to [`MAX_GAP_US`] is silence, a longer one starts the
-//! stream again from that chunk (the mouth closed). A chunk the worker's queue has no room for
-//! is dropped, counted in `udp_queue_dropped` and answered once a run (`audio_dropped`); the
-//! worker treats the samples it missed as silence, so the frame times stay true.
+//! stream again from that chunk (the mouth closed). When the worker's queue is full (a sender
+//! faster than real time, `mimic send --fast`), the session stops reading its tracker until
+//! there is room, publishing the worker's frames meanwhile: TCP slows that sender down, no audio
+//! is dropped and no other session waits.
 
 use super::admission::{Admission, Refusal, find_rig};
 use super::outputs::own_forward;
@@ -25,14 +26,14 @@ use glam::Quat;
 use mimic_audio::live::LiveLipSync;
 use mimic_audio::visemes::VisemeTable;
 use mimic_types::arkit::ARKIT_NAMES;
-use mimic_wire::{AudioFormat, AudioHello, ErrorCode, error_line, parse_audio_chunk};
+use mimic_wire::{AudioFormat, AudioHello, ErrorCode, parse_audio_chunk};
 use serde_json::{Map, Value, json};
 use std::net::SocketAddr;
 use std::sync::mpsc as std_mpsc;
 use std::time::Instant;
 use tokio::sync::mpsc;
 
-/// Chunks queued for a session's worker before more are dropped (1 s of 20 ms chunks).
+/// Chunks queued for a session's worker before its tracker waits (1 s of 20 ms chunks).
 pub(crate) const CHUNK_QUEUE: usize = 50;
 /// Frames queued from the worker to the session (2 s at 60 fps).
 const FRAME_QUEUE: usize = 120;
@@ -88,7 +89,7 @@ pub(crate) struct Audio {
     format: AudioFormat,
     clock: FrameClock,
     names: Vec<&'static str>,
-    to_worker: Option<std_mpsc::SyncSender<ToWorker>>,
+    to_worker: Option<mpsc::Sender<ToWorker>>,
     spare: std_mpsc::Receiver<Vec<f32>>,
     frames: mpsc::Receiver<MouthFrame>,
     scratch: Vec<u8>,
@@ -96,8 +97,6 @@ pub(crate) struct Audio {
     /// Samples since the anchor (`None` before the first chunk).
     at: Option<u64>,
     anchor_us: i64,
-    /// True while chunks are being dropped (answered once a run).
-    dropping: bool,
 }
 
 impl std::fmt::Debug for Audio {
@@ -113,7 +112,7 @@ impl std::fmt::Debug for Audio {
 /// queue is gone). Runs on the blocking pool.
 fn work(
     fresh: LiveLipSync,
-    rx: std_mpsc::Receiver<ToWorker>,
+    mut rx: mpsc::Receiver<ToWorker>,
     spare: std_mpsc::Sender<Vec<f32>>,
     out: mpsc::Sender<MouthFrame>,
 ) {
@@ -121,7 +120,7 @@ fn work(
     let mut live = fresh.clone();
     let mut anchor_us = 0i64;
     let mut open = true;
-    while open && let Ok(m) = rx.recv() {
+    while open && let Some(m) = rx.blocking_recv() {
         let (at, buf, arrival) = match m {
             ToWorker::Restart { anchor_us: a } => {
                 anchor_us = a;
@@ -141,7 +140,7 @@ fn work(
             };
             open = open && out.blocking_send(f).is_ok();
         };
-        // Samples the session could not queue: silence, so the frame times stay true.
+        // A gap in the stream: silence, so the frame times stay true.
         while live.samples() < at {
             let n = (at - live.samples()).min(zeros.len() as u64) as usize;
             live.push(&zeros[..n], &mut emit);
@@ -154,7 +153,7 @@ fn work(
 impl Audio {
     /// Takes one chunk at `t_us` (its samples in `self.mono`): checks its time, then queues it
     /// for the worker.
-    fn accept(&mut self, s: &Session, t_us: i64, arrival: Instant, line_no: u64) {
+    async fn accept(&mut self, s: &Session, t_us: i64, arrival: Instant, line_no: u64) {
         let rate = i64::from(self.format.sample_rate);
         let ahead = self.at.map(|at| {
             let end_us = self.anchor_us.saturating_add(
@@ -185,47 +184,45 @@ impl Audio {
             }
             _ => {
                 self.anchor_us = t_us;
-                self.send(s, ToWorker::Restart { anchor_us: t_us }, line_no);
+                self.send(s, ToWorker::Restart { anchor_us: t_us }).await;
                 0
             }
         };
         let n = self.mono.len() as u64;
         let mut buf = self.spare.try_recv().unwrap_or_default();
         std::mem::swap(&mut buf, &mut self.mono);
-        self.send(s, ToWorker::Samples { at, buf, arrival }, line_no);
+        self.send(s, ToWorker::Samples { at, buf, arrival }).await;
         self.at = Some(at + n);
     }
 
-    /// Queues a message for the worker; one it has no room for is dropped and counted.
-    fn send(&mut self, s: &Session, m: ToWorker, line_no: u64) {
+    /// Queues a message for the worker, publishing its frames while its queue is full.
+    async fn send(&mut self, s: &Session, m: ToWorker) {
         let Some(tx) = &self.to_worker else { return };
-        match tx.try_send(m) {
-            Ok(()) => self.dropping = false,
-            Err(_) => {
-                s.record.udp_queue_dropped.bump();
-                if !self.dropping {
-                    self.dropping = true;
-                    let message = format!(
-                        "the speech processing is behind ({CHUNK_QUEUE} chunks queued): chunk dropped \
-                         (its time is silence); reported once a run"
-                    );
-                    s.reply(error_line(ErrorCode::AudioDropped, line_no, &message));
+        loop {
+            tokio::select! {
+                biased;
+                permit = tx.reserve() => {
+                    if let Ok(p) = permit {
+                        p.send(m);
+                    }
+                    return;
                 }
+                Some(f) = self.frames.recv() => publish(&mut self.frame, &self.names, s, f).await,
             }
         }
     }
+}
 
-    /// Sends one mouth frame out as the session's weights.
-    async fn publish(&mut self, s: &Session, f: MouthFrame) {
-        let Some(morph) = s.rig.morph.as_ref() else {
-            return;
-        };
-        let pairs = self.names.iter().copied().zip(f.weights.iter().copied());
-        morph.map.apply(pairs, &mut self.frame.weights);
-        self.frame
-            .keep(s, morph, f.t_us, Quat::IDENTITY, false, f.arrival)
-            .await;
-    }
+/// Sends one mouth frame (weights in `names`' order) out as the session's weights.
+async fn publish(frame: &mut MorphFrame, names: &[&'static str], s: &Session, f: MouthFrame) {
+    let Some(morph) = s.rig.morph.as_ref() else {
+        return;
+    };
+    let pairs = names.iter().copied().zip(f.weights.iter().copied());
+    morph.map.apply(pairs, &mut frame.weights);
+    frame
+        .keep(s, morph, f.t_us, Quat::IDENTITY, false, f.arrival)
+        .await;
 }
 
 impl Protocol for Audio {
@@ -287,7 +284,7 @@ impl Protocol for Audio {
         });
         tracing::info!(session = %s.name, id = s.id, rig = s.rig.name(), rate = format.sample_rate,
             channels = format.channels, "audio session started");
-        let (tx, rx) = std_mpsc::sync_channel(CHUNK_QUEUE);
+        let (tx, rx) = mpsc::channel(CHUNK_QUEUE);
         let (spare_tx, spare) = std_mpsc::channel();
         let (out_tx, frames) = mpsc::channel(FRAME_QUEUE);
         let to_worker = fresh.map(|fresh| {
@@ -306,7 +303,6 @@ impl Protocol for Audio {
             mono: Vec::new(),
             at: None,
             anchor_us: 0,
-            dropping: false,
         };
         (audio, welcome)
     }
@@ -319,7 +315,7 @@ impl Protocol for Audio {
     }
 
     async fn on_event(&mut self, s: &Session, f: MouthFrame) {
-        self.publish(s, f).await;
+        publish(&mut self.frame, &self.names, s, f).await;
     }
 
     async fn on_line(&mut self, s: &Session, line: TrackerLine<'_>) -> LineOutcome {
@@ -332,7 +328,7 @@ impl Protocol for Audio {
         }
         match parse_audio_chunk(line.text, self.format, &mut self.scratch, &mut self.mono) {
             Ok(t_us) => {
-                self.accept(s, t_us, line.arrival, line.number);
+                self.accept(s, t_us, line.arrival, line.number).await;
                 LineOutcome::Frame
             }
             Err(e) => LineOutcome::Malformed(e.code(), e.to_string()),
@@ -347,7 +343,7 @@ impl Protocol for Audio {
         // The worker ends once it has the last chunk's frames out; they are published.
         self.to_worker = None;
         while let Some(f) = self.frames.recv().await {
-            self.publish(s, f).await;
+            publish(&mut self.frame, &self.names, s, f).await;
         }
         self.frame.finish().await;
     }
