@@ -99,7 +99,7 @@ fn live_speech_becomes_mouth_weights_as_it_arrives_viewed_and_forwarded() {
     serve.wait_for("the viewer", |s| s["viewers_active"] == 1);
     let seen = mimic_testkit::spawn("viewer", move || read_session(&mut v));
     // The VMC receiver takes datagrams until told how many the server forwarded.
-    let (count_tx, count_rx) = std::sync::mpsc::channel::<u64>();
+    let (count_tx, count_rx) = std::sync::mpsc::sync_channel::<u64>(1);
     let forwarded = mimic_testkit::spawn("vmc", move || {
         vmc.set_read_timeout(Some(Duration::from_millis(200)))
             .unwrap();

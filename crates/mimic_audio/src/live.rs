@@ -242,7 +242,7 @@ impl LiveLipSync {
             // Sub-block j ends at sample floor((j + 1) rate / 240).
             if self.n >= (self.subs + 1) * self.rate / SUBS_PER_S {
                 self.end_sub();
-                if self.subs % SUBS_PER_FRAME == 0 {
+                if self.subs.is_multiple_of(SUBS_PER_FRAME) {
                     emit(self.subs / SUBS_PER_FRAME, &self.mouth);
                 }
             }

@@ -123,7 +123,9 @@ fn main() {
         .build()
         .expect("runtime");
     let srv = server.clone();
+    let sent = lines.clone();
     let (cpu, wall, received) = runtime.block_on(async move {
+        let lines = sent;
         let listener = TcpListener::bind("127.0.0.1:0").await.expect("bind");
         let addr = listener.local_addr().expect("addr");
         let (stop_tx, stop_rx) = tokio::sync::oneshot::channel::<()>();

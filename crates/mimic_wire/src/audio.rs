@@ -111,7 +111,7 @@ pub fn parse_audio_chunk(
         .map_err(|e| AudioChunkError::Pcm(format!("`pcm` is not base64: {e}")))?;
     let ch = usize::from(format.channels.max(1));
     let frame = 2 * ch;
-    if scratch.is_empty() || scratch.len() % frame != 0 {
+    if scratch.is_empty() || !scratch.len().is_multiple_of(frame) {
         return Err(AudioChunkError::Pcm(format!(
             "`pcm` has {} bytes: not a positive whole number of {ch}-channel 16-bit samples",
             scratch.len()

@@ -113,7 +113,7 @@ impl std::fmt::Debug for Audio {
 fn work(
     fresh: LiveLipSync,
     mut rx: mpsc::Receiver<ToWorker>,
-    spare: std_mpsc::Sender<Vec<f32>>,
+    spare: std_mpsc::SyncSender<Vec<f32>>,
     out: mpsc::Sender<MouthFrame>,
 ) {
     let zeros = [0.0f32; 480];
@@ -146,7 +146,7 @@ fn work(
             live.push(&zeros[..n], &mut emit);
         }
         live.push(&buf, &mut emit);
-        let _ = spare.send(buf);
+        let _ = spare.try_send(buf);
     }
 }
 
@@ -285,7 +285,7 @@ impl Protocol for Audio {
         tracing::info!(session = %s.name, id = s.id, rig = s.rig.name(), rate = format.sample_rate,
             channels = format.channels, "audio session started");
         let (tx, rx) = mpsc::channel(CHUNK_QUEUE);
-        let (spare_tx, spare) = std_mpsc::channel();
+        let (spare_tx, spare) = std_mpsc::sync_channel(CHUNK_QUEUE + 2);
         let (out_tx, frames) = mpsc::channel(FRAME_QUEUE);
         let to_worker = fresh.map(|fresh| {
             tokio::task::spawn_blocking(move || work(fresh, rx, spare_tx, out_tx));
