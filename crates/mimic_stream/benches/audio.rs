@@ -200,10 +200,11 @@ fn main() {
         "audio: {sessions} sessions x {audio_s:.1} s of {rate} Hz speech-like audio in 20 ms chunks, paced, on ict-face (one d-only viewer each); {wall:.1} s"
     );
     println!(
-        "  frames broadcast {} (viewers got {received}, expected {}), chunks dropped {}",
+        "  frames broadcast {} (viewers got {received}, expected {}), late {}, malformed {}",
         st.sessions.iter().map(|s| s.frames).sum::<u64>(),
         sessions as u64 * (audio_s * 60.0).floor() as u64,
-        st.sessions.iter().map(|s| s.udp_queue_dropped).sum::<u64>()
+        st.sessions.iter().map(|s| s.late).sum::<u64>(),
+        st.sessions.iter().map(|s| s.malformed).sum::<u64>()
     );
     println!(
         "  chunk arrival -> broadcast: p50 {} us, p99 {} us, max {} us",
