@@ -306,6 +306,20 @@ mod tests {
     use super::*;
 
     #[test]
+    fn audio_hello_names_its_format_and_refuses_a_bad_one() {
+        let h = parse_hello(br#"{"mode":"audio","session":"a","sample_rate":22050,"channels":2,"forward":"vmc:127.0.0.1:1"}"#)
+            .unwrap();
+        let Hello::Audio(a) = h else { panic!("{h:?}") };
+        assert_eq!(a.request.session.as_deref(), Some("a"));
+        assert_eq!((a.format.sample_rate, a.format.channels), (22050, 2));
+        assert_eq!(a.forward.as_deref(), Some("vmc:127.0.0.1:1"));
+        let e = parse_hello(br#"{"mode":"audio","sample_rate":4000}"#).unwrap_err();
+        assert!(matches!(e, HelloError::BadAudio(_)) && e.to_string().contains("sample_rate"));
+        let e = parse_hello(br#"{"mode":"audio","session":"a b","sample_rate":16000}"#);
+        assert!(matches!(e, Err(HelloError::BadSessionName(_))));
+    }
+
+    #[test]
     fn tokens_are_taken_out_of_every_hello() {
         let (h, t) =
             parse_hello_with_token(br#"{"type":"viewer","session":"a","token":"s3cret"}"#).unwrap();
