@@ -106,7 +106,9 @@ pub enum HelloError {
     #[error("`token` must be a string of at most {MAX_TOKEN_BYTES} bytes")]
     BadToken,
     /// An object that is none of the known hellos.
-    #[error("unknown hello: expected `format: mimic-recording`, `type: viewer` or `type: stats`")]
+    #[error(
+        "unknown hello: expected `format: mimic-recording`, `mode: weights`, `mode: audio`, `type: viewer` or `type: stats`"
+    )]
     Unknown,
 }
 
