@@ -105,6 +105,8 @@ fn main() {
     let settings = ServerSettings {
         max_sessions: sessions + 8,
         max_viewers: sessions + 8,
+        // Every tracker and viewer comes from 127.0.0.1.
+        max_connections_per_peer: 2 * sessions + 8,
         ..ServerSettings::default()
     };
     let server = Server::new(Arc::new(Catalog::new(entry)), settings);
