@@ -27,6 +27,7 @@ mod hostile_avatar;
 mod import;
 mod info;
 mod landmark_arkit;
+mod live_audio;
 mod livelink;
 mod look;
 mod loopback;

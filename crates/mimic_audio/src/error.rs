@@ -29,6 +29,9 @@ pub enum AudioError {
         /// Why, in words.
         reason: String,
     },
+    /// A live stream's settings are unusable (e.g. its sample rate).
+    #[error("audio stream: {0}")]
+    Stream(String),
     /// Reading the transcript or writing the output failed.
     #[error("{}: {source}", path.display())]
     Io {

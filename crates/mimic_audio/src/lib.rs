@@ -2,10 +2,12 @@
 //! the speech is ([`speech`]), its phones from pocketsphinx ([`recognise`]: a Python helper) or
 //! a transcript's phones laid along the speech ([`timeline`]), each phone's viseme from the table
 //! in `configs/visemes.toml` ([`visemes`]) and coarticulated ARKit mouth weights at 60 frames a
-//! second ([`coart`]), written as mimic's weights CSV ([`LipSync::write_csv`]). No tokio.
+//! second ([`coart`]), written as mimic's weights CSV ([`LipSync::write_csv`]); live, causal
+//! speech-to-mouth for the server's audio sessions ([`live`]). No tokio.
 
 pub mod coart;
 pub mod error;
+pub mod live;
 pub mod recognise;
 pub mod speech;
 pub mod timeline;

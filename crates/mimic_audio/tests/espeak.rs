@@ -207,20 +207,25 @@ fn measure(sentences: &[String], transcript: bool) -> Figures {
     f
 }
 
+/// The shipped sentences, or those of `MIMIC_AUDIO_SENTENCES` (a file, one a line).
+fn sentences() -> Vec<String> {
+    match std::env::var_os("MIMIC_AUDIO_SENTENCES") {
+        Some(extra) => std::fs::read_to_string(extra)
+            .unwrap()
+            .lines()
+            .filter(|l| !l.trim().is_empty())
+            .map(str::to_string)
+            .collect(),
+        None => SENTENCES.iter().map(|s| s.to_string()).collect(),
+    }
+}
+
 #[test]
 fn espeak_sentences_open_the_jaw_in_words_close_it_in_silence_and_close_the_lips_on_p_b_m() {
     if !available() {
         return;
     }
-    let mut sentences: Vec<String> = SENTENCES.iter().map(|s| s.to_string()).collect();
-    if let Some(extra) = std::env::var_os("MIMIC_AUDIO_SENTENCES") {
-        let text = std::fs::read_to_string(extra).unwrap();
-        sentences = text
-            .lines()
-            .filter(|l| !l.trim().is_empty())
-            .map(str::to_string)
-            .collect();
-    }
+    let sentences = sentences();
     for transcript in [true, false] {
         let f = measure(&sentences, transcript);
         let (open, closed, lips) = f.ratios();
@@ -241,4 +246,82 @@ fn espeak_sentences_open_the_jaw_in_words_close_it_in_silence_and_close_the_lips
             assert!(f.pressed as f64 >= 0.7 * f.bilabial_words as f64, "{f:?}");
         }
     }
+}
+
+/// The live path (`mimic_audio::live`, what `mimic serve` runs on an audio session's chunks):
+/// the same sentences fed in 20 ms chunks, as they would arrive, and the same three figures;
+/// also the delay in the stream from each word's first sample to its first frame with jawOpen
+/// >= 0.15 (the word's opening consonant included). Needs espeak-ng only.
+#[test]
+fn live_lip_sync_opens_in_words_closes_in_silence_and_follows_the_onsets_within_150_ms() {
+    let espeak = Command::new("espeak-ng").arg("--version").output().is_ok();
+    if !espeak {
+        assert!(std::env::var_os("CI").is_none(), "espeak-ng missing");
+        eprintln!("SKIPPED: espeak-ng missing (tools/test-deps.sh installs it)");
+        return;
+    }
+    let tmp = tempfile::tempdir().unwrap();
+    let table = VisemeTable::shipped().unwrap();
+    let (mut f, mut missed, mut delays) = (Figures::default(), Vec::new(), Vec::new());
+    for (i, s) in sentences().iter().enumerate() {
+        let wav = tmp.path().join(format!("s{i}.wav"));
+        let words = sentence_wav(s, tmp.path(), &wav, i % 2 == 1);
+        let mono = mimic_audio::wav::read_wav(&wav).unwrap();
+        let mut live = mimic_audio::live::LiveLipSync::new(mono.rate, &table).unwrap();
+        // Frame 0 (time 0, before any audio) is the closed mouth; frame k follows sample k/60 s.
+        let mut frames = vec![vec![0.0f32; table.names.len()]];
+        for chunk in mono.samples.chunks(mono.rate as usize / 50) {
+            live.push(chunk, |k, w| {
+                assert_eq!(k as usize, frames.len());
+                frames.push(w.to_vec());
+            });
+        }
+        let jaw = table.column("jawOpen").unwrap();
+        for w in &words {
+            let k0 = (w.start * mimic_audio::coart::FPS).ceil() as usize;
+            let t = |k: usize| k as f64 / mimic_audio::coart::FPS;
+            if let Some(k) = (k0..frames.len())
+                .take_while(|&k| t(k) < w.end)
+                .find(|&k| frames[k][jaw] >= 0.15)
+            {
+                delays.push(t(k) - w.start);
+            }
+        }
+        let sync = LipSync {
+            names: table.names.clone(),
+            frames,
+            phones: Vec::new(),
+            duration_s: mono.duration_s(),
+            speech_s: 0.0,
+            transcript: false,
+            oov: Vec::new(),
+        };
+        f.add(&sync, &words, &mut missed);
+    }
+    delays.sort_by(f64::total_cmp);
+    let q = |p: f64| delays[((delays.len() - 1) as f64 * p).round() as usize] * 1e3;
+    let (open, closed, lips) = f.ratios();
+    eprintln!(
+        "live: jaw open in {:.0}% of {} words, {:.0}% of {} silence frames closed, lips closed in \
+         {:.0}% of {} p/b/m words (pressed >= 0.3: {}; other words pressed: {} of {}); onset to \
+         jawOpen >= 0.15: median {:.0} ms, p90 {:.0} ms, max {:.0} ms; missed: {}",
+        open * 100.0,
+        f.words,
+        closed * 100.0,
+        f.silence_frames,
+        lips * 100.0,
+        f.bilabial_words,
+        f.pressed,
+        f.other_pressed,
+        f.other_words,
+        q(0.5),
+        q(0.9),
+        q(1.0),
+        missed.join(", ")
+    );
+    assert!(open >= 0.9, "jaw open in {open:.2} of words");
+    assert!(closed >= 0.9, "{closed:.2} of silence closed");
+    assert!(lips >= 0.7, "lips closed in {lips:.2} of p/b/m words");
+    // Stream time, not wall clock: the causal front end's own delay.
+    assert!(q(0.9) <= 150.0, "p90 onset delay {} ms", q(0.9));
 }

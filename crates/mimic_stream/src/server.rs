@@ -1,6 +1,7 @@
 //! The server, split by what each part holds, each module importing only those below it (no
 //! circle; `tests/module_graph.rs` checks): this facade ([`Server`]) on top; the accept loop and
-//! hello dispatch (`accept`); the protocols (`landmark`, `weights`, and the UDP tracker intakes
+//! hello dispatch (`accept`); the protocols (`landmark`, `weights`, `audio` (speech to weights
+//! on a worker each), and the UDP tracker intakes
 //! `openseeface` and `livelink` on the one loop of `intake`), with what their frames go to
 //! besides viewers (`outputs`); viewers (`viewer`, `follow` for sessions of other front doors)
 //! and the browser viewer's HTTP and WebSocket server (`http`); the session skeleton every
@@ -20,6 +21,7 @@ use tokio::net::{TcpListener, UdpSocket};
 
 mod accept;
 mod admission;
+mod audio;
 mod follow;
 mod http;
 mod hub;

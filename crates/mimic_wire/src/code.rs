@@ -49,6 +49,9 @@ pub enum ErrorCode {
     TooManyConnections,
     /// The server has a token and the hello did not present it (or presented another).
     BadToken,
+    /// An audio chunk whose `pcm` is not base64 whole samples of the session's channels, or
+    /// longer than the chunk limit.
+    BadAudio,
 }
 
 impl ErrorCode {
@@ -76,6 +79,7 @@ impl ErrorCode {
             ErrorCode::FutureTimestamp => "future_timestamp",
             ErrorCode::TooManyConnections => "too_many_connections",
             ErrorCode::BadToken => "bad_token",
+            ErrorCode::BadAudio => "bad_audio",
         }
     }
 }

@@ -1,5 +1,6 @@
 //! The first line of a TCP connection (hellos) and the frame lines of a weights tracker.
 
+use crate::audio::AudioFormat;
 use crate::code::ErrorCode;
 use mimic_types::RecordingHeader;
 use serde_json::Value;
@@ -16,6 +17,8 @@ pub enum Hello {
     },
     /// A tracker that sends named blendshape weights (`{"mode":"weights"}`), not landmarks.
     Weights(WeightsHello),
+    /// A tracker that sends speech (`{"mode":"audio"}`): PCM chunks the server lip-syncs.
+    Audio(AudioHello),
     /// A viewer joining a session.
     Viewer {
         /// Session name.
@@ -71,6 +74,17 @@ pub struct WeightsHello {
     pub forward: Option<String>,
 }
 
+/// The hello of a tracker that sends speech (`{"mode":"audio"}`, `crate::audio`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct AudioHello {
+    /// Session and rig; the rig must have morph targets.
+    pub request: SessionRequest,
+    /// The stream's sample rate and channels.
+    pub format: AudioFormat,
+    /// Where the session's frames should also be forwarded, as for a weights session.
+    pub forward: Option<String>,
+}
+
 /// Why a first line is not a valid hello.
 #[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
 pub enum HelloError {
@@ -85,11 +99,16 @@ pub enum HelloError {
     /// A session name that is empty, too long or has odd characters.
     #[error("bad session name `{0}`: 1 to 64 characters of A-Z a-z 0-9 _ . -")]
     BadSessionName(String),
+    /// An audio hello whose stream format is refused.
+    #[error("bad audio hello: {0}")]
+    BadAudio(String),
     /// A `token` that is not a string, or longer than [`MAX_TOKEN_BYTES`].
     #[error("`token` must be a string of at most {MAX_TOKEN_BYTES} bytes")]
     BadToken,
     /// An object that is none of the known hellos.
-    #[error("unknown hello: expected `format: mimic-recording`, `type: viewer` or `type: stats`")]
+    #[error(
+        "unknown hello: expected `format: mimic-recording`, `mode: weights`, `mode: audio`, `type: viewer` or `type: stats`"
+    )]
     Unknown,
 }
 
@@ -182,6 +201,14 @@ fn parse_hello_value(v: Value) -> Result<Hello, HelloError> {
             forward: text("forward"),
         }));
     }
+    if obj.get("mode").and_then(Value::as_str) == Some("audio") {
+        let text = |k: &str| obj.get(k).and_then(Value::as_str).map(str::to_string);
+        return Ok(Hello::Audio(AudioHello {
+            request: SessionRequest::read(text)?,
+            format: AudioFormat::read(obj).map_err(HelloError::BadAudio)?,
+            forward: text("forward"),
+        }));
+    }
     match obj.get("type").and_then(Value::as_str) {
         Some("viewer") => {
             let session = obj
@@ -268,7 +295,7 @@ pub fn parse_weight_frame(line: &[u8]) -> Result<WeightFrame, WeightFrameError> 
     })
 }
 
-fn trim_end(b: &[u8]) -> &[u8] {
+pub(crate) fn trim_end(b: &[u8]) -> &[u8] {
     let mut end = b.len();
     while end > 0 && matches!(b[end - 1], b'\n' | b'\r') {
         end -= 1;
@@ -279,6 +306,20 @@ fn trim_end(b: &[u8]) -> &[u8] {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn audio_hello_names_its_format_and_refuses_a_bad_one() {
+        let h = parse_hello(br#"{"mode":"audio","session":"a","sample_rate":22050,"channels":2,"forward":"vmc:127.0.0.1:1"}"#)
+            .unwrap();
+        let Hello::Audio(a) = h else { panic!("{h:?}") };
+        assert_eq!(a.request.session.as_deref(), Some("a"));
+        assert_eq!((a.format.sample_rate, a.format.channels), (22050, 2));
+        assert_eq!(a.forward.as_deref(), Some("vmc:127.0.0.1:1"));
+        let e = parse_hello(br#"{"mode":"audio","sample_rate":4000}"#).unwrap_err();
+        assert!(matches!(e, HelloError::BadAudio(_)) && e.to_string().contains("sample_rate"));
+        let e = parse_hello(br#"{"mode":"audio","session":"a b","sample_rate":16000}"#);
+        assert!(matches!(e, Err(HelloError::BadSessionName(_))));
+    }
 
     #[test]
     fn tokens_are_taken_out_of_every_hello() {

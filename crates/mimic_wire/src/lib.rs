@@ -7,6 +7,7 @@
 //! a viewer ([`decode_viewer_message`]) or a fuzz target decodes frames without the server.
 //! Depends on no workspace crate but mimic_types (`RecordingHeader`, `FrameStatus`, `FrameView`).
 
+mod audio;
 mod bytes;
 mod code;
 mod hello;
@@ -14,10 +15,14 @@ mod text;
 mod udp;
 mod viewer;
 
+pub use audio::{
+    AUDIO_RATES, AudioChunkError, AudioFormat, MAX_AUDIO_CHANNELS, MAX_CHUNK_MS,
+    encode_audio_chunk, parse_audio_chunk,
+};
 pub use bytes::DecodeError;
 pub use code::{ErrorCode, error_line, warning_line};
 pub use hello::{
-    Hello, HelloError, MAX_TOKEN_BYTES, SessionRequest, WeightFrame, WeightFrameError,
+    AudioHello, Hello, HelloError, MAX_TOKEN_BYTES, SessionRequest, WeightFrame, WeightFrameError,
     WeightsHello, parse_hello, parse_hello_with_token, parse_weight_frame, valid_session_name,
 };
 pub use text::{escape_untrusted, plain_lines};

@@ -4,7 +4,7 @@
 
 use anyhow::Context;
 use mimic_stream::send::{
-    DEFAULT_SUBJECT, SendOptions, TakeSender, TcpSent, recording_bye, send_openseeface,
+    DEFAULT_SUBJECT, SendOptions, TakeSender, TcpSent, recording_bye, send_audio, send_openseeface,
     send_recording, send_take_udp, send_weights, weights_bye,
 };
 use mimic_types::parse::parse_factor;
@@ -15,8 +15,11 @@ use std::path::PathBuf;
 #[derive(clap::Args, Debug)]
 pub struct Args {
     /// Recording (v1 JSON Lines) to send.
-    #[arg(required_unless_present = "weights", conflicts_with = "weights")]
+    #[arg(required_unless_present_any = ["weights", "audio"], conflicts_with_all = ["weights", "audio"])]
     pub recording: Option<PathBuf>,
+    /// Send speech (a WAV) as an audio session: paced 20 ms chunks the server lip-syncs live.
+    #[arg(long, conflicts_with_all = ["weights", "openseeface"])]
+    pub audio: Option<PathBuf>,
     /// Send named weights instead, as a weights session: a CSV with a header of names (e.g.
     /// `replay --mode blendshapes --weights` output or an ARKit export); a `t_us` column gives
     /// the times, else frames are `1/--rate` apart. `frame`, `status`, `label`, `timecode` and
@@ -76,13 +79,7 @@ pub const EXIT_SERVER_ENDED: u8 = 3;
 
 /// Runs `mimic send`.
 pub fn run(args: Args) -> anyhow::Result<()> {
-    // Socket writes after the server closed must come back as errors (to report its `bye`),
-    // not kill the process: main restores SIGPIPE's default for stdout pipes.
-    #[cfg(unix)]
-    // SAFETY: setting a signal disposition before this command starts any thread.
-    unsafe {
-        libc::signal(libc::SIGPIPE, libc::SIG_IGN);
-    }
+    mimic_stream::send::ignore_sigpipe();
     let o = SendOptions {
         to: args.to.clone(),
         session: args.session.clone(),
@@ -96,6 +93,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         max_frames: args.max_frames,
         on_reply: |line| eprintln!("server: {line}"),
     };
+    if let Some(wav) = &args.audio {
+        return report(send_audio(wav, &o)?, "audio chunks", &o.to, weights_bye);
+    }
     match &args.weights {
         None => recording(&args, &o),
         Some(csv) if !mimic_trackers::take::is_take_file(csv)? => {

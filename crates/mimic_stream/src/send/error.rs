@@ -98,6 +98,12 @@ pub enum SendError {
     /// A CSV that cannot be read.
     #[error(transparent)]
     Csv(#[from] mimic_capture::named_csv::CsvError),
+    /// A WAV that cannot be read.
+    #[error(transparent)]
+    Audio(#[from] mimic_audio::AudioError),
+    /// An audio chunk could not be written to the server.
+    #[error("sending an audio chunk")]
+    AudioChunk(#[source] std::io::Error),
     /// A take or name map that cannot be read.
     #[error(transparent)]
     Tracker(#[from] mimic_trackers::TrackerError),

@@ -1,5 +1,5 @@
 //! What a send asks of the server and how it paces its frames ([`SendOptions`]), and the hello
-//! of a weights session built from them.
+//! of a weights (or audio) session built from them.
 
 use crate::forward::ForwardTarget;
 use serde_json::Value;
@@ -35,7 +35,12 @@ pub struct SendOptions {
 /// A weights session's hello: mode, source and rate, with the options' session, rig, forward
 /// and token.
 pub(super) fn weights_hello(o: &SendOptions, source: String, rate_hz: f64) -> Value {
-    let mut hello = serde_json::json!({"mode": "weights", "source": source, "rate_hz": rate_hz});
+    let hello = serde_json::json!({"mode": "weights", "source": source, "rate_hz": rate_hz});
+    with_request(o, hello)
+}
+
+/// `hello` with the options' session, rig, forward and token.
+pub(super) fn with_request(o: &SendOptions, mut hello: Value) -> Value {
     let extra = [
         ("session", o.session.clone()),
         ("rig", o.rig.clone()),

@@ -2,6 +2,7 @@
 //! a tracker session (of one of the protocols), a viewer, or a stats request.
 
 use super::admission::{Refusal, refuse, token_ok, write_and_close};
+use super::audio::{Audio, AudioSession};
 use super::intake;
 use super::landmark::{Landmark, LandmarkHello};
 use super::livelink::LiveLink;
@@ -212,6 +213,10 @@ async fn connection(
         Ok(Hello::Weights(hello)) => {
             let hello = WeightsSession::new(hello, peer);
             session::run::<Weights>(shared, lines, w, hello, stop).await;
+        }
+        Ok(Hello::Audio(hello)) => {
+            let hello = AudioSession::new(hello, peer);
+            session::run::<Audio>(shared, lines, w, hello, stop).await;
         }
     }
 }
