@@ -17,6 +17,7 @@ use glam::Vec3;
 use mimic_rig::lipcut::{Mouth, cut_closed_mouth, mouth_closed};
 use mimic_rig::new::landmark_frame;
 use mimic_rig::{FindSettings, NewRig, TemplateHead, find_landmarks, make_rig_file};
+use std::collections::HashSet;
 use std::path::PathBuf;
 
 fn configs() -> PathBuf {
@@ -261,4 +262,80 @@ fn rig_new_cuts_a_closed_mouth_and_jaw_open_opens_it() {
         println!("{name}: {flipped} triangles near the mouth turned over");
         assert_eq!(flipped, 0, "{name}");
     }
+}
+
+#[test]
+fn a_textured_scan_keeps_its_materials_on_the_cut_mesh() {
+    let dir = tempfile::tempdir().unwrap();
+    let scan = closed_lip_scan(&configs(), 3, 0.3);
+    // The scan as a photogrammetry tool writes it: one textured material over every face.
+    std::fs::write(dir.path().join("scan.png"), b"not read here").unwrap();
+    std::fs::write(
+        dir.path().join("scan.mtl"),
+        "newmtl scan_skin\nKd 0.8 0.7 0.6\nmap_Kd scan.png\n",
+    )
+    .unwrap();
+    let obj = dir.path().join("scan.obj");
+    let names = ["scan_skin".to_string()];
+    let every = vec![Some(0); scan.mesh.triangles.len()];
+    let mut text = Vec::new();
+    mimic_assets::write_obj_with(
+        &mut text,
+        "scan",
+        &scan.mesh.positions,
+        &scan.mesh.triangles,
+        &mimic_assets::ObjExtras {
+            mtllib: Some("scan.mtl"),
+            materials: &names,
+            triangle_material: &every,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    std::fs::write(&obj, text).unwrap();
+    // The rig elsewhere: the cut mesh is written beside it, not beside the scan.
+    std::fs::create_dir(dir.path().join("rigs")).unwrap();
+    let out = dir.path().join("rigs/scan.toml");
+    let configs = configs();
+    let job = NewRig {
+        mesh: &obj,
+        face: None,
+        output: &out,
+        landmarks: None,
+        keep_missing: false,
+        landmarks_out: None,
+        units: None,
+        name: None,
+        controls: "mpeg4",
+        overrides: &[],
+        defaults: mimic_rig::Defaults::default(),
+        configs: &configs,
+        command_line: String::new(),
+        blendshapes: None,
+        cut: true,
+    };
+    make_rig_file(&job, &mut |_| {}).unwrap();
+    let looks = mimic_assets::load_rig_materials(&out).unwrap();
+    let own = looks.find("scan_skin").expect("the scan's material");
+    let texture = looks.materials[own].texture.clone().unwrap();
+    assert_eq!(
+        std::fs::canonicalize(texture).unwrap(),
+        std::fs::canonicalize(dir.path().join("scan.png")).unwrap()
+    );
+    let skin = scan.mesh.triangles.len();
+    assert!(looks.triangle_material.len() > skin, "the inside was added");
+    assert!(
+        looks.triangle_material[..skin]
+            .iter()
+            .all(|m| *m == Some(own))
+    );
+    let inside: HashSet<&str> = looks.triangle_material[skin..]
+        .iter()
+        .map(|m| looks.materials[m.unwrap()].name.as_str())
+        .collect();
+    assert_eq!(
+        inside,
+        HashSet::from(["mouth_socket", "gums_tongue", "teeth"]),
+        "{inside:?}"
+    );
 }

@@ -101,7 +101,15 @@ pub(super) fn cut_lips(
     ));
     let skin = (cut.mesh.vertex_count(), cut.mesh.triangles.len());
     let mut whole = cut.mesh;
-    let mut material = vec![None; whole.triangles.len()];
+    // The skin keeps the source's own materials (the cut keeps every triangle in its place);
+    // the inside's come after them.
+    let source = source_materials(job)?;
+    let own = source.materials.len();
+    let mut material = if source.triangle_material.len() == whole.triangles.len() {
+        source.triangle_material
+    } else {
+        vec![None; whole.triangles.len()]
+    };
     let inside = match reg.as_ref() {
         Some(r) => {
             let template = crate::TemplateHead::ict(job.configs)
@@ -112,7 +120,7 @@ pub(super) fn cut_lips(
             whole
                 .triangles
                 .extend(inside.triangles.iter().map(|t| t.map(|v| v + base)));
-            material.extend(inside.material.iter().map(|m| Some(*m)));
+            material.extend(inside.material.iter().map(|m| Some(own + *m)));
             if !whole.uvs.is_empty() {
                 // The inside has no texture: its corners at one point of the map.
                 let at = whole.uvs.len() as u32;
@@ -132,19 +140,48 @@ pub(super) fn cut_lips(
         }
     };
     let file = cut_mesh_path(job.output);
-    write_cut_mesh(job, &file, &whole, &material, n)?;
+    write_cut_mesh(job, &file, &whole, &material, &source.materials, n)?;
     note(format!("wrote {}, the rig's mesh", file.display()));
     *mesh = whole;
     *marks = cut.landmarks;
     Ok(Some(CutLips { file, skin, inside }))
 }
 
-/// Writes the cut mesh (OBJ) and, for the mouth's inside, its materials (MTL) beside it.
+/// The source OBJ's own materials and each triangle's, textures named by absolute paths (the cut
+/// mesh is written elsewhere); none for another format or an OBJ without `mtllib`.
+fn source_materials(job: &NewRig<'_>) -> Result<mimic_assets::MeshMaterials, RigNewError> {
+    let is_obj = job
+        .mesh
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+    if !is_obj {
+        return Ok(Default::default());
+    }
+    let text = mimic_types::limits::read_capped(job.mesh, &mimic_types::limits::OBJ_FILE).map_err(
+        |cause| RigNewError::Read {
+            path: job.mesh.to_path_buf(),
+            cause,
+        },
+    )?;
+    let mut own = mimic_assets::parse_obj_materials(job.mesh, &text)?;
+    for m in &mut own.materials {
+        if let Some(t) = m.texture.as_mut()
+            && let Ok(full) = std::fs::canonicalize(&*t)
+        {
+            *t = full;
+        }
+    }
+    Ok(own)
+}
+
+/// Writes the cut mesh (OBJ) and its materials (MTL) beside it: the source's own (`own`), then
+/// the mouth's inside.
 fn write_cut_mesh(
     job: &NewRig<'_>,
     file: &Path,
     mesh: &Mesh,
     material: &[Option<usize>],
+    own: &[mimic_assets::Material],
     uncut: usize,
 ) -> Result<(), RigNewError> {
     let header = format!(
@@ -157,7 +194,17 @@ fn write_cut_mesh(
         .file_name()
         .map(|n| n.to_string_lossy().into_owned())
         .unwrap_or_default();
-    let names: Vec<String> = MATERIALS.iter().map(|(n, _)| n.to_string()).collect();
+    let materials: Vec<mimic_assets::Material> = own
+        .iter()
+        .cloned()
+        .chain(MATERIALS.iter().map(|(name, kd)| mimic_assets::Material {
+            name: name.to_string(),
+            diffuse: *kd,
+            transparent: false,
+            texture: None,
+        }))
+        .collect();
+    let names: Vec<String> = materials.iter().map(|m| m.name.clone()).collect();
     let has_inside = material.iter().any(Option::is_some);
     let mut text = Vec::new();
     let fail = |path: &Path| {
@@ -181,19 +228,14 @@ fn write_cut_mesh(
     .map_err(fail(file))?;
     write_file(file, &text)?;
     if has_inside {
-        let materials: Vec<mimic_assets::Material> = MATERIALS
-            .iter()
-            .map(|(name, kd)| mimic_assets::Material {
-                name: name.to_string(),
-                diffuse: *kd,
-                transparent: false,
-                texture: None,
-            })
-            .collect();
         let mut text = Vec::new();
         mimic_assets::write_mtl(
             &mut text,
-            "The inside of the mouth added by `mimic rig new` (the skin has no material: the renderer's skin colour).",
+            &format!(
+                "{} materials of {} (textures by absolute path), then the inside of the mouth added by `mimic rig new`.",
+                own.len(),
+                job.mesh.display()
+            ),
             &materials,
         )
         .map_err(fail(&mtl))?;
