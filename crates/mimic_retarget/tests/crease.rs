@@ -8,30 +8,13 @@
     reason = "a test: a failed unwrap is the failure report"
 )]
 
+mod common;
+
+use common::{recording, root};
 use glam::Vec3;
 use mimic_retarget::quality::crease::CreaseMeasure;
 use mimic_retarget::{FrameStatus, RetargetSettings, Retargeter};
 use mimic_solve::build_basis;
-use mimic_types::{LandmarkFrame, Layout};
-use std::path::PathBuf;
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn recording(name: &str) -> (Layout, Vec<LandmarkFrame>) {
-    let reader =
-        mimic_capture::RecordingReader::open(&root().join("recordings").join(name), None).unwrap();
-    let path = root().join(format!("configs/layouts/{}.toml", reader.header().layout));
-    let layout = mimic_assets::load_layout(&path).unwrap();
-    let frames = reader
-        .read_all()
-        .frames
-        .into_iter()
-        .map(|f| f.frame)
-        .collect();
-    (layout, frames)
-}
 
 #[test]
 fn ict_shapes_bound_the_brows_and_the_shelved_and_crumpled_frames_go_over() {

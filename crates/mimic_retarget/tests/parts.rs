@@ -6,47 +6,14 @@
     reason = "a test: a failed unwrap is the failure report"
 )]
 
-use std::path::PathBuf;
-use std::sync::OnceLock;
+mod common;
 
+use common::{ict, layout, recording, root};
 use glam::{Affine3A, EulerRot, Quat, Vec3};
 use mimic_retarget::{RetargetSettings, Retargeter};
-use mimic_solve::{Basis, build_basis};
-use mimic_types::{LandmarkFrame, Layout, Rig};
+use mimic_types::{LandmarkFrame, Rig};
 
 const DEG: f32 = std::f32::consts::PI / 180.0;
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn layout(name: &str) -> Layout {
-    mimic_assets::load_layout(&root().join(format!("configs/layouts/{name}.toml"))).unwrap()
-}
-
-/// A shipped recording's layout and frames.
-fn recording(name: &str) -> (Layout, Vec<LandmarkFrame>) {
-    let reader =
-        mimic_capture::RecordingReader::open(&root().join("recordings").join(name), None).unwrap();
-    let layout = layout(&reader.header().layout);
-    let frames = reader
-        .read_all()
-        .frames
-        .into_iter()
-        .map(|f| f.frame)
-        .collect();
-    (layout, frames)
-}
-
-/// The shipped ICT rig and its basis, built once.
-fn ict() -> &'static (Rig, Basis) {
-    static ICT: OnceLock<(Rig, Basis)> = OnceLock::new();
-    ICT.get_or_init(|| {
-        let rig = mimic_assets::load_rig(&root().join("configs/rigs/ict-face.toml")).unwrap();
-        let basis = build_basis(&rig, &rig.solver).unwrap();
-        (rig, basis)
-    })
-}
 
 /// Every vertex of inclusive `ranges`.
 fn vertices(ranges: &[[u32; 2]]) -> Vec<usize> {

@@ -8,35 +8,14 @@
     reason = "a test: a failed unwrap is the failure report"
 )]
 
+mod common;
+
+use common::{ict, layout, recording, root};
 use glam::Vec3;
 use mimic_retarget::{FrameStatus, RetargetSettings, Retargeter};
+use mimic_solve::Basis;
 use mimic_solve::morph_fit::{MorphFit, MorphScratch};
-use mimic_solve::{Basis, build_basis};
 use mimic_types::{LandmarkFrame, Layout, Region, Rig};
-use std::path::PathBuf;
-use std::sync::{Arc, OnceLock};
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn layout(name: &str) -> Layout {
-    mimic_assets::load_layout(&root().join(format!("configs/layouts/{name}.toml"))).unwrap()
-}
-
-fn recording(name: &str) -> (Layout, Vec<LandmarkFrame>) {
-    let reader =
-        mimic_capture::RecordingReader::open(&root().join("recordings").join(name), None).unwrap();
-    let l = layout(&reader.header().layout);
-    let frames = reader
-        .read_all()
-        .frames
-        .into_iter()
-        .map(|f| f.frame)
-        .collect();
-    (l, frames)
-}
-
 /// A shipped GFE capture imported as `mimic import gfe` does without `--fit` (depths repaired).
 fn gfe(name: &str) -> (Layout, Vec<LandmarkFrame>) {
     let path = root().join(format!(
@@ -48,16 +27,6 @@ fn gfe(name: &str) -> (Layout, Vec<LandmarkFrame>) {
     let frames = i.imported.frames.into_iter().map(|f| f.frame).collect();
     (layout(imp.layout()), frames)
 }
-
-fn ict() -> &'static (Rig, Arc<Basis>) {
-    static ICT: OnceLock<(Rig, Arc<Basis>)> = OnceLock::new();
-    ICT.get_or_init(|| {
-        let rig = mimic_assets::load_rig(&root().join("configs/rigs/ict-face.toml")).unwrap();
-        let basis = Arc::new(build_basis(&rig, &rig.solver).unwrap());
-        (rig, basis)
-    })
-}
-
 struct Probe {
     lower_teeth_front: f32,
     lip: usize,

@@ -14,32 +14,14 @@
     reason = "a test: a failed unwrap is the failure report"
 )]
 
-use std::path::PathBuf;
-use std::sync::{Arc, OnceLock};
+mod common;
+
+use common::{ict, layout, root};
+use std::sync::OnceLock;
 
 use glam::Vec3;
 use mimic_retarget::{FrameStatus, Neutral, Provisional, RetargetSettings, Retargeter};
-use mimic_solve::{Basis, build_basis};
-use mimic_types::{LandmarkFrame, Layout, Rig};
-
-fn root() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../..")
-}
-
-fn layout(name: &str) -> Layout {
-    mimic_assets::load_layout(&root().join(format!("configs/layouts/{name}.toml"))).unwrap()
-}
-
-/// The shipped ICT rig and its basis, built once.
-fn ict() -> &'static (Rig, Arc<Basis>) {
-    static ICT: OnceLock<(Rig, Arc<Basis>)> = OnceLock::new();
-    ICT.get_or_init(|| {
-        let rig = mimic_assets::load_rig(&root().join("configs/rigs/ict-face.toml")).unwrap();
-        let basis = Arc::new(build_basis(&rig, &rig.solver).unwrap());
-        (rig, basis)
-    })
-}
-
+use mimic_types::{LandmarkFrame, Layout};
 fn frames(name: &str, layout: &Layout) -> Vec<LandmarkFrame> {
     let path = root().join("recordings").join(name);
     let reader = mimic_capture::RecordingReader::open(&path, Some(layout.point_count)).unwrap();
