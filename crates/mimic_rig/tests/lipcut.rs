@@ -18,7 +18,7 @@ use mimic_rig::lipcut::{Mouth, cut_closed_mouth, mouth_closed};
 use mimic_rig::new::landmark_frame;
 use mimic_rig::{FindSettings, NewRig, TemplateHead, find_landmarks, make_rig_file};
 use std::collections::HashSet;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 fn configs() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../configs")
@@ -88,6 +88,32 @@ fn a_closed_mouth_is_found_and_cut_along_the_zipped_lip_line_and_icts_own_is_ope
     assert!((cut.landmarks.get(62).unwrap() as usize) < n);
 }
 
+/// `rig new` on `obj` into `out` as a user runs it, with the shapes `blendshapes` asks for.
+fn scan_job<'a>(
+    obj: &'a Path,
+    out: &'a Path,
+    configs: &'a Path,
+    blendshapes: Option<&'a str>,
+) -> NewRig<'a> {
+    NewRig {
+        mesh: obj,
+        face: None,
+        output: out,
+        landmarks: None,
+        keep_missing: false,
+        landmarks_out: None,
+        units: None,
+        name: None,
+        controls: "mpeg4",
+        overrides: &[],
+        defaults: mimic_rig::Defaults::default(),
+        configs,
+        command_line: String::new(),
+        blendshapes,
+        cut: true,
+    }
+}
+
 /// Per cut vertex and its copy: `|d[copy] - d[vertex]|`, the largest, in IOD.
 fn opening(path: &[u32], lower: &[u32], d: &[Vec3], iod: f32) -> f32 {
     path.iter()
@@ -114,23 +140,7 @@ fn rig_new_cuts_a_closed_mouth_and_jaw_open_opens_it() {
     std::fs::write(&obj, text).unwrap();
     let out = dir.path().join("scan.toml");
     let configs = configs();
-    let job = NewRig {
-        mesh: &obj,
-        face: None,
-        output: &out,
-        landmarks: None,
-        keep_missing: false,
-        landmarks_out: None,
-        units: None,
-        name: None,
-        controls: "mpeg4",
-        overrides: &[],
-        defaults: mimic_rig::Defaults::default(),
-        configs: &configs,
-        command_line: String::new(),
-        blendshapes: Some("arkit"),
-        cut: true,
-    };
+    let job = scan_job(&obj, &out, &configs, Some("arkit"));
     let mut lines = Vec::new();
     let made = make_rig_file(&job, &mut |l| lines.push(l)).unwrap();
     println!("{}", lines.join("\n"));
@@ -297,23 +307,7 @@ fn a_textured_scan_keeps_its_materials_on_the_cut_mesh() {
     std::fs::create_dir(dir.path().join("rigs")).unwrap();
     let out = dir.path().join("rigs/scan.toml");
     let configs = configs();
-    let job = NewRig {
-        mesh: &obj,
-        face: None,
-        output: &out,
-        landmarks: None,
-        keep_missing: false,
-        landmarks_out: None,
-        units: None,
-        name: None,
-        controls: "mpeg4",
-        overrides: &[],
-        defaults: mimic_rig::Defaults::default(),
-        configs: &configs,
-        command_line: String::new(),
-        blendshapes: None,
-        cut: true,
-    };
+    let job = scan_job(&obj, &out, &configs, None);
     make_rig_file(&job, &mut |_| {}).unwrap();
     let looks = mimic_assets::load_rig_materials(&out).unwrap();
     let own = looks.find("scan_skin").expect("the scan's material");
